@@ -1,0 +1,17 @@
+# Source this file (". env.sh") to use prvo by hand: it activates .venv/ and puts the venv on
+# AMENT_PREFIX_PATH so that ament_index_python (and 'ros2 run', where installed) find the
+# prvo packages and their executables under .venv/lib/<package>/.
+_prvo_root=$(cd "$(dirname "${BASH_SOURCE[0]:-$0}")" && pwd)
+if [ ! -f "$_prvo_root/.venv/.prvo-setup-stamp" ]; then
+  echo "env.sh: prvo is not set up yet: run '$_prvo_root/run.sh setup' first, then source this again" >&2
+  unset _prvo_root
+  return 1 2>/dev/null || exit 1
+fi
+# shellcheck source=/dev/null
+VIRTUAL_ENV_DISABLE_PROMPT=${VIRTUAL_ENV_DISABLE_PROMPT:-} . "$_prvo_root/.venv/bin/activate"
+case ":${AMENT_PREFIX_PATH:-}:" in
+  *":$_prvo_root/.venv:"*) ;;
+  *) export AMENT_PREFIX_PATH="$_prvo_root/.venv${AMENT_PREFIX_PATH:+:$AMENT_PREFIX_PATH}" ;;
+esac
+export RMW_IMPLEMENTATION=${RMW_IMPLEMENTATION:-rmw_fastrtps_cpp}
+unset _prvo_root

@@ -1,0 +1,25 @@
+"""Install prvo_msgs_util, an ament_python package."""
+
+from setuptools import find_packages, setup
+
+package_name = 'prvo_msgs_util'
+
+setup(
+    name=package_name,
+    version='0.1.0',
+    packages=find_packages(exclude=['test']),
+    data_files=[
+        ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
+        ('share/' + package_name, ['package.xml']),
+    ],
+    install_requires=['setuptools'],
+    zip_safe=True,
+    maintainer='prvo maintainers',
+    maintainer_email='maintainers@prvo.dev',
+    description='The one place where ROS 2 messages become numpy arrays and back, for PRVO.',
+    license='Apache-2.0',
+    entry_points={
+        'console_scripts': [
+        ],
+    },
+)

@@ -1,0 +1,1 @@
+"""PRVO planner: a per-robot ROS 2 node around a numpy core."""

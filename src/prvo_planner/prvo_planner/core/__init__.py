@@ -1,0 +1,1 @@
+"""Numerical core of PRVO: plain numpy, no ROS imports."""

@@ -1,0 +1,1 @@
+"""Noisy kinematic multi-robot simulator and scenario runner for PRVO."""
