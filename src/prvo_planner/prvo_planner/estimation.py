@@ -1,0 +1,110 @@
+"""Constant-velocity tracking of a robot's planar state with filterpy (prvo-math.md section 8).
+
+Plain numpy and filterpy, no ROS: the planner node feeds it measurements converted by
+prvo_msgs_util and asks it for beliefs predicted to the planning time.
+"""
+
+from dataclasses import dataclass
+
+from filterpy.common import Q_discrete_white_noise
+from filterpy.kalman import KalmanFilter, predict
+import numpy as np
+
+# Measurement covariances are floored so that an exact (zero-variance) odometry source does not
+# make the innovation covariance singular.
+_MEASUREMENT_VARIANCE_FLOOR = 1e-8
+
+
+def _transition(dt):
+    """Return F (4, 4) of the constant-velocity model over `dt` seconds, state [x, y, vx, vy]."""
+    transition = np.eye(4)
+    transition[0, 2] = transition[1, 3] = dt
+    return transition
+
+
+def _process_noise(dt, acceleration_std):
+    """Return Q (4, 4): white-noise acceleration of std `acceleration_std` over `dt` seconds."""
+    return Q_discrete_white_noise(
+        dim=2, dt=dt, var=acceleration_std ** 2, block_size=2, order_by_dim=False)
+
+
+@dataclass(frozen=True)
+class StateBelief:
+    """Gaussian belief over [x, y, vx, vy] at time `stamp`: `mean` (4,), `covariance` (4, 4)."""
+
+    stamp: float
+    mean: np.ndarray
+    covariance: np.ndarray
+
+
+class ConstantVelocityTracker:
+    """A `filterpy.kalman.KalmanFilter` over [x, y, vx, vy] fed full-state measurements.
+
+    Parameters
+    ----------
+    acceleration_std : float
+        Standard deviation of the white-noise acceleration [m/s^2] that lets the velocity
+        change between measurements; it also makes a stale track's covariance grow.
+
+    """
+
+    def __init__(self, acceleration_std):
+        if not acceleration_std > 0.0:
+            raise ValueError(f'acceleration_std must be > 0, got {acceleration_std!r}')
+        self.acceleration_std = float(acceleration_std)
+        self._filter = None
+        self._stamp = None
+
+    @property
+    def stamp(self):
+        """Time of the last accepted measurement [s], or None before the first."""
+        return self._stamp
+
+    def update(self, stamp, position, velocity, covariance):
+        """Fuse a measurement taken at `stamp` [s].
+
+        Parameters
+        ----------
+        stamp : float
+            Measurement time; must be later than the last accepted one.
+        position, velocity : array_like, shape (2,)
+            Measured mean position [m] and velocity [m/s] in the world frame.
+        covariance : array_like, shape (4, 4)
+            Measurement covariance over [x, y, vx, vy].
+
+        Raises
+        ------
+        ValueError
+            If `stamp` is not later than the last accepted measurement.
+
+        """
+        measurement = np.concatenate([position, velocity]).astype(float)
+        noise = np.asarray(covariance, dtype=float) + _MEASUREMENT_VARIANCE_FLOOR * np.eye(4)
+        if self._filter is None:
+            self._filter = KalmanFilter(dim_x=4, dim_z=4)
+            self._filter.H = np.eye(4)
+            self._filter.x = measurement.copy()
+            self._filter.P = noise.copy()
+            self._stamp = float(stamp)
+            return
+        dt = float(stamp) - self._stamp
+        if not dt > 0.0:
+            raise ValueError(
+                f'stamp {stamp:.3f} s is not after the last measurement {self._stamp:.3f} s')
+        self._filter.predict(F=_transition(dt), Q=_process_noise(dt, self.acceleration_std))
+        self._filter.update(measurement, R=noise)
+        self._stamp = float(stamp)
+
+    def belief_at(self, stamp):
+        """Return the `StateBelief` predicted to `stamp` [s] without changing the filter.
+
+        A `stamp` at or before the last measurement returns the filtered state as it is.
+        """
+        if self._filter is None:
+            raise RuntimeError('belief_at() before any measurement')
+        dt = float(stamp) - self._stamp
+        if dt <= 0.0:
+            return StateBelief(self._stamp, self._filter.x.copy(), self._filter.P.copy())
+        mean, covariance = predict(self._filter.x, self._filter.P, F=_transition(dt),
+                                   Q=_process_noise(dt, self.acceleration_std))
+        return StateBelief(float(stamp), mean, 0.5 * (covariance + covariance.T))

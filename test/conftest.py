@@ -1,0 +1,237 @@
+"""Shared fixtures: private ROS domains, child processes and an rclpy probe node.
+
+Integration tests start real processes on a ROS_DOMAIN_ID of their own (so tests and developers
+on one machine never see each other's topics), observe them through a probe node spinning in a
+background thread, and wait on events with timeouts, never on fixed sleeps.
+"""
+
+import fcntl
+import os
+import pathlib
+import signal
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+
+import pytest
+
+# Domain ids 0-101 are safe on Linux for the default port mapping; 0 is everyone's default.
+_DOMAIN_IDS = range(30, 100)
+_LOCK_DIR = pathlib.Path(tempfile.gettempdir()) / 'prvo-ros-domains'
+
+os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
+
+
+@pytest.fixture
+def ros_domain():
+    """Claim a ROS_DOMAIN_ID no other test process on this machine holds; release it after."""
+    _LOCK_DIR.mkdir(exist_ok=True)
+    for domain_id in _DOMAIN_IDS:
+        lock_file = open(_LOCK_DIR / f'{domain_id}.lock', 'w')
+        try:
+            fcntl.flock(lock_file, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
+            lock_file.close()
+            continue
+        try:
+            yield domain_id
+        finally:
+            fcntl.flock(lock_file, fcntl.LOCK_UN)
+            lock_file.close()
+        return
+    pytest.fail(f'no free ROS_DOMAIN_ID in {_DOMAIN_IDS}')
+
+
+@pytest.fixture
+def ros_env(ros_domain):
+    """Environment for child processes: the private domain, localhost discovery, no buffering."""
+    env = dict(os.environ)
+    env['ROS_DOMAIN_ID'] = str(ros_domain)
+    env['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
+    env['PYTHONUNBUFFERED'] = '1'
+    env['RCUTILS_LOGGING_BUFFERED_STREAM'] = '0'
+    return env
+
+
+def executable(package, name):
+    """Return the path 'ros2 run PACKAGE NAME' would execute: <prefix>/lib/<package>/<name>."""
+    from ament_index_python.packages import get_package_prefix
+
+    path = pathlib.Path(get_package_prefix(package)) / 'lib' / package / name
+    if not os.access(path, os.X_OK):
+        raise FileNotFoundError(f'{path} is not an executable file')
+    return str(path)
+
+
+def session_processes(session_id):
+    """Return the pids of every live process in session SESSION_ID (read from /proc)."""
+    pids = []
+    for entry in pathlib.Path('/proc').iterdir():
+        if not entry.name.isdigit():
+            continue
+        try:
+            stat = (entry / 'stat').read_text()
+        except OSError:
+            continue
+        # Fields after the parenthesised command: state ppid pgrp session ...
+        fields = stat[stat.rindex(')') + 2:].split()
+        if fields[0] != 'Z' and int(fields[3]) == session_id:
+            pids.append(int(entry.name))
+    return pids
+
+
+@pytest.fixture
+def live_session_processes():
+    """Return `session_processes`: the live pids of a session, to check for orphans."""
+    return session_processes
+
+
+class ChildProcesses:
+    """Child processes of one test, each in its own session, output captured to files."""
+
+    def __init__(self, env, log_dir):
+        self._env = env
+        self._log_dir = pathlib.Path(log_dir)
+        self._children = []
+
+    def start(self, label, argv, env=None):
+        """Start ARGV in a new session; stdout and stderr go to LOG_DIR/LABEL.log."""
+        log_path = self._log_dir / f'{label}.log'
+        log_file = open(log_path, 'ab')
+        process = subprocess.Popen(
+            argv, env=env or self._env, stdout=log_file, stderr=subprocess.STDOUT,
+            stdin=subprocess.DEVNULL, start_new_session=True)
+        process.label = label
+        process.log_path = log_path
+        log_file.close()
+        self._children.append(process)
+        return process
+
+    @staticmethod
+    def output(process):
+        """Return everything PROCESS printed so far."""
+        return process.log_path.read_text(errors='replace')
+
+    @staticmethod
+    def interrupt(process, timeout=15.0):
+        """Send SIGINT (Ctrl-C) to PROCESS and return its exit code once it has exited."""
+        if process.poll() is None:
+            process.send_signal(signal.SIGINT)
+        return process.wait(timeout=timeout)
+
+    def kill_all(self):
+        """Kill every child's whole process group (teardown; a test never relies on it)."""
+        for process in self._children:
+            try:
+                os.killpg(process.pid, signal.SIGKILL)
+            except ProcessLookupError:
+                pass
+            process.wait()
+
+
+@pytest.fixture
+def children(ros_env, tmp_path):
+    """Start child processes on the test's private domain; all are killed at teardown."""
+    group = ChildProcesses(ros_env, tmp_path)
+    yield group
+    group.kill_all()
+
+
+class Probe:
+    """An rclpy node in its own context, spinning in a background thread.
+
+    Tests subscribe through it and wait on `threading.Event`s or futures with timeouts.
+    """
+
+    def __init__(self, domain_id):
+        import rclpy
+        from rclpy.context import Context
+        from rclpy.executors import SingleThreadedExecutor
+
+        self.context = Context()
+        rclpy.init(context=self.context, domain_id=domain_id)
+        self.node = rclpy.create_node('prvo_test_probe', context=self.context)
+        self._executor = SingleThreadedExecutor(context=self.context)
+        self._executor.add_node(self.node)
+        self._lock = threading.Lock()
+        self._thread = threading.Thread(target=self._spin, daemon=True)
+        self._thread.start()
+
+    def _spin(self):
+        from rclpy.executors import ExternalShutdownException
+
+        try:
+            self._executor.spin()
+        except ExternalShutdownException:
+            pass
+
+    def record(self, msg_type, topic, qos=10):
+        """Subscribe to TOPIC and keep every message; return the list that fills up."""
+        received = []
+
+        def keep(msg):
+            with self._lock:
+                received.append(msg)
+
+        self.node.create_subscription(msg_type, topic, keep, qos)
+        return received
+
+    def wait_for_message(self, msg_type, topic, predicate=None, timeout=10.0, qos=10):
+        """Return the first message on TOPIC that satisfies PREDICATE, or fail after TIMEOUT."""
+        arrived = threading.Event()
+        holder = []
+
+        def check(msg):
+            if not arrived.is_set() and (predicate is None or predicate(msg)):
+                holder.append(msg)
+                arrived.set()
+
+        subscription = self.node.create_subscription(msg_type, topic, check, qos)
+        try:
+            if not arrived.wait(timeout):
+                raise TimeoutError(f'no matching message on {topic} within {timeout} s')
+            return holder[0]
+        finally:
+            self.node.destroy_subscription(subscription)
+
+    def wait_until(self, condition, timeout, what, poll=0.05):
+        """Return once CONDITION() is true; raise TimeoutError naming WHAT after TIMEOUT."""
+        deadline = time.monotonic() + timeout
+        while True:
+            with self._lock:
+                value = condition()
+            if value:
+                return value
+            if time.monotonic() > deadline:
+                raise TimeoutError(f'{what} did not happen within {timeout} s')
+            # Graph and message state change in the spin thread; polling it is an event wait.
+            threading.Event().wait(poll)
+
+    def close(self):
+        """Stop spinning and shut the probe's context down."""
+        self._executor.shutdown()
+        self.node.destroy_node()
+        self.context.try_shutdown()
+        self._thread.join(timeout=5.0)
+
+
+@pytest.fixture
+def probe(ros_domain):
+    """Probe node on the test's private ROS domain."""
+    ros_probe = Probe(ros_domain)
+    yield ros_probe
+    ros_probe.close()
+
+
+@pytest.fixture
+def python_executable():
+    """Return the interpreter running the tests (the project's venv under ./run.sh test)."""
+    return sys.executable
+
+
+@pytest.fixture
+def ros2_executable():
+    """Return `executable`: the path of a package's executable as 'ros2 run' finds it."""
+    return executable

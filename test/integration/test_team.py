@@ -1,0 +1,183 @@
+"""The running system: simulator and planners as real processes, observed through a probe."""
+
+import math
+import os
+import signal
+
+from geometry_msgs.msg import TwistStamped
+from nav_msgs.msg import Odometry
+import numpy as np
+import pytest
+
+from prvo_msgs_util import CMD_VEL_QOS, ODOM_QOS, make_odometry
+
+pytestmark = pytest.mark.integration
+
+
+def _run_until_all_arrived(probe, observer, team, what):
+    limit = team.scenario.duration
+    probe.wait_until(lambda: observer.all_arrived() or observer.sim_time() >= limit,
+                     timeout=120.0, what=what)
+    return observer.all_arrived()
+
+
+def test_headon_both_arrive_without_contact(make_team, observe, probe):
+    team = make_team('headon2')
+    observer = observe(team)
+    team.start_sim()
+    team.start_planners()
+    assert _run_until_all_arrived(probe, observer, team, 'headon2 to finish'), (
+        observer.robot_status)
+    assert observer.min_clearance(team.scenario) > 0.0
+    assert int(observer.sim_status['contacts']) == 0
+
+
+@pytest.mark.parametrize('seed', [1, 2, 3])
+def test_crossing_with_noise_has_no_contact(make_team, observe, probe, seed):
+    team = make_team('crossing4')
+    observer = observe(team)
+    team.start_sim(seed=seed)
+    team.start_planners()
+    assert _run_until_all_arrived(probe, observer, team, f'crossing4 seed {seed} to finish'), (
+        observer.robot_status)
+    assert observer.min_clearance(team.scenario) > 0.0
+    assert int(observer.sim_status['contacts']) == 0
+
+
+def test_lockstep_is_reproducible(make_team, observe, probe, children):
+    runs = []
+    for attempt in range(2):
+        team = make_team('crossing4')
+        observer = observe(team)
+        team.start_sim(seed=5, label=f'sim_{attempt}')
+        for spec in team.scenario.robots:
+            team.start_planner(spec.name, label=f'planner_{spec.name}_{attempt}')
+        probe.wait_until(lambda observer=observer: observer.sim_time() >= 8.0, timeout=90.0,
+                         what='8 s of simulated time')
+        for process in [team.sim, *team.planners.values()]:
+            assert children.interrupt(process) == 0
+        runs.append(observer.trajectories())
+    for robot, (stamps, positions) in runs[0].items():
+        other_stamps, other_positions = runs[1][robot]
+        common = np.intersect1d(stamps[stamps <= 8.0], other_stamps)
+        assert common.size >= 80, f'{robot}: only {common.size} common steps'
+        first = positions[np.searchsorted(stamps, common)]
+        second = other_positions[np.searchsorted(other_stamps, common)]
+        np.testing.assert_array_equal(first, second, err_msg=robot)
+
+
+def test_topics_are_inspectable(make_team, observe, probe):
+    team = make_team('headon2')
+    observe(team)
+    team.start_sim()
+    team.start_planners()
+    expected = {
+        '/robot_0/odom': 'nav_msgs/msg/Odometry',
+        '/robot_0/ground_truth': 'nav_msgs/msg/Odometry',
+        '/robot_0/cmd_vel': 'geometry_msgs/msg/TwistStamped',
+        '/robot_0/prvo_markers': 'visualization_msgs/msg/MarkerArray',
+        '/robot_1/cmd_vel': 'geometry_msgs/msg/TwistStamped',
+        '/diagnostics': 'diagnostic_msgs/msg/DiagnosticArray',
+        '/clock': 'rosgraph_msgs/msg/Clock',
+    }
+
+    def listed():
+        # What 'ros2 topic list -t' prints: every topic with its types.
+        topics = dict(probe.node.get_topic_names_and_types())
+        return all(expected[name] in topics.get(name, []) for name in expected)
+
+    probe.wait_until(listed, timeout=20.0, what='every topic to appear with its type')
+    command = probe.wait_for_message(
+        TwistStamped, '/robot_0/cmd_vel', lambda msg: msg.twist.linear.x > 0.1, timeout=20.0,
+        qos=CMD_VEL_QOS)
+    # robot_0 starts at x = -4 with its goal at x = +4: it heads right, within its speed limit.
+    assert math.hypot(command.twist.linear.x, command.twist.linear.y) <= 1.0 + 1e-9
+
+
+def test_killed_planner_is_survived_and_replaced(make_team, observe, probe, children):
+    team = make_team('crossing4')
+    observer = observe(team)
+    team.start_sim(step_timeout=0.3)
+    team.start_planners()
+    probe.wait_until(lambda: observer.sim_time() >= 2.0, timeout=60.0, what='2 s of sim time')
+    os.killpg(team.planners['robot_1'].pid, signal.SIGKILL)
+    misses_at_kill = observer.deadline_misses('robot_1')
+    probe.wait_until(lambda: observer.deadline_misses('robot_1') >= misses_at_kill + 3,
+                     timeout=30.0, what='the simulator to count robot_1 deadline misses')
+    assert team.sim.poll() is None
+    assert all(team.planners[name].poll() is None for name in ('robot_0', 'robot_2', 'robot_3'))
+    time_at_restart = observer.sim_time()
+    team.start_planner('robot_1', label='planner_robot_1_restarted')
+    probe.wait_for_message(
+        TwistStamped, '/robot_1/cmd_vel', lambda msg: msg.header.stamp.sec >= time_at_restart,
+        timeout=30.0, qos=CMD_VEL_QOS)
+    misses_after_restart = observer.deadline_misses('robot_1')
+    sim_time_after_restart = observer.sim_time()
+    probe.wait_until(lambda: observer.sim_time() >= sim_time_after_restart + 2.0,
+                     timeout=60.0, what='2 s more of sim time')
+    # Back under control: at most the step in flight during the restart was missed.
+    assert observer.deadline_misses('robot_1') <= misses_after_restart + 1
+
+
+def test_planners_outlive_a_simulator_restart(make_team, observe, probe, children):
+    team = make_team('headon2')
+    observer = observe(team)
+    team.start_planners()
+    team.start_sim(label='sim_first')
+    probe.wait_until(lambda: observer.sim_time() >= 2.0, timeout=60.0, what='2 s of sim time')
+    assert children.interrupt(team.sim) == 0
+    observer.sim_status = {}
+    observer.robot_status = {}
+    team.start_sim(label='sim_second')
+    # Sim time starts over; the planners must answer the new stamps for it to advance again.
+    probe.wait_until(lambda: 0.0 <= observer.sim_time() and observer.deadline_misses(
+        'robot_0') == 0 and observer.sim_time() >= 2.0, timeout=60.0,
+        what='the restarted simulator to advance 2 s with the same planners')
+    assert all(process.poll() is None for process in team.planners.values())
+
+
+def test_bad_odometry_is_skipped_and_named(make_team, observe, probe, children):
+    team = make_team('headon2')
+    observer = observe(team)
+    team.start_sim()
+    team.start_planners()
+    probe.wait_until(lambda: observer.sim_time() >= 1.0, timeout=60.0, what='1 s of sim time')
+    publisher = probe.node.create_publisher(Odometry, '/robot_1/odom', ODOM_QOS)
+    bad_messages = []
+    nan_message = make_odometry(observer.sim_time(), [0.0, 0.0], [0.0, 0.0],
+                                0.01 * np.eye(2), 0.01 * np.eye(2), child_frame_id='x')
+    nan_message.pose.pose.position.x = math.nan
+    bad_messages.append(nan_message)
+    negative = make_odometry(observer.sim_time(), [0.0, 0.0], [0.0, 0.0],
+                             -0.01 * np.eye(2), 0.01 * np.eye(2), child_frame_id='x')
+    bad_messages.append(negative)
+    wrong_frame = make_odometry(observer.sim_time(), [0.0, 0.0], [0.0, 0.0],
+                                0.01 * np.eye(2), 0.01 * np.eye(2), frame_id='odom')
+    bad_messages.append(wrong_frame)
+    backwards = make_odometry(max(observer.sim_time() - 0.5, 0.0), [0.0, 0.0], [0.0, 0.0],
+                              0.01 * np.eye(2), 0.01 * np.eye(2))
+    bad_messages.append(backwards)
+    probe.wait_until(lambda: publisher.get_subscription_count() >= 3, timeout=10.0,
+                     what='the planners and simulator to see the probe publisher')
+    for message in bad_messages:
+        publisher.publish(message)
+    assert _run_until_all_arrived(probe, observer, team, 'headon2 to finish after bad input')
+    assert all(process.poll() is None for process in [team.sim, *team.planners.values()])
+    logs = children.output(team.planners['robot_0']) + children.output(
+        team.planners['robot_1'])
+    assert 'skipping odometry on /robot_1/odom' in logs
+    for fault in ('finite', 'positive semi-definite', 'frame', 'not after'):
+        assert fault in logs, f'no warning names the fault {fault!r}'
+
+
+@pytest.mark.parametrize('which', ['sim', 'planner'])
+def test_sigint_exits_zero_without_leftovers(make_team, observe, probe, children, which,
+                                             live_session_processes):
+    team = make_team('headon2')
+    observer = observe(team)
+    team.start_sim()
+    team.start_planners()
+    probe.wait_until(lambda: observer.sim_time() >= 0.5, timeout=60.0, what='the team to run')
+    process = team.sim if which == 'sim' else team.planners['robot_0']
+    assert children.interrupt(process) == 0, children.output(process)
+    assert live_session_processes(process.pid) == []

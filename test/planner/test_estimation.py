@@ -1,0 +1,83 @@
+"""The constant-velocity tracker against hand-derived prediction and simulated ground truth."""
+
+import numpy as np
+import pytest
+
+from prvo_planner.estimation import ConstantVelocityTracker
+
+
+def _hand_prediction(mean, covariance, dt, acceleration_std):
+    """F x and F P F' + Q written out from the white-noise-acceleration model."""
+    transition = np.array([[1, 0, dt, 0], [0, 1, 0, dt], [0, 0, 1, 0], [0, 0, 0, 1]], float)
+    q = acceleration_std ** 2
+    per_axis = q * np.array([[dt ** 4 / 4, dt ** 3 / 2], [dt ** 3 / 2, dt ** 2]])
+    process = np.zeros((4, 4))
+    for axis in (0, 1):
+        index = [axis, axis + 2]
+        process[np.ix_(index, index)] = per_axis
+    return transition @ mean, transition @ covariance @ transition.T + process
+
+
+def test_first_measurement_initialises_the_state():
+    tracker = ConstantVelocityTracker(acceleration_std=0.5)
+    covariance = np.diag([0.01, 0.02, 0.03, 0.04])
+    tracker.update(2.0, [1.0, 2.0], [0.5, -0.5], covariance)
+    belief = tracker.belief_at(2.0)
+    np.testing.assert_allclose(belief.mean, [1.0, 2.0, 0.5, -0.5])
+    np.testing.assert_allclose(belief.covariance, covariance, atol=1e-7)
+
+
+def test_prediction_matches_the_hand_derived_model_and_grows_when_stale():
+    rng = np.random.default_rng(3)
+    tracker = ConstantVelocityTracker(acceleration_std=0.7)
+    factor = rng.normal(size=(4, 4))
+    covariance = factor @ factor.T * 0.01 + 0.001 * np.eye(4)
+    tracker.update(0.0, [0.3, -0.2], [1.0, 0.4], covariance)
+    filtered = tracker.belief_at(0.0)
+    for dt in (0.1, 0.5, 2.0):
+        predicted = tracker.belief_at(dt)
+        mean, expected = _hand_prediction(filtered.mean, filtered.covariance, dt, 0.7)
+        np.testing.assert_allclose(predicted.mean, mean, rtol=1e-12)
+        np.testing.assert_allclose(predicted.covariance, expected, rtol=1e-10, atol=1e-14)
+    # Stale data grows uncertain instead of being trusted, and asking does not change the filter.
+    stale, fresh = tracker.belief_at(3.0), tracker.belief_at(1.0)
+    assert np.trace(stale.covariance) > np.trace(fresh.covariance)
+    np.testing.assert_allclose(tracker.belief_at(0.0).covariance, filtered.covariance)
+
+
+def test_stamps_must_move_forward():
+    tracker = ConstantVelocityTracker(acceleration_std=1.0)
+    tracker.update(1.0, [0.0, 0.0], [0.0, 0.0], np.eye(4) * 0.01)
+    with pytest.raises(ValueError, match='not after'):
+        tracker.update(1.0, [0.0, 0.0], [0.0, 0.0], np.eye(4) * 0.01)
+    with pytest.raises(ValueError, match='not after'):
+        tracker.update(0.5, [0.0, 0.0], [0.0, 0.0], np.eye(4) * 0.01)
+
+
+def test_filter_is_consistent_on_simulated_targets():
+    """The normalised estimation error squared (NEES) averages the state dimension, 4."""
+    rng = np.random.default_rng(11)
+    dt, steps, runs, acceleration_std = 0.1, 60, 150, 0.5
+    measurement_std = np.array([0.05, 0.05, 0.05, 0.05])
+    nees = []
+    for _ in range(runs):
+        tracker = ConstantVelocityTracker(acceleration_std)
+        state = np.concatenate([rng.uniform(-5, 5, 2), rng.uniform(-1, 1, 2)])
+        for step in range(steps):
+            if step:
+                # Exact discretisation of white-noise acceleration: the model the filter assumes.
+                acceleration = rng.normal(0.0, acceleration_std, 2)
+                state = state + np.concatenate(
+                    [state[2:] * dt + 0.5 * acceleration * dt ** 2, acceleration * dt])
+            measured = state + rng.normal(0.0, measurement_std)
+            tracker.update(step * dt, measured[:2], measured[2:], np.diag(measurement_std ** 2))
+        belief = tracker.belief_at((steps - 1) * dt)
+        error = belief.mean - state
+        nees.append(error @ np.linalg.solve(belief.covariance, error))
+    # The piecewise-constant simulation differs slightly from the continuous model: a 25% band.
+    assert 3.0 < np.mean(nees) < 5.0, np.mean(nees)
+
+
+def test_rejects_a_non_positive_process_noise():
+    with pytest.raises(ValueError, match='acceleration_std'):
+        ConstantVelocityTracker(0.0)
