@@ -119,7 +119,8 @@ class Team:
             'use_sim_time': True, 'goal': [float(v) for v in spec.goal],
             'radius': spec.radius, 'max_speed': spec.max_speed,
             'actuation_std': spec.noise.actuation_std,
-            'goal_tolerance': 0.5 * self.scenario.goal_tolerance}
+            'goal_tolerance': 0.5 * self.scenario.goal_tolerance,
+            'neighbors': [r.name for r in self.scenario.robots if r.name != robot]}
         values.update(spec.planner)
         values.update(parameters)
         argv = [self._ros2_executable('prvo_planner', 'planner'), '--ros-args',

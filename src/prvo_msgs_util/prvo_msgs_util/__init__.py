@@ -1,1 +1,53 @@
 """Conversions between ROS 2 messages and numpy arrays for the PRVO stack."""
+
+from prvo_msgs_util.conversions import (
+    MessageFault,
+    OdometryMeasurement,
+    make_odometry,
+    make_pose_stamped,
+    make_twist,
+    make_twist_stamped,
+    odometry_to_measurement,
+    pose_stamped_to_goal,
+    seconds_to_stamp,
+    stamp_to_seconds,
+    twist_to_velocity,
+)
+from prvo_msgs_util.diagnostics import (
+    diagnostic_values,
+    make_diagnostic_array,
+    make_diagnostic_status,
+)
+from prvo_msgs_util.markers import make_belief_markers
+from prvo_msgs_util.qos import (
+    CLOCK_QOS,
+    CMD_VEL_QOS,
+    CONTACT_QOS,
+    DIAGNOSTICS_QOS,
+    GOAL_QOS,
+    MARKER_QOS,
+    ODOM_QOS,
+)
+from prvo_msgs_util.topics import (
+    CLOCK,
+    CMD_VEL,
+    CONTACTS,
+    DIAGNOSTICS,
+    GOAL_POSE,
+    GROUND_TRUTH,
+    MARKERS,
+    ODOM,
+    robot_from_topic,
+    robot_topic,
+    validate_robot_name,
+)
+
+__all__ = [
+    'CLOCK', 'CLOCK_QOS', 'CMD_VEL', 'CMD_VEL_QOS', 'CONTACTS', 'CONTACT_QOS', 'DIAGNOSTICS',
+    'DIAGNOSTICS_QOS', 'GOAL_POSE', 'GOAL_QOS', 'GROUND_TRUTH', 'MARKERS', 'MARKER_QOS',
+    'MessageFault', 'ODOM', 'ODOM_QOS', 'OdometryMeasurement', 'diagnostic_values',
+    'make_belief_markers', 'make_diagnostic_array', 'make_diagnostic_status', 'make_odometry',
+    'make_pose_stamped', 'make_twist', 'make_twist_stamped', 'odometry_to_measurement',
+    'pose_stamped_to_goal', 'robot_from_topic', 'robot_topic', 'seconds_to_stamp',
+    'stamp_to_seconds', 'twist_to_velocity', 'validate_robot_name',
+]

@@ -223,7 +223,12 @@ class PlannerNode(Node):
         self._neighbour_tracks = {}
         self._neighbour_subscriptions = {}
         self._pending_stamp = None
+        self._own_yaw = 0.0
         self._arrived = False
+        self._last_command = None
+        self._last_command_stamp = None
+        self._warned_at = {}
+        self._started_at = time.monotonic()
 
         self._stamped = self._values['stamped_cmd_vel']
         self._cmd_vel_publisher = self.create_publisher(
@@ -267,31 +272,40 @@ class PlannerNode(Node):
 
     # Inputs -----------------------------------------------------------------------------------
 
-    def _warn(self, message):
-        self.get_logger().warning(message, throttle_duration_sec=_WARN_PERIOD_SECONDS)
+    def _warn(self, kind, message):
+        """Log a warning at most once per period for each KIND, so one fault hides no other."""
+        now = time.monotonic()
+        if now - self._warned_at.get(kind, -math.inf) >= _WARN_PERIOD_SECONDS:
+            self._warned_at[kind] = now
+            self.get_logger().warning(message)
 
     def _measure(self, msg, topic):
         """Return the message's OdometryMeasurement, or None (with a warning) if it is bad."""
         try:
             return odometry_to_measurement(msg, expected_frame=self._values['frame_id'])
         except MessageFault as fault:
-            self._warn(f'skipping odometry on {topic}: {fault}')
+            # Values sit in parentheses at the end: the text before them names the fault.
+            self._warn((topic, str(fault).split('(')[0]),
+                       f'skipping odometry on {topic}: {fault}')
             return None
 
     def _fuse(self, track, measurement, topic):
         """Feed MEASUREMENT to TRACK (None: a new one).
 
-        Returns (the track to keep, whether the measurement was used). A stamp far behind the
+        Returns (the track to keep, 'fused' | 'duplicate' | 'stale'). A stamp far behind the
         last one starts a new track: its source restarted.
         """
         if track is None:
             track = _Track(self._values['acceleration_std'])
         last = track.tracker.stamp
-        if last is not None and measurement.stamp <= last:
+        if last is not None and measurement.stamp == last:
+            return track, 'duplicate'
+        if last is not None and measurement.stamp < last:
             if last - measurement.stamp <= _TIME_RESET_SECONDS:
-                self._warn(f'skipping odometry on {topic}: stamp {measurement.stamp:.3f} s is '
-                           f'not after the last one ({last:.3f} s)')
-                return track, False
+                self._warn((topic, 'stale'),
+                           f'skipping odometry on {topic}: stamp {measurement.stamp:.3f} s '
+                           f'is not after the last one ({last:.3f} s)')
+                return track, 'stale'
             self.get_logger().info(
                 f'time on {topic} jumped back from {last:.3f} s to {measurement.stamp:.3f} s: '
                 f'restarting its track')
@@ -299,17 +313,21 @@ class PlannerNode(Node):
         track.tracker.update(measurement.stamp, measurement.position, measurement.velocity,
                              measurement.covariance)
         track.last_heard = time.monotonic()
-        return track, True
+        return track, 'fused'
 
     def _on_own_odometry(self, msg):
         measurement = self._measure(msg, self._own_odom_topic)
         if measurement is None:
             return
-        self._own_track, accepted = self._fuse(
+        self._own_track, outcome = self._fuse(
             self._own_track, measurement, self._own_odom_topic)
-        if not accepted:
+        if outcome == 'duplicate' and self._last_command_stamp == measurement.stamp:
+            # The simulator re-sends odometry it has no answer to: the answer may have been lost.
+            self._cmd_vel_publisher.publish(self._last_command)
+        if outcome != 'fused':
             return
         self._pending_stamp = measurement.stamp
+        self._own_yaw = measurement.yaw
         if self._neighbours_caught_up():
             self._plan()
         else:
@@ -328,20 +346,29 @@ class PlannerNode(Node):
         try:
             goal = pose_stamped_to_goal(msg, expected_frame=self._values['frame_id'])
         except MessageFault as fault:
-            self._warn(f'ignoring goal on {robot_topic(self._robot, GOAL_POSE)}: {fault}')
+            self._warn('goal', f'ignoring goal on {robot_topic(self._robot, GOAL_POSE)}: {fault}')
             return
         self._goal = goal
         self._arrived = False
         self.get_logger().info(f'new goal {goal.tolist()}')
 
+    def _awaiting_listed_neighbours(self):
+        """Whether a listed neighbour has not been heard yet and may still turn up."""
+        if (self._neighbours_listed is None
+                or time.monotonic() - self._started_at > self._values['neighbor_timeout']):
+            return False
+        return any(name not in self._neighbour_tracks for name in self._neighbour_names())
+
     def _neighbours_caught_up(self):
-        return all(track.tracker.stamp >= self._pending_stamp
-                   for track in self._neighbour_tracks.values())
+        return not self._awaiting_listed_neighbours() and all(
+            track.tracker.stamp >= self._pending_stamp
+            for track in self._neighbour_tracks.values())
 
     def _on_sync_timeout(self):
+        if self._pending_stamp is None or self._awaiting_listed_neighbours():
+            return
         self._sync_timer.cancel()
-        if self._pending_stamp is not None:
-            self._plan()
+        self._plan()
 
     # Neighbours -------------------------------------------------------------------------------
 
@@ -408,11 +435,16 @@ class PlannerNode(Node):
             velocity = result.velocity
         plan_time_ms = (time.perf_counter() - started) * 1e3
 
+        # cmd_vel is in the body frame: rotate the world-frame plan by minus the robot's yaw.
+        cos_yaw, sin_yaw = math.cos(self._own_yaw), math.sin(self._own_yaw)
+        body_velocity = np.array([cos_yaw * velocity[0] + sin_yaw * velocity[1],
+                                  -sin_yaw * velocity[0] + cos_yaw * velocity[1]])
         if self._stamped:
-            self._cmd_vel_publisher.publish(
-                make_twist_stamped(stamp, velocity, f'{self._robot}/base_link'))
+            command = make_twist_stamped(stamp, body_velocity, f'{self._robot}/base_link')
         else:
-            self._cmd_vel_publisher.publish(make_twist(velocity))
+            command = make_twist(body_velocity)
+        self._cmd_vel_publisher.publish(command)
+        self._last_command, self._last_command_stamp = command, stamp
         self._publish_diagnostics(stamp, result, len(neighbour_beliefs), plan_time_ms)
         self._marker_publisher.publish(make_belief_markers(
             stamp, self._values['frame_id'], self._robot, own.mean[:2], velocity,
@@ -422,7 +454,8 @@ class PlannerNode(Node):
             np.full(len(neighbour_beliefs), neighbour_radius),
             confidence=self._config.eta))
         if result is not None and not result.feasible:
-            self._warn(f'no velocity meets k={self._config.effective_k:.2f}; best achieves '
+            self._warn('infeasible',
+                       f'no velocity meets k={self._config.effective_k:.2f}; best achieves '
                        f'k={result.achieved_k:.2f} (P >= {result.eta_bound:.2f})')
 
     def _publish_diagnostics(self, stamp, result, neighbours_tracked, plan_time_ms):

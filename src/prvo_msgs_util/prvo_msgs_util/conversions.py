@@ -1,0 +1,194 @@
+"""Conversions between odometry, twist, pose and time messages and numpy arrays."""
+
+from dataclasses import dataclass
+import math
+
+from builtin_interfaces.msg import Time
+from geometry_msgs.msg import PoseStamped, Twist, TwistStamped
+from nav_msgs.msg import Odometry
+import numpy as np
+
+_NS_PER_S = 1_000_000_000
+# Row-major indices of the x/y block inside a 6x6 ROS covariance.
+_XY_INDICES = np.array([0, 1, 6, 7])
+# Eigenvalues this far below zero, relative to the largest, are rounding, not a fault.
+_PSD_RELATIVE_TOLERANCE = 1e-12
+# A quaternion shorter than this has no direction to normalise to.
+_MIN_QUATERNION_NORM = 1e-6
+
+
+class MessageFault(ValueError):  # noqa: N818 (the project's API name)
+    """A message whose content cannot be used; the text names the field and the fault."""
+
+
+def stamp_to_seconds(stamp):
+    """Return a builtin_interfaces/Time as float seconds."""
+    return stamp.sec + stamp.nanosec * 1e-9
+
+
+def seconds_to_stamp(seconds):
+    """Return float SECONDS (finite, >= 0) as a builtin_interfaces/Time, rounded to 1 ns."""
+    if not math.isfinite(seconds) or seconds < 0.0:
+        raise ValueError(f'cannot make a stamp of {seconds} s')
+    nanoseconds = round(seconds * _NS_PER_S)
+    return Time(sec=nanoseconds // _NS_PER_S, nanosec=nanoseconds % _NS_PER_S)
+
+
+@dataclass(frozen=True)
+class OdometryMeasurement:
+    """Mean and covariance of one odometry message, over [x, y, vx, vy] in the world frame."""
+
+    stamp: float
+    frame_id: str
+    child_frame_id: str
+    position: np.ndarray
+    velocity: np.ndarray
+    covariance: np.ndarray
+    yaw: float
+
+
+def _rotation(yaw):
+    cos_yaw, sin_yaw = math.cos(yaw), math.sin(yaw)
+    return np.array([[cos_yaw, -sin_yaw], [sin_yaw, cos_yaw]])
+
+
+def _rotate_covariance(rotation, covariance):
+    """Return R C R^T, symmetrised: the product alone is asymmetric by rounding."""
+    rotated = rotation @ covariance @ rotation.T
+    return 0.5 * (rotated + rotated.T)
+
+
+def _require_finite(values, field):
+    if not np.all(np.isfinite(values)):
+        raise MessageFault(f'{field} contains NaN or inf ({np.asarray(values).tolist()})')
+
+
+def _check_frame(frame_id, expected_frame, field):
+    if expected_frame is not None and frame_id != expected_frame:
+        raise MessageFault(f'{field} is {frame_id!r}, expected {expected_frame!r}')
+
+
+def _xy_covariance(covariance, field):
+    """Return the checked 2x2 x/y block of a 36-element row-major covariance."""
+    block = np.asarray(covariance, dtype=float)[_XY_INDICES].reshape(2, 2)
+    _require_finite(block, field)
+    tolerance = _PSD_RELATIVE_TOLERANCE * float(np.max(np.abs(block)))
+    if abs(block[0, 1] - block[1, 0]) > tolerance:
+        raise MessageFault(f'{field} xy block is not symmetric ({block.tolist()})')
+    for axis, variance in zip('xy', np.diag(block), strict=True):
+        if variance < -tolerance:
+            raise MessageFault(f'{field} has a negative {axis} variance ({variance})')
+    block = 0.5 * (block + block.T)
+    eigenvalues, eigenvectors = np.linalg.eigh(block)
+    if eigenvalues[0] < -tolerance:
+        raise MessageFault(
+            f'{field} xy block is not positive semi-definite (eigenvalue {eigenvalues[0]:g})')
+    if eigenvalues[0] < 0.0:
+        block = eigenvectors @ np.diag(np.maximum(eigenvalues, 0.0)) @ eigenvectors.T
+    return block
+
+
+def _yaw_from_quaternion(orientation):
+    quaternion = np.array([orientation.x, orientation.y, orientation.z, orientation.w])
+    _require_finite(quaternion, 'pose.orientation')
+    norm = float(np.linalg.norm(quaternion))
+    if norm < _MIN_QUATERNION_NORM:
+        raise MessageFault(f'pose.orientation has norm {norm:g}, cannot be normalised')
+    x, y, z, w = quaternion / norm
+    return math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
+
+
+def odometry_to_measurement(msg, expected_frame='map'):
+    """Return the world-frame OdometryMeasurement of a nav_msgs/Odometry.
+
+    The twist is given in child_frame_id; it is rotated by the pose's yaw into the world frame,
+    mean and covariance alike. Odometry carries no position-velocity cross terms, so they are 0.
+    Raises MessageFault on NaN/inf, a bad covariance, a degenerate quaternion or a wrong frame.
+    """
+    _check_frame(msg.header.frame_id, expected_frame, 'header.frame_id')
+    position = np.array([msg.pose.pose.position.x, msg.pose.pose.position.y])
+    _require_finite(position, 'pose.position')
+    body_velocity = np.array([msg.twist.twist.linear.x, msg.twist.twist.linear.y])
+    _require_finite(body_velocity, 'twist.linear')
+    yaw = _yaw_from_quaternion(msg.pose.pose.orientation)
+    position_cov = _xy_covariance(msg.pose.covariance, 'pose.covariance')
+    body_velocity_cov = _xy_covariance(msg.twist.covariance, 'twist.covariance')
+    rotation = _rotation(yaw)
+    covariance = np.zeros((4, 4))
+    covariance[:2, :2] = position_cov
+    covariance[2:, 2:] = _rotate_covariance(rotation, body_velocity_cov)
+    return OdometryMeasurement(
+        stamp=stamp_to_seconds(msg.header.stamp), frame_id=msg.header.frame_id,
+        child_frame_id=msg.child_frame_id, position=position, velocity=rotation @ body_velocity,
+        covariance=covariance, yaw=yaw)
+
+
+def _covariance_6x6(xy_block):
+    covariance = np.zeros(36)
+    covariance[_XY_INDICES] = np.asarray(xy_block, dtype=float).reshape(4)
+    return covariance.tolist()
+
+
+def make_odometry(stamp_seconds, position, velocity, position_cov, velocity_cov, frame_id='map',
+                  child_frame_id='base_link', yaw=0.0):
+    """Return a nav_msgs/Odometry of a planar robot.
+
+    VELOCITY and both (2, 2) covariances are in the world frame; the twist is written in the
+    child frame (rotated by -YAW), as Odometry requires.
+    """
+    msg = Odometry()
+    msg.header.stamp = seconds_to_stamp(stamp_seconds)
+    msg.header.frame_id = frame_id
+    msg.child_frame_id = child_frame_id
+    msg.pose.pose.position.x, msg.pose.pose.position.y = (float(value) for value in position)
+    msg.pose.pose.orientation.z = math.sin(0.5 * yaw)
+    msg.pose.pose.orientation.w = math.cos(0.5 * yaw)
+    msg.pose.covariance = _covariance_6x6(position_cov)
+    world_to_body = _rotation(-yaw)
+    body_velocity = world_to_body @ np.asarray(velocity, dtype=float)
+    msg.twist.twist.linear.x, msg.twist.twist.linear.y = (float(value) for value in body_velocity)
+    msg.twist.covariance = _covariance_6x6(
+        _rotate_covariance(world_to_body, np.asarray(velocity_cov, dtype=float)))
+    return msg
+
+
+def make_twist(velocity):
+    """Return a geometry_msgs/Twist with linear x, y = VELOCITY."""
+    msg = Twist()
+    msg.linear.x, msg.linear.y = (float(value) for value in velocity)
+    return msg
+
+
+def make_twist_stamped(stamp_seconds, velocity, frame_id):
+    """Return a geometry_msgs/TwistStamped with linear x, y = VELOCITY in FRAME_ID."""
+    msg = TwistStamped()
+    msg.header.stamp = seconds_to_stamp(stamp_seconds)
+    msg.header.frame_id = frame_id
+    msg.twist = make_twist(velocity)
+    return msg
+
+
+def twist_to_velocity(msg):
+    """Return linear x, y of a Twist or TwistStamped as an array (2,); MessageFault on NaN/inf."""
+    twist = msg.twist if isinstance(msg, TwistStamped) else msg
+    velocity = np.array([twist.linear.x, twist.linear.y])
+    _require_finite(velocity, 'twist.linear')
+    return velocity
+
+
+def pose_stamped_to_goal(msg, expected_frame='map'):
+    """Return the x, y position of a PoseStamped goal; MessageFault on NaN/inf or bad frame."""
+    _check_frame(msg.header.frame_id, expected_frame, 'header.frame_id')
+    goal = np.array([msg.pose.position.x, msg.pose.position.y])
+    _require_finite(goal, 'pose.position')
+    return goal
+
+
+def make_pose_stamped(stamp_seconds, position, frame_id='map'):
+    """Return a PoseStamped at POSITION (x, y) with identity orientation."""
+    msg = PoseStamped()
+    msg.header.stamp = seconds_to_stamp(stamp_seconds)
+    msg.header.frame_id = frame_id
+    msg.pose.position.x, msg.pose.position.y = (float(value) for value in position)
+    msg.pose.orientation.w = 1.0
+    return msg

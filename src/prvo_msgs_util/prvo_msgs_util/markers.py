@@ -1,0 +1,78 @@
+"""RViz markers of a planner's belief: neighbour confidence ellipses and the chosen velocity."""
+
+import math
+
+from geometry_msgs.msg import Point
+import numpy as np
+from std_msgs.msg import ColorRGBA
+from visualization_msgs.msg import Marker, MarkerArray
+
+from prvo_msgs_util.conversions import seconds_to_stamp
+
+_ELLIPSE_THICKNESS = 0.02
+_ELLIPSE_COLOUR = ColorRGBA(r=1.0, g=0.5, b=0.0, a=0.4)
+_ARROW_COLOUR = ColorRGBA(r=0.1, g=0.8, b=0.1, a=1.0)
+_ARROW_SHAFT_DIAMETER = 0.05
+_ARROW_HEAD_DIAMETER = 0.1
+_ARROW_HEAD_LENGTH = 0.1
+
+
+def _ellipse_marker(header, namespace, marker_id, position, covariance, radius, chi2_quantile):
+    """Return a flat cylinder covering the confidence ellipse of POSITION grown by RADIUS."""
+    eigenvalues, eigenvectors = np.linalg.eigh(covariance)
+    # Rounding can leave a PSD covariance with a tiny negative eigenvalue.
+    minor_variance, major_variance = np.maximum(eigenvalues, 0.0)
+    major_axis = eigenvectors[:, 1]
+    yaw = math.atan2(major_axis[1], major_axis[0])
+    marker = Marker(header=header, ns=namespace, id=marker_id, type=Marker.CYLINDER,
+                    action=Marker.ADD, color=_ELLIPSE_COLOUR)
+    marker.pose.position.x, marker.pose.position.y = (float(value) for value in position)
+    marker.pose.orientation.z = math.sin(0.5 * yaw)
+    marker.pose.orientation.w = math.cos(0.5 * yaw)
+    marker.scale.x = 2.0 * (math.sqrt(chi2_quantile * major_variance) + radius)
+    marker.scale.y = 2.0 * (math.sqrt(chi2_quantile * minor_variance) + radius)
+    marker.scale.z = _ELLIPSE_THICKNESS
+    return marker
+
+
+def make_belief_markers(stamp_seconds, frame_id, namespace, ego_position, chosen_velocity,
+                        neighbour_positions, neighbour_position_covs, neighbour_radii,
+                        confidence=0.8):
+    """Return a MarkerArray: DELETEALL, one ARROW for the chosen velocity, one ellipse each.
+
+    Each neighbour's CYLINDER spans its CONFIDENCE position ellipse (semi-axes
+    sqrt(q * eigenvalue), q = -2 ln(1 - CONFIDENCE), the 2-dof chi-square quantile) plus its
+    radius, turned along the major axis.
+    """
+    if not 0.0 < confidence < 1.0:
+        raise ValueError(f'confidence must be in (0, 1), got {confidence}')
+    chi2_quantile = -2.0 * math.log1p(-confidence)
+    positions = np.asarray(neighbour_positions, dtype=float).reshape(-1, 2)
+    covariances = np.asarray(neighbour_position_covs, dtype=float).reshape(-1, 2, 2)
+    radii = np.asarray(neighbour_radii, dtype=float).reshape(-1)
+    if not len(positions) == len(covariances) == len(radii):
+        raise ValueError(
+            f'{len(positions)} neighbour positions, {len(covariances)} covariances and '
+            f'{len(radii)} radii')
+    markers = MarkerArray()
+    delete_all = Marker(ns=namespace, action=Marker.DELETEALL)
+    delete_all.header.frame_id = frame_id
+    markers.markers.append(delete_all)
+    header = delete_all.header
+    header.stamp = seconds_to_stamp(stamp_seconds)
+    ego = np.asarray(ego_position, dtype=float)
+    tip = ego + np.asarray(chosen_velocity, dtype=float)
+    arrow = Marker(header=header, ns=namespace, id=0, type=Marker.ARROW, action=Marker.ADD,
+                   color=_ARROW_COLOUR,
+                   points=[Point(x=float(ego[0]), y=float(ego[1])),
+                           Point(x=float(tip[0]), y=float(tip[1]))])
+    arrow.pose.orientation.w = 1.0
+    arrow.scale.x = _ARROW_SHAFT_DIAMETER
+    arrow.scale.y = _ARROW_HEAD_DIAMETER
+    arrow.scale.z = _ARROW_HEAD_LENGTH
+    markers.markers.append(arrow)
+    for index, (position, covariance, radius) in enumerate(
+            zip(positions, covariances, radii, strict=True)):
+        markers.markers.append(_ellipse_marker(
+            header, namespace, index + 1, position, covariance, float(radius), chi2_quantile))
+    return markers

@@ -1,0 +1,39 @@
+"""Topic names of the prvo stack and helpers for per-robot namespaces."""
+
+import re
+
+ODOM = 'odom'
+GROUND_TRUTH = 'ground_truth'
+CMD_VEL = 'cmd_vel'
+GOAL_POSE = 'goal_pose'
+MARKERS = 'prvo_markers'
+DIAGNOSTICS = '/diagnostics'
+CONTACTS = '/prvo_sim/contacts'
+CLOCK = '/clock'
+
+_NAME_SEGMENT = re.compile(r'[A-Za-z_][A-Za-z0-9_]*')
+
+
+def validate_robot_name(name):
+    """Raise ValueError naming NAME unless it is a single valid ROS name segment."""
+    if not isinstance(name, str) or _NAME_SEGMENT.fullmatch(name) is None:
+        raise ValueError(
+            f'robot name {name!r} is not a valid ROS name segment '
+            '(letters, digits and underscores, not starting with a digit)')
+
+
+def robot_topic(robot, leaf):
+    """Return the absolute topic '/<robot>/<leaf>'."""
+    validate_robot_name(robot)
+    return f'/{robot}/{leaf}'
+
+
+def robot_from_topic(topic, leaf):
+    """Return the robot name if TOPIC is exactly '/<name>/<leaf>', else None."""
+    prefix, separator, name_and_leaf = topic.partition('/')
+    if prefix or not separator:
+        return None
+    name, separator, rest = name_and_leaf.partition('/')
+    if not separator or rest != leaf or _NAME_SEGMENT.fullmatch(name) is None:
+        return None
+    return name

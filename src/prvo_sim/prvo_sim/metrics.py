@@ -1,0 +1,148 @@
+"""Run metrics computed from recorded ground truth: pure functions over numpy arrays.
+
+Shapes: `times` (T,), `positions` (T, N, 2) for N robots sampled at the same T instants,
+`radii` (N,), `goals` (N, 2). Definitions follow the metrics.json schema of the scenario
+README: a collision is an entry into contact of a pair of robots, a separation is the centre
+distance minus the sum of radii.
+"""
+
+import math
+
+import numpy as np
+
+
+def pair_indices(num_robots):
+    """Return the index arrays (i, j) of every unordered pair i < j of NUM_ROBOTS robots."""
+    return np.triu_indices(num_robots, k=1)
+
+
+def pairwise_separation(positions, radii):
+    """Return the (T, P) separations (distance minus sum of radii) of every pair at every step."""
+    positions = np.asarray(positions, dtype=float)
+    radii = np.asarray(radii, dtype=float)
+    first, second = pair_indices(positions.shape[1])
+    distances = np.linalg.norm(positions[:, first, :] - positions[:, second, :], axis=-1)
+    return distances - (radii[first] + radii[second])
+
+
+def min_separation(positions, radii):
+    """Return the smallest separation over all pairs and steps (None for a single robot)."""
+    separations = pairwise_separation(positions, radii)
+    if separations.size == 0:
+        return None
+    return float(separations.min())
+
+
+def contact_events(times, positions, radii):
+    """Return every entry into contact as (time, i, j, distance), in time order.
+
+    A pair is in contact while its separation is negative; it counts once each time it enters
+    contact (including a pair already in contact at the first sample).
+    """
+    times = np.asarray(times, dtype=float)
+    separations = pairwise_separation(positions, radii)
+    in_contact = separations < 0.0
+    previously = np.vstack([np.zeros((1, in_contact.shape[1]), dtype=bool), in_contact[:-1]])
+    steps, pairs = np.nonzero(in_contact & ~previously)
+    first, second = pair_indices(np.asarray(positions).shape[1])
+    radii = np.asarray(radii, dtype=float)
+    events = []
+    for step, pair in sorted(zip(steps.tolist(), pairs.tolist(), strict=True)):
+        i, j = int(first[pair]), int(second[pair])
+        distance = float(separations[step, pair] + radii[i] + radii[j])
+        events.append((float(times[step]), i, j, distance))
+    return events
+
+
+def arrival_indices(positions, goals, tolerance):
+    """Return, per robot, the first step from which it stays within TOLERANCE of its goal.
+
+    None for a robot that is not within tolerance at the last step (it has not arrived).
+    """
+    distances = np.linalg.norm(np.asarray(positions, dtype=float) - np.asarray(goals)[None],
+                               axis=-1)
+    inside = distances <= tolerance
+    indices = []
+    for robot in range(inside.shape[1]):
+        if not inside[-1, robot]:
+            indices.append(None)
+            continue
+        outside_steps = np.nonzero(~inside[:, robot])[0]
+        indices.append(int(outside_steps[-1]) + 1 if outside_steps.size else 0)
+    return indices
+
+
+def path_lengths(positions, end_indices=None):
+    """Return each robot's travelled distance up to its END_INDICES entry (None: whole run)."""
+    positions = np.asarray(positions, dtype=float)
+    step_lengths = np.linalg.norm(np.diff(positions, axis=0), axis=-1)
+    lengths = []
+    for robot in range(positions.shape[1]):
+        end = None if end_indices is None else end_indices[robot]
+        lengths.append(float(step_lengths[:end, robot].sum()))
+    return lengths
+
+
+def distribution_summary(values):
+    """Return {'median', 'p95', 'max'} of VALUES, each None when there are none."""
+    values = np.asarray(values, dtype=float)
+    if values.size == 0:
+        return {'median': None, 'p95': None, 'max': None}
+    return {'median': float(np.median(values)), 'p95': float(np.percentile(values, 95)),
+            'max': float(values.max())}
+
+
+def run_metrics(times, positions, radii, goals, goal_tolerance, robot_names):
+    """Return the ground-truth part of metrics.json for one run.
+
+    Keys: robots (arrived, time_to_goal, path_length per robot), success_rate, collisions,
+    min_separation, makespan, mean_time_to_goal, sim_time. Times are measured from times[0];
+    a robot's path length runs up to its arrival (the whole run if it did not arrive).
+    """
+    times = np.asarray(times, dtype=float)
+    arrivals = arrival_indices(positions, goals, goal_tolerance)
+    lengths = path_lengths(positions, arrivals)
+    robots = {}
+    times_to_goal = []
+    for name, arrival, length in zip(robot_names, arrivals, lengths, strict=True):
+        time_to_goal = None if arrival is None else float(times[arrival] - times[0])
+        if time_to_goal is not None:
+            times_to_goal.append(time_to_goal)
+        robots[name] = {'arrived': arrival is not None, 'time_to_goal': time_to_goal,
+                        'path_length': length}
+    all_arrived = len(times_to_goal) == len(robot_names)
+    return {
+        'robots': robots,
+        'success_rate': len(times_to_goal) / len(robot_names),
+        'collisions': len(contact_events(times, positions, radii)),
+        'min_separation': min_separation(positions, radii),
+        'makespan': max(times_to_goal) if all_arrived else None,
+        'mean_time_to_goal': float(np.mean(times_to_goal)) if times_to_goal else None,
+        'sim_time': float(times[-1] - times[0]),
+    }
+
+
+def aggregate(metrics_list, keys):
+    """Return {key: {'mean', 'std', 'min', 'max', 'n'}} over the runs' numeric values of KEYS.
+
+    A run whose value is None (e.g. no makespan because a robot did not arrive) is left out of
+    that key's statistics; 'n' says how many runs contributed. Dotted keys reach into nested
+    dictionaries ('planner_ms.median').
+    """
+    summary = {}
+    for key in keys:
+        values = []
+        for metrics in metrics_list:
+            value = metrics
+            for part in key.split('.'):
+                value = value.get(part) if isinstance(value, dict) else None
+            if value is not None and not (isinstance(value, float) and math.isnan(value)):
+                values.append(float(value))
+        if values:
+            array = np.asarray(values)
+            summary[key] = {'mean': float(array.mean()), 'std': float(array.std()),
+                            'min': float(array.min()), 'max': float(array.max()),
+                            'n': len(values)}
+        else:
+            summary[key] = {'mean': None, 'std': None, 'min': None, 'max': None, 'n': 0}
+    return summary

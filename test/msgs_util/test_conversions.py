@@ -1,0 +1,171 @@
+"""Round trips and fault detection of the message <-> numpy conversions."""
+
+import math
+
+from geometry_msgs.msg import PoseStamped, Twist
+from nav_msgs.msg import Odometry
+import numpy as np
+import pytest
+
+from prvo_msgs_util import (
+    MessageFault,
+    make_odometry,
+    make_pose_stamped,
+    make_twist,
+    make_twist_stamped,
+    odometry_to_measurement,
+    pose_stamped_to_goal,
+    seconds_to_stamp,
+    stamp_to_seconds,
+    twist_to_velocity,
+)
+
+
+def random_covariance(rng):
+    """Return a random symmetric positive-definite 2x2 matrix."""
+    factor = rng.normal(size=(2, 2))
+    return factor @ factor.T + 0.01 * np.eye(2)
+
+
+def rotation(angle):
+    """Rotation matrix by ANGLE, written out independently of the code under test."""
+    return np.array([[math.cos(angle), -math.sin(angle)], [math.sin(angle), math.cos(angle)]])
+
+
+def test_stamp_round_trip_to_the_nanosecond():
+    for seconds in (0.0, 0.1, 2.3, 17.000000001, 1e6 + 0.5):
+        stamp = seconds_to_stamp(seconds)
+        assert stamp.sec == math.floor(seconds)
+        assert stamp.nanosec == round((seconds - math.floor(seconds)) * 1e9)
+        assert stamp_to_seconds(stamp) == pytest.approx(seconds, abs=1e-9)
+    # 0.9999999999 s rounds up to a whole second, not to nanosec == 1e9.
+    stamp = seconds_to_stamp(0.9999999999)
+    assert (stamp.sec, stamp.nanosec) == (1, 0)
+    with pytest.raises(ValueError):
+        seconds_to_stamp(float('nan'))
+
+
+def test_odometry_round_trip_with_random_yaw():
+    rng = np.random.default_rng(1)
+    for _ in range(50):
+        yaw = rng.uniform(-math.pi, math.pi)
+        position, velocity = rng.normal(size=2), rng.normal(size=2)
+        position_cov, velocity_cov = random_covariance(rng), random_covariance(rng)
+        msg = make_odometry(12.5, position, velocity, position_cov, velocity_cov,
+                            child_frame_id='robot_0/base_link', yaw=yaw)
+
+        # The twist in the message is in the child frame: rotated by -yaw.
+        body_velocity = rotation(yaw).T @ velocity
+        assert msg.twist.twist.linear.x == pytest.approx(body_velocity[0])
+        assert msg.twist.twist.linear.y == pytest.approx(body_velocity[1])
+        body_cov = rotation(yaw).T @ velocity_cov @ rotation(yaw)
+        twist_cov = np.array(msg.twist.covariance).reshape(6, 6)
+        np.testing.assert_allclose(twist_cov[:2, :2], body_cov, atol=1e-12)
+        np.testing.assert_allclose(
+            np.array(msg.pose.covariance).reshape(6, 6)[:2, :2], position_cov, atol=1e-12)
+
+        measurement = odometry_to_measurement(msg)
+        assert measurement.stamp == pytest.approx(12.5)
+        assert measurement.frame_id == 'map'
+        assert measurement.child_frame_id == 'robot_0/base_link'
+        assert math.remainder(measurement.yaw - yaw, 2 * math.pi) == pytest.approx(0, abs=1e-12)
+        np.testing.assert_allclose(measurement.position, position, atol=1e-12)
+        np.testing.assert_allclose(measurement.velocity, velocity, atol=1e-12)
+        expected = np.zeros((4, 4))
+        expected[:2, :2] = position_cov
+        expected[2:, 2:] = velocity_cov
+        np.testing.assert_allclose(measurement.covariance, expected, atol=1e-12)
+
+
+def test_measurement_normalises_a_scaled_quaternion():
+    msg = make_odometry(0.0, [0, 0], [0, 0], np.eye(2), np.eye(2), yaw=0.7)
+    orientation = msg.pose.pose.orientation
+    orientation.z, orientation.w = 3 * orientation.z, 3 * orientation.w
+    assert odometry_to_measurement(msg).yaw == pytest.approx(0.7)
+
+
+def test_rounding_level_negative_eigenvalue_is_clipped():
+    msg = make_odometry(0.0, [0, 0], [0, 0], np.eye(2), np.eye(2))
+    # [[1, 1], [1, 1 - 1e-15]] has eigenvalue about -5e-16: rounding, not a fault.
+    msg.pose.covariance[1] = msg.pose.covariance[6] = 1.0
+    msg.pose.covariance[7] = 1.0 - 1e-15
+    position_cov = odometry_to_measurement(msg).covariance[:2, :2]
+    assert np.linalg.eigvalsh(position_cov).min() >= 0.0
+    np.testing.assert_allclose(position_cov, np.ones((2, 2)), atol=1e-12)
+
+
+def odometry_with(change):
+    """Return a valid Odometry after CHANGE(msg) has broken it."""
+    msg = make_odometry(1.0, [1.0, 2.0], [0.5, 0.0], 0.01 * np.eye(2), 0.04 * np.eye(2))
+    change(msg)
+    return msg
+
+
+def set_item(sequence, index, value):
+    sequence[index] = value
+
+
+@pytest.mark.parametrize(('change', 'fault'), [
+    (lambda m: setattr(m.pose.pose.position, 'x', math.nan), 'pose.position'),
+    (lambda m: setattr(m.twist.twist.linear, 'y', math.inf), 'twist.linear'),
+    (lambda m: setattr(m.pose.pose.orientation, 'w', math.nan), 'pose.orientation'),
+    (lambda m: set_item(m.pose.covariance, 7, math.nan), 'pose.covariance'),
+    (lambda m: set_item(m.twist.covariance, 0, -0.5), 'twist.covariance has a negative x'),
+    (lambda m: set_item(m.pose.covariance, 7, -0.01), 'pose.covariance has a negative y'),
+    (lambda m: (set_item(m.pose.covariance, 1, 0.2), set_item(m.pose.covariance, 6, 0.2)),
+     'pose.covariance xy block is not positive semi-definite'),
+    (lambda m: set_item(m.pose.covariance, 1, 0.001), 'pose.covariance xy block is not symm'),
+    (lambda m: setattr(m.pose.pose.orientation, 'w', 0.0), 'pose.orientation has norm 0'),
+    (lambda m: setattr(m.header, 'frame_id', 'odom'), "header.frame_id is 'odom'"),
+])
+def test_odometry_faults_are_named(change, fault):
+    with pytest.raises(MessageFault, match=fault.replace('.', r'\.')):
+        odometry_to_measurement(odometry_with(change))
+
+
+def test_non_psd_fault_reports_the_eigenvalue():
+    msg = odometry_with(lambda m: (set_item(m.pose.covariance, 1, 0.2),
+                                   set_item(m.pose.covariance, 6, 0.2)))
+    # [[0.01, 0.2], [0.2, 0.01]] has eigenvalues 0.01 -+ 0.2.
+    with pytest.raises(MessageFault, match=r'eigenvalue -0\.19'):
+        odometry_to_measurement(msg)
+
+
+def test_expected_frame_none_accepts_any_frame():
+    msg = odometry_with(lambda m: setattr(m.header, 'frame_id', 'odom'))
+    assert odometry_to_measurement(msg, expected_frame=None).frame_id == 'odom'
+
+
+def test_twist_conversions():
+    stamped = make_twist_stamped(3.2, [0.3, -0.4], 'map')
+    assert stamped.header.frame_id == 'map'
+    assert (stamped.header.stamp.sec, stamped.header.stamp.nanosec) == (3, 200_000_000)
+    np.testing.assert_array_equal(twist_to_velocity(stamped), [0.3, -0.4])
+    plain = make_twist([1.0, 2.0])
+    assert isinstance(plain, Twist)
+    np.testing.assert_array_equal(twist_to_velocity(plain), [1.0, 2.0])
+    plain.linear.x = math.nan
+    with pytest.raises(MessageFault, match='twist.linear contains NaN'):
+        twist_to_velocity(plain)
+    stamped.twist.linear.y = -math.inf
+    with pytest.raises(MessageFault, match='twist.linear contains NaN or inf'):
+        twist_to_velocity(stamped)
+
+
+def test_goal_conversions():
+    msg = make_pose_stamped(1.5, [2.0, -3.0])
+    assert isinstance(msg, PoseStamped)
+    assert msg.pose.orientation.w == 1.0
+    np.testing.assert_array_equal(pose_stamped_to_goal(msg), [2.0, -3.0])
+    with pytest.raises(MessageFault, match="header.frame_id is 'odom', expected 'map'"):
+        pose_stamped_to_goal(make_pose_stamped(1.5, [2.0, -3.0], frame_id='odom'))
+    msg.pose.position.y = math.nan
+    with pytest.raises(MessageFault, match='pose.position contains NaN'):
+        pose_stamped_to_goal(msg)
+
+
+def test_odometry_is_a_nav_msgs_odometry_with_frames():
+    msg = make_odometry(0.5, [0, 0], [0, 0], np.eye(2), np.eye(2), frame_id='world',
+                        child_frame_id='r/base_link')
+    assert isinstance(msg, Odometry)
+    assert (msg.header.frame_id, msg.child_frame_id) == ('world', 'r/base_link')

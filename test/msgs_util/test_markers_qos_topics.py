@@ -1,0 +1,119 @@
+"""Belief markers, diagnostics helpers, QoS profiles and topic helpers."""
+
+import math
+import re
+
+from diagnostic_msgs.msg import DiagnosticStatus
+import numpy as np
+import pytest
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, ReliabilityPolicy
+from scipy.stats import chi2
+from visualization_msgs.msg import Marker
+
+from prvo_msgs_util import (
+    CLOCK_QOS,
+    CMD_VEL_QOS,
+    CONTACT_QOS,
+    DIAGNOSTICS_QOS,
+    GOAL_QOS,
+    MARKER_QOS,
+    ODOM_QOS,
+    diagnostic_values,
+    make_belief_markers,
+    make_diagnostic_array,
+    make_diagnostic_status,
+    robot_from_topic,
+    robot_topic,
+    validate_robot_name,
+)
+
+
+def test_belief_markers_match_chi2_ellipse():
+    rng = np.random.default_rng(4)
+    positions = rng.normal(size=(3, 2))
+    factors = rng.normal(size=(3, 2, 2))
+    covariances = factors @ np.transpose(factors, (0, 2, 1))
+    radii = np.array([0.3, 0.25, 0.4])
+    markers = make_belief_markers(
+        7.5, 'map', 'robot_0', [1.0, 2.0], [0.5, -0.2], positions, covariances, radii,
+        confidence=0.9).markers
+
+    assert markers[0].action == Marker.DELETEALL
+    arrow = markers[1]
+    assert (arrow.type, arrow.action, arrow.ns) == (Marker.ARROW, Marker.ADD, 'robot_0')
+    assert [(point.x, point.y) for point in arrow.points] == [(1.0, 2.0), (1.5, 1.8)]
+    ellipses = markers[2:]
+    assert len(ellipses) == 3
+    assert len({marker.id for marker in markers[1:]}) == 4
+    quantile = chi2.ppf(0.9, df=2)
+    for marker, position, covariance, radius in zip(
+            ellipses, positions, covariances, radii, strict=True):
+        assert marker.type == Marker.CYLINDER
+        assert marker.header.frame_id == 'map'
+        assert marker.header.stamp.sec == 7 and marker.header.stamp.nanosec == 500_000_000
+        assert (marker.pose.position.x, marker.pose.position.y) == tuple(position)
+        # Closed-form eigenvalues of a symmetric 2x2 matrix.
+        a, b, d = covariance[0, 0], covariance[0, 1], covariance[1, 1]
+        half_gap = math.hypot((a - d) / 2, b)
+        major, minor = (a + d) / 2 + half_gap, (a + d) / 2 - half_gap
+        assert marker.scale.x == pytest.approx(2 * (math.sqrt(quantile * major) + radius))
+        assert marker.scale.y == pytest.approx(2 * (math.sqrt(quantile * minor) + radius))
+        # The marker's x axis (its yaw) must be an eigenvector of the major eigenvalue.
+        yaw = 2 * math.atan2(marker.pose.orientation.z, marker.pose.orientation.w)
+        axis = np.array([math.cos(yaw), math.sin(yaw)])
+        np.testing.assert_allclose(covariance @ axis, major * axis, atol=1e-9)
+
+
+def test_belief_markers_reject_mismatched_neighbours():
+    with pytest.raises(ValueError, match='2 neighbour positions, 1 covariances'):
+        make_belief_markers(0.0, 'map', 'r', [0, 0], [0, 0], np.zeros((2, 2)),
+                            [np.eye(2)], [0.3, 0.3])
+
+
+def test_diagnostic_status_values_round_trip():
+    status = make_diagnostic_status(
+        'prvo_sim', 'running', {'sim_time': 0.1 + 0.2, 'step': 3, 'finished': True,
+                                'mode': 'lockstep'},
+        level=DiagnosticStatus.WARN, hardware_id='sim')
+    assert (status.level, status.name, status.message, status.hardware_id) == (
+        DiagnosticStatus.WARN, 'prvo_sim', 'running', 'sim')
+    values = diagnostic_values(status)
+    assert values == {'sim_time': '0.30000000000000004', 'step': '3', 'finished': 'true',
+                      'mode': 'lockstep'}
+    assert float(values['sim_time']) == 0.1 + 0.2
+    array = make_diagnostic_array(2.25, [status])
+    assert (array.header.stamp.sec, array.header.stamp.nanosec) == (2, 250_000_000)
+    assert array.status == [status]
+    assert make_diagnostic_status('x', '', {}).level == DiagnosticStatus.OK
+
+
+@pytest.mark.parametrize(('profile', 'depth', 'durability'), [
+    (ODOM_QOS, 10, DurabilityPolicy.VOLATILE),
+    (CMD_VEL_QOS, 10, DurabilityPolicy.VOLATILE),
+    (CLOCK_QOS, 10, DurabilityPolicy.VOLATILE),
+    (DIAGNOSTICS_QOS, 50, DurabilityPolicy.VOLATILE),
+    (MARKER_QOS, 1, DurabilityPolicy.VOLATILE),
+    (CONTACT_QOS, 100, DurabilityPolicy.TRANSIENT_LOCAL),
+    (GOAL_QOS, 1, DurabilityPolicy.VOLATILE),
+])
+def test_qos_profiles(profile, depth, durability):
+    assert profile.reliability == ReliabilityPolicy.RELIABLE
+    assert profile.history == HistoryPolicy.KEEP_LAST
+    assert profile.depth == depth
+    assert profile.durability == durability
+
+
+def test_topic_helpers():
+    assert robot_topic('robot_0', 'odom') == '/robot_0/odom'
+    assert robot_from_topic('/robot_0/odom', 'odom') == 'robot_0'
+    assert robot_from_topic('/_r2/cmd_vel', 'cmd_vel') == '_r2'
+    for topic in ('/robot_0/ground_truth', 'robot_0/odom', '/a/b/odom', '//odom',
+                  '/0robot/odom', '/robot-0/odom', '/robot_0/odom/'):
+        assert robot_from_topic(topic, 'odom') is None, topic
+    for good in ('robot_0', 'R', '_x9'):
+        validate_robot_name(good)
+    for bad in ('', '0robot', 'robot-0', 'a/b', 'robot 0', None):
+        with pytest.raises(ValueError, match=re.escape(repr(bad))):
+            validate_robot_name(bad)
+    with pytest.raises(ValueError, match='robot-0'):
+        robot_topic('robot-0', 'odom')

@@ -1,0 +1,55 @@
+"""Planner parameter validation and the preferred velocity, without ROS processes."""
+
+import math
+
+import numpy as np
+import pytest
+
+from prvo_planner.planner_node import (
+    _PARAMETERS,
+    ParameterError,
+    planner_config_from,
+    preferred_velocity,
+)
+
+DEFAULTS = {name: default for name, (default, _) in _PARAMETERS.items()}
+
+
+def test_defaults_give_a_valid_configuration():
+    config = planner_config_from(DEFAULTS)
+    # eta 0.8 is k = 2 by Cantelli: eta = k^2 / (1 + k^2).
+    assert config.effective_k == pytest.approx(2.0)
+    assert config.model == 'prvo' and config.method == 'exact'
+
+
+@pytest.mark.parametrize('name, value, named', [
+    ('eta', 1.5, 'eta'), ('eta', 0.0, 'eta'), ('k', -0.5, 'k'), ('time_horizon', 0.0,
+                                                                'time_horizon'),
+    ('model', 'magic', 'model'), ('method', 'newton', 'method'), ('risk', 'yolo', 'risk'),
+])
+def test_invalid_values_are_rejected_by_name(name, value, named):
+    values = dict(DEFAULTS, **{name: value})
+    with pytest.raises(ParameterError, match=named):
+        planner_config_from(values)
+
+
+def test_k_wins_over_eta_and_actuation_noise_becomes_a_covariance():
+    config = planner_config_from(dict(DEFAULTS, k=3.0, actuation_std=0.1, time_horizon=math.inf))
+    assert config.effective_k == 3.0
+    np.testing.assert_allclose(config.actuation_cov, 0.01 * np.eye(2))
+    assert config.time_horizon == math.inf
+
+
+def test_preferred_velocity_heads_for_the_goal_and_slows_down():
+    far, arrived = preferred_velocity(np.array([0.0, 0.0]), np.array([3.0, 4.0]), 1.0, 0.5, 0.1)
+    np.testing.assert_allclose(far, [0.6, 0.8])
+    assert not arrived
+    near, _ = preferred_velocity(np.array([0.0, 0.0]), np.array([0.3, 0.0]), 1.0, 0.5, 0.1)
+    np.testing.assert_allclose(near, [0.6, 0.0])  # 0.3 m in 0.5 s
+    stopped, arrived = preferred_velocity(np.array([0.0, 0.0]), np.array([0.05, 0.0]), 1.0, 0.5,
+                                          0.1)
+    np.testing.assert_array_equal(stopped, [0.0, 0.0])
+    assert arrived
+    idle, arrived = preferred_velocity(np.array([0.0, 0.0]), None, 1.0, 0.5, 0.1)
+    np.testing.assert_array_equal(idle, [0.0, 0.0])
+    assert not arrived

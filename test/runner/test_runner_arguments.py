@@ -1,0 +1,112 @@
+"""Bad input: a one-line error naming the problem, exit code 2, and no child ever started."""
+
+import subprocess
+import sys
+
+import pytest
+
+from prvo_sim import run_scenario
+
+SCENARIOS = run_scenario.pathlib.Path(__file__).resolve().parents[2] / 'src/prvo_sim/scenarios'
+HEADON = str(SCENARIOS / 'headon2.yaml')
+
+
+@pytest.fixture
+def marker_command(tmp_path):
+    """Return a child command that leaves a marker file, and the marker's path."""
+    marker = tmp_path / 'a-child-started'
+    command = f'{sys.executable} -c "open({str(marker)!r}, \'w\').close()"'
+    return command, marker
+
+
+def run_main(argv, marker_command, capsys):
+    command, marker = marker_command
+    code = run_scenario.main([*argv, '--sim-command', command, '--planner-command', command])
+    err = capsys.readouterr().err
+    assert not marker.exists(), 'a child was started despite bad input'
+    return code, err
+
+
+def assert_one_line_error(err, *names):
+    lines = err.strip().splitlines()
+    assert len(lines) == 1, err
+    assert lines[0].startswith('run_scenario: error: ')
+    for name in names:
+        assert name in lines[0]
+
+
+@pytest.mark.parametrize('eta', ['0', '1', '1.5', '-0.2', 'nan'])
+def test_eta_outside_open_unit_interval(eta, tmp_path, marker_command, capsys):
+    code, err = run_main([HEADON, '--out', str(tmp_path / 'out'), '--eta', eta],
+                         marker_command, capsys)
+    assert code == 2
+    assert_one_line_error(err, '--eta', eta)
+
+
+def test_unknown_method(tmp_path, marker_command, capsys):
+    code, err = run_main([HEADON, '--out', str(tmp_path / 'out'), '--method', 'orca'],
+                         marker_command, capsys)
+    assert code == 2
+    assert_one_line_error(err, '--method', 'orca')
+
+
+def test_scenario_breaking_the_schema(tmp_path, marker_command, capsys):
+    broken = tmp_path / 'broken.yaml'
+    broken.write_text(open(HEADON).read().replace('radius: 0.3', 'radius: -0.3', 1))
+    code, err = run_main([str(broken), '--out', str(tmp_path / 'out')], marker_command, capsys)
+    assert code == 2
+    assert_one_line_error(err, 'broken.yaml', 'robots[0].radius')
+
+
+def test_missing_scenario_file(tmp_path, marker_command, capsys):
+    missing = tmp_path / 'missing.yaml'
+    code, err = run_main([str(missing), '--out', str(tmp_path / 'out')], marker_command, capsys)
+    assert code == 2
+    assert_one_line_error(err, 'missing.yaml')
+
+
+def test_output_folder_that_cannot_be_written(tmp_path, marker_command, capsys):
+    blocker = tmp_path / 'a-file'
+    blocker.write_text('not a folder')
+    code, err = run_main([HEADON, '--out', str(blocker / 'out')], marker_command, capsys)
+    assert code == 2
+    assert_one_line_error(err, '--out', str(blocker / 'out'))
+
+
+@pytest.mark.parametrize('option, value', [('--seeds', '0'), ('--timeout', '-1'),
+                                           ('--domain-id', '300'), ('--seed', 'x')])
+def test_other_bad_options(option, value, tmp_path, marker_command, capsys):
+    code, err = run_main([HEADON, '--out', str(tmp_path / 'out'), option, value],
+                         marker_command, capsys)
+    assert code == 2
+    assert_one_line_error(err, option)
+
+
+def test_module_entry_point_reports_bad_input(tmp_path):
+    result = subprocess.run(
+        [sys.executable, '-m', 'prvo_sim.run_scenario', HEADON, '--eta', '2',
+         '--out', str(tmp_path / 'out')], capture_output=True, text=True, timeout=60)
+    assert result.returncode == 2
+    assert_one_line_error(result.stderr, '--eta')
+
+
+def test_planner_parameters_follow_method_and_robot():
+    from prvo_sim.scenario import load_scenario
+
+    scenario = load_scenario(HEADON)
+    robot = scenario.robots[1]
+    prvo = run_scenario.planner_parameters(robot, scenario, 'prvo', 0.9)
+    assert prvo['goal'] == '[-4.0, 0.0]'
+    assert prvo['model'] == 'prvo' and prvo['eta'] == '0.9'
+    assert prvo['actuation_std'] == '0.05'
+    assert float(prvo['goal_tolerance']) == pytest.approx(scenario.goal_tolerance / 2.0)
+    no_ego = run_scenario.planner_parameters(robot, scenario, 'prvo-no-ego', 0.9)
+    assert no_ego['model'] == 'prvo' and no_ego['actuation_std'] == '0.0'
+    assert run_scenario.planner_parameters(robot, scenario, 'inflate', 0.8)['model'] == 'inflate'
+
+
+def test_ros_parameter_keeps_types():
+    assert run_scenario.ros_parameter(True) == 'true'
+    assert run_scenario.ros_parameter(3) == '3'
+    assert run_scenario.ros_parameter(4) != run_scenario.ros_parameter(4.0)
+    assert run_scenario.ros_parameter([1, 2.5]) == '[1, 2.5]'
