@@ -26,6 +26,7 @@ from prvo_msgs_util.qos import (
     DIAGNOSTICS_QOS,
     GOAL_QOS,
     MARKER_QOS,
+    ODOM_LATEST_QOS,
     ODOM_QOS,
 )
 from prvo_msgs_util.topics import (
@@ -45,7 +46,8 @@ from prvo_msgs_util.topics import (
 __all__ = [
     'CLOCK', 'CLOCK_QOS', 'CMD_VEL', 'CMD_VEL_QOS', 'CONTACTS', 'CONTACT_QOS', 'DIAGNOSTICS',
     'DIAGNOSTICS_QOS', 'GOAL_POSE', 'GOAL_QOS', 'GROUND_TRUTH', 'MARKERS', 'MARKER_QOS',
-    'MessageFault', 'ODOM', 'ODOM_QOS', 'OdometryMeasurement', 'diagnostic_values',
+    'MessageFault', 'ODOM', 'ODOM_LATEST_QOS', 'ODOM_QOS', 'OdometryMeasurement',
+    'diagnostic_values',
     'make_belief_markers', 'make_diagnostic_array', 'make_diagnostic_status', 'make_odometry',
     'make_pose_stamped', 'make_twist', 'make_twist_stamped', 'odometry_to_measurement',
     'pose_stamped_to_goal', 'robot_from_topic', 'robot_topic', 'seconds_to_stamp',

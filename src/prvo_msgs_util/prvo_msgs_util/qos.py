@@ -10,6 +10,9 @@ def _reliable(depth, durability=DurabilityPolicy.VOLATILE):
 
 
 ODOM_QOS = _reliable(10)
+# A planner reads odometry with a queue of one: when it falls behind, it plans on the newest
+# state instead of working through stale ones (compatible with ODOM_QOS publishers).
+ODOM_LATEST_QOS = _reliable(1)
 CMD_VEL_QOS = _reliable(10)
 # A reliable publisher also serves rclpy's own best-effort /clock subscription (use_sim_time).
 CLOCK_QOS = _reliable(10)

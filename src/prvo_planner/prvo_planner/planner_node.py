@@ -40,7 +40,7 @@ from prvo_msgs_util import (
     MARKER_QOS,
     MARKERS,
     ODOM,
-    ODOM_QOS,
+    ODOM_LATEST_QOS,
     MessageFault,
     make_belief_markers,
     make_diagnostic_array,
@@ -123,6 +123,9 @@ _PARAMETERS = {
     'sync_timeout': (0.05, _descriptor(
         "Wall time [s] to wait for neighbours' odometry of the same stamp before planning.",
         floating=(0.0, 10.0))),
+    'status_period': (0.2, _descriptor(
+        'Diagnostics and markers are published at most this often [s, wall]; cmd_vel always.',
+        floating=(0.0, 60.0))),
     'acceleration_std': (1.0, _descriptor(
         'Process noise of the constant-velocity tracker [m/s^2].', floating=(1.0e-3, 100.0))),
     'frame_id': ('map', _descriptor('World frame of odometry and goals.', read_only=True)),
@@ -228,6 +231,7 @@ class PlannerNode(Node):
         self._last_command = None
         self._last_command_stamp = None
         self._warned_at = {}
+        self._status_published_at = -math.inf
         self._started_at = time.monotonic()
 
         self._stamped = self._values['stamped_cmd_vel']
@@ -237,7 +241,7 @@ class PlannerNode(Node):
             DiagnosticArray, DIAGNOSTICS, DIAGNOSTICS_QOS)
         self._marker_publisher = self.create_publisher(MarkerArray, MARKERS, MARKER_QOS)
         self._own_odom_topic = robot_topic(self._robot, ODOM)
-        self.create_subscription(Odometry, ODOM, self._on_own_odometry, ODOM_QOS)
+        self.create_subscription(Odometry, ODOM, self._on_own_odometry, ODOM_LATEST_QOS)
         self.create_subscription(PoseStamped, GOAL_POSE, self._on_goal_pose, GOAL_QOS)
 
         # Wall-clock timers: under use_sim_time the simulator waits for us, so sim time would
@@ -393,7 +397,7 @@ class PlannerNode(Node):
                 Odometry, topic,
                 lambda msg, robot=robot, topic=topic: self._on_neighbour_odometry(
                     msg, robot, topic),
-                ODOM_QOS)
+                ODOM_LATEST_QOS)
             self.get_logger().info(f'tracking neighbour {robot}')
         for robot in set(self._neighbour_subscriptions) - wanted:
             self.destroy_subscription(self._neighbour_subscriptions.pop(robot))
@@ -445,6 +449,15 @@ class PlannerNode(Node):
             command = make_twist(body_velocity)
         self._cmd_vel_publisher.publish(command)
         self._last_command, self._last_command_stamp = command, stamp
+        if result is not None and not result.feasible:
+            self._warn('infeasible',
+                       f'no velocity meets k={self._config.effective_k:.2f}; best achieves '
+                       f'k={result.achieved_k:.2f} (P >= {result.eta_bound:.2f})')
+        # Diagnostics and markers are for people and tools: a few per second, off the hot path.
+        now = time.monotonic()
+        if now - self._status_published_at < self._values['status_period']:
+            return
+        self._status_published_at = now
         self._publish_diagnostics(stamp, result, len(neighbour_beliefs), plan_time_ms)
         self._marker_publisher.publish(make_belief_markers(
             stamp, self._values['frame_id'], self._robot, own.mean[:2], velocity,
@@ -453,10 +466,6 @@ class PlannerNode(Node):
                 -1, 2, 2),
             np.full(len(neighbour_beliefs), neighbour_radius),
             confidence=self._config.eta))
-        if result is not None and not result.feasible:
-            self._warn('infeasible',
-                       f'no velocity meets k={self._config.effective_k:.2f}; best achieves '
-                       f'k={result.achieved_k:.2f} (P >= {result.eta_bound:.2f})')
 
     def _publish_diagnostics(self, stamp, result, neighbours_tracked, plan_time_ms):
         feasible = True if result is None else bool(result.feasible)

@@ -240,6 +240,10 @@ def planner_parameters(robot, scenario, method, eta):
         'goal_tolerance': ros_parameter(scenario.goal_tolerance / 2.0),
         'model': MODEL_OF_METHOD[method],
         'eta': ros_parameter(float(eta)),
+        # Named rather than discovered: each planner waits for all of them from t_0, so a seed
+        # reproduces its run.
+        'neighbors': ros_parameter(
+            [other.name for other in scenario.robots if other.name != robot.name]),
     }
     for key, value in robot.planner.items():
         if key not in RUNNER_PARAMETERS:
@@ -500,11 +504,15 @@ def wait_for_end(recorder, children, spec, progress):
             return None
 
 
-def run_once(spec, domain_id):
+def run_once(spec, domain_id, monitor=None):
     """Run SPEC once on DOMAIN_ID; write its outputs; return (metrics dict, interrupting signal).
 
     The metrics carry a 'failure' key when the run failed. The children are stopped whatever
     happens, including SIGINT/SIGTERM (returned as the interrupting signal, else None).
+    MONITOR, if given, watches the run from inside (the team benchmark measures the children
+    with it): monitor.started(children, recorder) is called once every child has been started,
+    monitor.ending(children, recorder) once the run has ended, just before the children are
+    stopped (not when the run was interrupted).
     """
     scenario = spec.scenario
     log_dir = spec.out_dir / 'logs'
@@ -519,7 +527,11 @@ def run_once(spec, domain_id):
     try:
         recorder = Recorder(domain_id, [robot.name for robot in scenario.robots])
         start_children(children, spec)
+        if monitor is not None:
+            monitor.started(children, recorder)
         failure = wait_for_end(recorder, children, spec, progress)
+        if monitor is not None:
+            monitor.ending(children, recorder)
     except RunInterruptedError as interruption:
         interrupted = interruption.signum
         failure = f'interrupted by {interruption}'

@@ -44,6 +44,7 @@ from prvo_msgs_util import (
     make_odometry,
     robot_topic,
     seconds_to_stamp,
+    stamp_to_seconds,
     twist_to_velocity,
 )
 from prvo_sim import kinematics
@@ -54,7 +55,11 @@ WORLD_FRAME = 'map'
 # Exit code of a run rejected at startup (bad scenario or parameter).
 EXIT_BAD_INPUT = 2
 # Lockstep: how often the step timeout and the cmd_vel publishers are checked [s].
-_POLL_PERIOD = 0.005
+# Only timeouts are polled (answers step the simulation from their callback): each poll is a
+# spin of the executor, which costs as much as a message.
+_POLL_PERIOD = 0.02
+# Headings of this many recent steps are kept to turn late body-frame commands into the world.
+_YAW_HISTORY = 32
 # How often the t_0 odometry is re-sent while waiting for planners, and the status while idle.
 _REPUBLISH_PERIOD = 0.5
 _IDLE_STATUS_PERIOD = 1.0
@@ -136,6 +141,7 @@ class SimNode(Node):
         # A robot placed at its start faces its goal until it first moves.
         to_goal = self._goals - self._positions
         self._yaws = np.arctan2(to_goal[:, 1], to_goal[:, 0])
+        self._yaws_at_step = {}
         self._final_step = math.ceil(self._scenario.duration / self._scenario.dt - 1e-9)
         self._step = 0
         self._stamp = seconds_to_stamp(0.0)
@@ -198,8 +204,15 @@ class SimNode(Node):
         robot = self._robots[index]
         try:
             # A plain Twist is in the robot's body frame, as cmd_vel conventionally is.
-            frame_id = msg.header.frame_id if isinstance(msg, TwistStamped) else robot.base_frame
-            velocity = self._to_world_frame(index, frame_id, twist_to_velocity(msg))
+            if isinstance(msg, TwistStamped):
+                # A command answers the odometry of its stamp: rotate by that step's heading.
+                step = round(stamp_to_seconds(msg.header.stamp) / self._scenario.dt)
+                yaws = self._yaws_at_step.get(step, self._yaws)
+                velocity = self._to_world_frame(
+                    index, msg.header.frame_id, twist_to_velocity(msg), yaws)
+            else:
+                velocity = self._to_world_frame(
+                    index, robot.base_frame, twist_to_velocity(msg), self._yaws)
         except MessageFault as fault:
             robot.logger.warning(
                 f'skipping {robot.cmd_vel_topic}: {fault}',
@@ -213,7 +226,7 @@ class SimNode(Node):
                 and all(other.answered for other in self._robots)):
             self._advance()
 
-    def _to_world_frame(self, index, frame_id, velocity):
+    def _to_world_frame(self, index, frame_id, velocity, yaws):
         robot = self._robots[index]
         if frame_id in ('', WORLD_FRAME):
             return velocity
@@ -221,7 +234,7 @@ class SimNode(Node):
             raise MessageFault(
                 f'header.frame_id is {frame_id!r}, expected {WORLD_FRAME!r} or '
                 f'{robot.base_frame!r}')
-        cos_yaw, sin_yaw = math.cos(self._yaws[index]), math.sin(self._yaws[index])
+        cos_yaw, sin_yaw = math.cos(yaws[index]), math.sin(yaws[index])
         return np.array([cos_yaw * velocity[0] - sin_yaw * velocity[1],
                          sin_yaw * velocity[0] + cos_yaw * velocity[1]])
 
@@ -331,6 +344,8 @@ class SimNode(Node):
     def _publish_state(self):
         """Publish /clock, then every robot's odometry and ground truth, then diagnostics."""
         now = self._sim_time()
+        self._yaws_at_step[self._step] = self._yaws.copy()
+        self._yaws_at_step.pop(self._step - _YAW_HISTORY, None)
         self._clock_publisher.publish(ClockMsg(clock=self._stamp))
         noisy_positions, noisy_velocities = kinematics.noisy_odometry(
             self._positions, self._velocities, self._position_std, self._velocity_std,

@@ -1,0 +1,183 @@
+"""Planner configuration and result types."""
+
+from dataclasses import dataclass, field
+import math
+import numbers
+
+import numpy as np
+
+from .beliefs import as_covariance, as_finite_array
+from .probability import k_from_eta
+
+METHODS = ('exact', 'taylor')
+MODELS = ('prvo', 'rvo', 'inflate', 'mc')
+RISKS = ('pairwise', 'joint')
+
+
+def _positive(value, field_name, allow_inf=False):
+    """Return ``value`` as a float, requiring it to be > 0 (and finite unless allowed)."""
+    number = _real(value, field_name, allow_inf)
+    if not number > 0.0:
+        raise ValueError(f'{field_name} must be > 0, got {value!r}')
+    return number
+
+
+def _real(value, field_name, allow_inf=False):
+    """Return ``value`` as a float, rejecting NaN, non-numbers and (unless allowed) inf."""
+    if isinstance(value, bool) or not isinstance(value, numbers.Real):
+        raise ValueError(f'{field_name} must be a real number, got {value!r}')
+    number = float(value)
+    if math.isnan(number) or (math.isinf(number) and not (allow_inf and number > 0)):
+        raise ValueError(f'{field_name} must be finite{" or +inf" if allow_inf else ""}, '
+                         f'got {value!r}')
+    return number
+
+
+def _integer(value, field_name, minimum):
+    """Return ``value`` as an int, requiring it to be >= ``minimum``."""
+    if isinstance(value, bool) or not isinstance(value, numbers.Integral) or value < minimum:
+        raise ValueError(f'{field_name} must be an integer >= {minimum}, got {value!r}')
+    return int(value)
+
+
+def _choice(value, field_name, choices):
+    """Return ``value`` if it is one of ``choices``."""
+    if value not in choices:
+        raise ValueError(f'{field_name} must be one of {choices}, got {value!r}')
+    return value
+
+
+@dataclass(frozen=True)
+class PlannerConfig:
+    """
+    Parameters of :func:`plan_velocity`, validated on construction.
+
+    Attributes
+    ----------
+    eta : float
+        Required probability of satisfying each (pairwise) constraint, in (0, 1).
+    k : float or None
+        Surrogate margin ``mu - k sigma >= 0``; when given it wins over ``eta``.
+    max_speed : float
+        Speed limit ``v_max``, m/s, > 0.
+    num_directions : int
+        Number ``M`` of evenly spaced candidate headings, >= 1.
+    time_horizon : float
+        ``tau``, seconds, > 0; ``math.inf`` disables the horizon alternative.
+    neighbor_distance : float
+        Neighbours whose mean surface-to-surface distance exceeds this are ignored, metres.
+    actuation_cov : numpy.ndarray
+        Actuation noise covariance ``S_a``, shape (2, 2).
+    safety_margin : float
+        Added to the sum of radii, metres, >= 0.
+    method : str
+        ``'exact'`` (quartic) or ``'taylor'`` (the paper's quadratic approximation).
+    model : str
+        ``'prvo'``, ``'rvo'`` (means only), ``'inflate'`` (enlarged radius) or ``'mc'``.
+    receding_gate : bool
+        Also accept velocities that move apart (``r . u >= 0``) with margin ``k``.
+    risk : str
+        ``'pairwise'`` (``eta`` per neighbour) or ``'joint'`` (``1 - (1 - eta) / n`` each).
+    mc_samples : int
+        Samples per neighbour for ``model='mc'``, >= 1.
+    seed : int or None
+        Seeds the heading offset and the ``mc`` samples; ``None`` means no offset.
+
+    """
+
+    eta: float = 0.8
+    k: float | None = None
+    max_speed: float = 1.0
+    num_directions: int = 64
+    time_horizon: float = 5.0
+    neighbor_distance: float = 10.0
+    actuation_cov: np.ndarray = field(default_factory=lambda: np.zeros((2, 2)))
+    safety_margin: float = 0.0
+    method: str = 'exact'
+    model: str = 'prvo'
+    receding_gate: bool = True
+    risk: str = 'pairwise'
+    mc_samples: int = 1000
+    seed: int | None = None
+
+    def __post_init__(self):
+        eta = _real(self.eta, 'PlannerConfig.eta')
+        if not 0.0 < eta < 1.0:
+            raise ValueError(f'PlannerConfig.eta must be in (0, 1), got {self.eta!r}')
+        object.__setattr__(self, 'eta', eta)
+        if self.k is not None:
+            k = _real(self.k, 'PlannerConfig.k')
+            if k < 0.0:
+                raise ValueError(f'PlannerConfig.k must be >= 0, got {self.k!r}')
+            object.__setattr__(self, 'k', k)
+        object.__setattr__(self, 'max_speed', _positive(self.max_speed, 'PlannerConfig.max_speed'))
+        object.__setattr__(self, 'num_directions',
+                           _integer(self.num_directions, 'PlannerConfig.num_directions', 1))
+        object.__setattr__(self, 'time_horizon',
+                           _positive(self.time_horizon, 'PlannerConfig.time_horizon', True))
+        object.__setattr__(self, 'neighbor_distance',
+                           _positive(self.neighbor_distance, 'PlannerConfig.neighbor_distance',
+                                     True))
+        object.__setattr__(self, 'actuation_cov',
+                           as_covariance(self.actuation_cov, 2, 'PlannerConfig.actuation_cov'))
+        margin = _real(self.safety_margin, 'PlannerConfig.safety_margin')
+        if margin < 0.0:
+            raise ValueError(f'PlannerConfig.safety_margin must be >= 0, '
+                             f'got {self.safety_margin!r}')
+        object.__setattr__(self, 'safety_margin', margin)
+        _choice(self.method, 'PlannerConfig.method', METHODS)
+        _choice(self.model, 'PlannerConfig.model', MODELS)
+        _choice(self.risk, 'PlannerConfig.risk', RISKS)
+        if not isinstance(self.receding_gate, (bool, np.bool_)):
+            raise ValueError(f'PlannerConfig.receding_gate must be a bool, got '
+                             f'{self.receding_gate!r}')
+        object.__setattr__(self, 'receding_gate', bool(self.receding_gate))
+        object.__setattr__(self, 'mc_samples',
+                           _integer(self.mc_samples, 'PlannerConfig.mc_samples', 1))
+        if self.seed is not None:
+            object.__setattr__(self, 'seed', _integer(self.seed, 'PlannerConfig.seed', 0))
+
+    @property
+    def effective_k(self):
+        """The pairwise surrogate margin in force: ``k`` if given, else ``k_from_eta(eta)``."""
+        return self.k if self.k is not None else k_from_eta(self.eta)
+
+    @property
+    def effective_eta(self):
+        """The pairwise probability in force: ``eta_from_k(k)`` if ``k`` is given, else ``eta``."""
+        return self.k ** 2 / (1.0 + self.k ** 2) if self.k is not None else self.eta
+
+
+@dataclass(frozen=True)
+class PlanResult:
+    """
+    Output of :func:`plan_velocity`.
+
+    Attributes
+    ----------
+    velocity : numpy.ndarray
+        Commanded velocity, shape (2,), never NaN, ``|velocity| <= max_speed``.
+    feasible : bool
+        Whether the velocity meets every constraint of the configured model.
+    achieved_k : float
+        Smallest over neighbours of the largest margin ``k`` an accepted condition meets at
+        ``velocity`` under the given beliefs (``inf`` when nothing constrains).
+    eta_bound : float
+        Cantelli bound ``k^2 / (1 + k^2)`` of ``max(achieved_k, 0)``.
+    num_constraints : int
+        Number of neighbours considered.
+    candidates_feasible : int
+        Number of candidate directions with a feasible speed.
+
+    """
+
+    velocity: np.ndarray
+    feasible: bool
+    achieved_k: float
+    eta_bound: float
+    num_constraints: int
+    candidates_feasible: int
+
+    def __post_init__(self):
+        object.__setattr__(self, 'velocity',
+                           as_finite_array(self.velocity, (2,), 'PlanResult.velocity'))

@@ -1,0 +1,317 @@
+"""
+Closed-form moments of the RVO condition and of the receding and horizon conditions.
+
+With ``z = (r_x, r_y, u_x, u_y) ~ N(mu, S)`` every condition of prvo-math.md is a quadratic
+form ``z'Xz`` or, for ``f``, ``q^2 - R^2 p`` with quadratic forms ``q = r x u = z'Az`` and
+``p = |u|^2 = z'Bz``. Joint cumulants of Gaussian quadratic forms have a closed form (from the
+cumulant generating function ``-1/2 log det(I - 2 M S) + mu' (I - 2 M S)^-1 M mu``):
+
+    k(z'X1 z, ..., z'Xn z) = 2^(n-1) [ (1/n) sum_perm tr(X1 S ... Xn S)
+                                        + sum_perm mu' X1 S ... S Xn mu ]
+
+so ``E[f] = k2(q) + k1(q)^2 - R^2 E[p]`` and
+
+    Var[f] = k4 + 4 k3 k1 + 2 k2^2 + 4 k2 k1^2 - 2 R^2 (k(q,q,p) + 2 k1 k(q,p)) + R^4 Var[p].
+
+Every term is a trace (independent of the mean) plus a quadratic form ``mu'Xmu``.
+
+For the planner, ``E`` is a quadratic and ``Var`` a quartic polynomial in the commanded
+velocity ``v_c`` (``mu_u = 2 v_c - w``). Their coefficients are recovered exactly (to rounding)
+by evaluating the closed form on a 5 x 5 Chebyshev grid over ``[-v_max, v_max]^2`` and
+applying a fixed least-squares inverse of the bivariate quartic Vandermonde matrix (a
+well-conditioned, full-rank 25 x 15 system); restricted to a ray ``v_c = t v_max e`` they become
+polynomials in ``t`` by one matrix product with the direction monomials. This costs a few
+hundred closed-form evaluations per plan, independent of the number of directions.
+"""
+
+import numpy as np
+
+# q = r x u = z'Az, p = |u|^2 = z'Bz, g = r . u = z'Gz.
+_CROSS = np.array([[0.0, 0.0, 0.0, 0.5],
+                   [0.0, 0.0, -0.5, 0.0],
+                   [0.0, -0.5, 0.0, 0.0],
+                   [0.5, 0.0, 0.0, 0.0]])
+_SPEED = np.diag([0.0, 0.0, 1.0, 1.0])
+_DOT = np.array([[0.0, 0.0, 0.5, 0.0],
+                 [0.0, 0.0, 0.0, 0.5],
+                 [0.5, 0.0, 0.0, 0.0],
+                 [0.0, 0.5, 0.0, 0.0]])
+_POSITION = np.diag([1.0, 1.0, 0.0, 0.0])
+
+NUM_RVO_FORMS = 9
+
+
+def poly_mul(first, second):
+    """Multiply two polynomials (last axis, ascending powers), broadcasting leading axes."""
+    length = first.shape[-1] + second.shape[-1] - 1
+    shape = np.broadcast_shapes(first.shape[:-1], second.shape[:-1]) + (length,)
+    product = np.zeros(shape)
+    for power in range(first.shape[-1]):
+        product[..., power:power + second.shape[-1]] += first[..., power:power + 1] * second
+    return product
+
+
+def poly_eval(poly, t):
+    """
+    Evaluate polynomials at points by Horner's rule.
+
+    Parameters
+    ----------
+    poly : numpy.ndarray
+        Coefficients, shape (..., L), ascending powers.
+    t : numpy.ndarray
+        Points, broadcastable against shape (...).
+
+    Returns
+    -------
+    numpy.ndarray
+        Values, broadcast shape of (...) and ``t``.
+
+    """
+    value = poly[..., -1]
+    for power in range(poly.shape[-1] - 2, -1, -1):
+        value = value * t + poly[..., power]
+    return value
+
+
+def _symmetric(matrix):
+    return 0.5 * (matrix + np.swapaxes(matrix, -1, -2))
+
+
+def _trace(matrix):
+    return np.trace(matrix, axis1=-2, axis2=-1)
+
+
+def rvo_form_matrices(cov):
+    """
+    Quadratic-form matrices and traces that the moments of ``f`` need.
+
+    Parameters
+    ----------
+    cov : numpy.ndarray
+        Covariance of ``z``, shape (..., 4, 4).
+
+    Returns
+    -------
+    matrices : numpy.ndarray
+        Shape (..., 9, 4, 4): ``A, ASA, (AS)^2 A, (AS)^3 A, sym(ASB), sym((AS)^2 B), ASBSA, B,
+        BSB``.
+    traces : numpy.ndarray
+        Shape (..., 8): ``tr AS, tr (AS)^2, tr (AS)^3, tr (AS)^4, tr ASBS, tr (AS)^2 BS, tr BS,
+        tr (BS)^2``.
+
+    """
+    cross_cov = _CROSS @ cov
+    speed_cov = _SPEED @ cov
+    cross_cov_2 = cross_cov @ cross_cov
+    cross_cov_3 = cross_cov_2 @ cross_cov
+    matrices = np.stack(np.broadcast_arrays(
+        _CROSS, cross_cov @ _CROSS, cross_cov_2 @ _CROSS, cross_cov_3 @ _CROSS,
+        _symmetric(cross_cov @ _SPEED), _symmetric(cross_cov_2 @ _SPEED),
+        cross_cov @ speed_cov @ _CROSS, _SPEED, speed_cov @ _SPEED), axis=-3)
+    traces = np.stack([
+        _trace(cross_cov), _trace(cross_cov_2), _trace(cross_cov_3),
+        _trace(cross_cov_2 @ cross_cov_2), _trace(cross_cov @ speed_cov),
+        _trace(cross_cov_2 @ speed_cov), _trace(speed_cov), _trace(speed_cov @ speed_cov)],
+        axis=-1)
+    return matrices, traces
+
+
+def rvo_moments_from_forms(forms, traces, combined_radius):
+    """
+    Assemble ``E[f]`` and ``Var[f]`` from quadratic forms of the mean and traces.
+
+    Parameters
+    ----------
+    forms : numpy.ndarray
+        ``mu'X mu`` for the nine matrices of :func:`rvo_form_matrices`, shape (..., 9).
+    traces : numpy.ndarray
+        The eight traces of :func:`rvo_form_matrices`, broadcastable to shape (..., 8).
+    combined_radius : numpy.ndarray
+        ``R``, broadcastable to shape (...).
+
+    Returns
+    -------
+    expectation, variance : numpy.ndarray
+        ``E[f]`` and ``Var[f]``, shape (...).
+
+    """
+    radius_sq = np.asarray(combined_radius, dtype=float) ** 2
+    k1 = traces[..., 0] + forms[..., 0]
+    k2 = 2.0 * traces[..., 1] + 4.0 * forms[..., 1]
+    k3 = 8.0 * traces[..., 2] + 24.0 * forms[..., 2]
+    k4 = 48.0 * traces[..., 3] + 192.0 * forms[..., 3]
+    k_qp = 2.0 * traces[..., 4] + 4.0 * forms[..., 4]
+    k_qqp = 8.0 * traces[..., 5] + 16.0 * forms[..., 5] + 8.0 * forms[..., 6]
+    mean_p = traces[..., 6] + forms[..., 7]
+    var_p = 2.0 * traces[..., 7] + 4.0 * forms[..., 8]
+    k1_sq = k1 * k1
+    expectation = k2 + k1_sq - radius_sq * mean_p
+    variance = (k4 + 4.0 * k3 * k1 + 2.0 * k2 * k2 + 4.0 * k2 * k1_sq
+                - 2.0 * radius_sq * (k_qqp + 2.0 * k1 * k_qp) + radius_sq * radius_sq * var_p)
+    return expectation, variance
+
+
+def rvo_moments(mean, cov, radius):
+    """
+    Exact ``E[f]`` and ``Var[f]`` of ``f = (r x u)^2 - R^2 |u|^2`` for Gaussian ``z = (r, u)``.
+
+    Parameters
+    ----------
+    mean : array_like
+        Mean of ``z = (r_x, r_y, u_x, u_y)``, shape (..., 4).
+    cov : array_like
+        Covariance of ``z``, shape (..., 4, 4), symmetric PSD (cross terms allowed).
+    radius : float or array_like
+        Combined radius ``R``, broadcastable to shape (...).
+
+    Returns
+    -------
+    expectation : numpy.ndarray
+        ``E[f]``, shape (...).
+    variance : numpy.ndarray
+        ``Var[f]``, shape (...).
+
+    """
+    mean = np.asarray(mean, dtype=float)
+    cov = np.asarray(cov, dtype=float)
+    if mean.shape[-1:] != (4,) or cov.shape[-2:] != (4, 4):
+        raise ValueError(f'mean must have shape (..., 4) and cov (..., 4, 4), got '
+                         f'{mean.shape} and {cov.shape}')
+    matrices, traces = rvo_form_matrices(cov)
+    forms = np.einsum('...i,...kij,...j->...k', mean, matrices, mean)
+    return rvo_moments_from_forms(forms, traces, radius)
+
+
+def condition_matrices(cov, time_horizon):
+    """
+    Matrices and traces of the quadratic-form conditions ``g``, ``h1``, ``h2``.
+
+    Parameters
+    ----------
+    cov : numpy.ndarray
+        Covariance of ``z``, shape (N, 4, 4).
+    time_horizon : float
+        ``tau``; only used when finite.
+
+    Returns
+    -------
+    matrices : numpy.ndarray
+        Shape (N, 2 C, 4, 4): for each condition ``X`` then ``XSX``.
+    traces : numpy.ndarray
+        Shape (N, 2 C): for each condition ``tr XS`` then ``tr XSXS``.
+
+    """
+    forms = [_DOT]
+    if np.isfinite(time_horizon):
+        tau = time_horizon
+        forms.append(-_DOT - tau * _SPEED)
+        forms.append(_POSITION + 2.0 * tau * _DOT + tau ** 2 * _SPEED)
+    matrices, traces = [], []
+    for form in forms:
+        form_cov = form @ cov
+        matrices.extend(np.broadcast_arrays(form, form_cov @ form))
+        traces.extend([_trace(form_cov), _trace(form_cov @ form_cov)])
+    return np.stack(matrices, axis=-3), np.stack(traces, axis=-1)
+
+
+def condition_moments(origin, cov, combined_radius, velocities, time_horizon, receding_gate):
+    """
+    Mean and variance of every condition at given commanded velocities.
+
+    The conditions are, in order: ``f``; ``g`` if ``receding_gate``; ``h1`` and ``h2`` if
+    ``time_horizon`` is finite (prvo-math.md sections 3 and 7).
+
+    Parameters
+    ----------
+    origin : numpy.ndarray
+        Mean of ``z`` at ``v_c = 0``, shape (N, 4).
+    cov : numpy.ndarray
+        Covariance of ``z``, shape (N, 4, 4).
+    combined_radius : numpy.ndarray
+        ``R`` per neighbour, shape (N,).
+    velocities : numpy.ndarray
+        Commanded velocities ``v_c``, shape (P, 2) or (N, P, 2).
+    time_horizon : float
+        ``tau`` (``inf`` drops ``h1`` and ``h2``).
+    receding_gate : bool
+        Whether ``g`` is a condition.
+
+    Returns
+    -------
+    means, variances : numpy.ndarray
+        Shape (N, P, C) each.
+
+    """
+    rvo_matrices, rvo_traces = rvo_form_matrices(cov)
+    extra_matrices, extra_traces = condition_matrices(cov, time_horizon)
+    matrices = np.concatenate([rvo_matrices, extra_matrices], axis=1)
+    mean = np.concatenate(np.broadcast_arrays(
+        origin[:, None, :2], origin[:, None, 2:] + 2.0 * velocities), axis=-1)
+    forms = np.einsum('npi,nkij,npj->npk', mean, matrices, mean)
+    f_mean, f_variance = rvo_moments_from_forms(forms[..., :NUM_RVO_FORMS],
+                                                rvo_traces[:, None, :], combined_radius[:, None])
+    means, variances = [f_mean], [f_variance]
+    extra_forms = forms[..., NUM_RVO_FORMS:]
+    constants = [0.0]
+    if np.isfinite(time_horizon):
+        constants += [0.0, -combined_radius[:, None] ** 2]
+    for index, constant in enumerate(constants):
+        if index == 0 and not receding_gate:
+            continue
+        means.append(extra_traces[:, None, 2 * index] + extra_forms[..., 2 * index] + constant)
+        variances.append(2.0 * extra_traces[:, None, 2 * index + 1]
+                         + 4.0 * extra_forms[..., 2 * index + 1])
+    return np.stack(means, axis=-1), np.stack(variances, axis=-1)
+
+
+def _monomial_exponents():
+    """Exponents ``(i, j)`` of ``x^i y^j``, total degree <= 4, grouped by degree."""
+    return np.array([(degree - j, j) for degree in range(5) for j in range(degree + 1)])
+
+
+_EXPONENTS = _monomial_exponents()
+# Chebyshev-Lobatto nodes: the 5 x 5 tensor grid is unisolvent for bivariate quartics.
+_NODES_1D = np.cos(np.pi * np.arange(5) / 4.0)
+_NODES = np.stack(np.meshgrid(_NODES_1D, _NODES_1D, indexing='ij'), axis=-1).reshape(-1, 2)
+_FIT = np.linalg.pinv(np.prod(_NODES[:, None, :] ** _EXPONENTS[None, :, :], axis=-1))
+
+
+def ray_polynomials(origin, cov, combined_radius, directions, scale, time_horizon,
+                    receding_gate):
+    """
+    Mean and variance polynomials in ``t`` of every condition on every (neighbour, ray) pair.
+
+    Along a ray the commanded velocity is ``v_c = t scale e`` with ``t`` in [0, 1].
+
+    Parameters
+    ----------
+    origin, cov, combined_radius, time_horizon, receding_gate
+        As for :func:`condition_moments`.
+    directions : numpy.ndarray
+        Unit directions ``e``, shape (M, 2).
+    scale : float
+        ``v_max``.
+
+    Returns
+    -------
+    means : numpy.ndarray
+        Shape (N, M, C, 3).
+    variances : numpy.ndarray
+        Shape (N, M, C, 5).
+
+    """
+    means, variances = condition_moments(origin, cov, combined_radius, scale * _NODES,
+                                         time_horizon, receding_gate)
+    # Bivariate coefficient k multiplies t^(i+j) e_x^i e_y^j along the ray.
+    direction_monomials = np.prod(directions[:, None, :] ** _EXPONENTS[None, :, :], axis=-1)
+    degree = _EXPONENTS.sum(axis=1)
+    to_ray = np.zeros((directions.shape[0], _EXPONENTS.shape[0], 5))
+    to_ray[:, np.arange(degree.size), degree] = direction_monomials
+    fit_to_ray = np.einsum('kp,mkd->pmd', _FIT, to_ray).reshape(_NODES.shape[0], -1)
+    count, conditions = origin.shape[0], means.shape[-1]
+    values = np.concatenate([means, variances], axis=-1).transpose(0, 2, 1).reshape(
+        -1, _NODES.shape[0])
+    coefficients = (values @ fit_to_ray).reshape(count, 2, conditions, directions.shape[0], 5)
+    coefficients = coefficients.transpose(1, 0, 3, 2, 4)
+    return coefficients[0, ..., :3], coefficients[1]

@@ -1,0 +1,141 @@
+"""Cantelli's bound and Monte Carlo estimates of the RVO condition."""
+
+import numpy as np
+
+from .beliefs import as_covariance, as_finite_array
+
+
+def eta_from_k(k):
+    """
+    Cantelli lower bound on ``P(f >= 0)`` when ``mu_f - k sigma_f >= 0``.
+
+    Parameters
+    ----------
+    k : float or array_like
+        Margin, >= 0; ``inf`` gives 1.
+
+    Returns
+    -------
+    float or numpy.ndarray
+        ``k^2 / (1 + k^2)``.
+
+    """
+    k = np.asarray(k, dtype=float)
+    if np.any(np.isnan(k)) or np.any(k < 0.0):
+        raise ValueError(f'k must be >= 0, got {k.tolist()!r}')
+    with np.errstate(invalid='ignore'):
+        eta = np.where(np.isinf(k), 1.0, k ** 2 / (1.0 + k ** 2))
+    return float(eta) if eta.ndim == 0 else eta
+
+
+def k_from_eta(eta):
+    """
+    Smallest margin ``k`` whose Cantelli bound is ``eta``.
+
+    Parameters
+    ----------
+    eta : float or array_like
+        Probability in [0, 1).
+
+    Returns
+    -------
+    float or numpy.ndarray
+        ``sqrt(eta / (1 - eta))``.
+
+    """
+    eta = np.asarray(eta, dtype=float)
+    if np.any(np.isnan(eta)) or np.any(eta < 0.0) or np.any(eta >= 1.0):
+        raise ValueError(f'eta must be in [0, 1), got {eta.tolist()!r}')
+    k = np.sqrt(eta / (1.0 - eta))
+    return float(k) if k.ndim == 0 else k
+
+
+def sample_relative_states(ego, neighbour, command, actuation_cov, n_samples, rng):
+    """
+    Sample ``z = (r, u)`` for one pair by sampling both beliefs and the actuation noise.
+
+    Parameters
+    ----------
+    ego, neighbour : AgentBelief
+        The two beliefs (independent of each other).
+    command : numpy.ndarray
+        Commanded ego velocity ``v_c``, shape (2,).
+    actuation_cov : numpy.ndarray
+        ``S_a``, shape (2, 2).
+    n_samples : int
+        Number of samples.
+    rng : numpy.random.Generator
+        Source of randomness.
+
+    Returns
+    -------
+    numpy.ndarray
+        Samples of ``z``, shape (n_samples, 4).
+
+    """
+    ego_state = rng.multivariate_normal(np.r_[ego.position, ego.velocity], ego.covariance,
+                                        size=n_samples, method='eigh')
+    neighbour_state = rng.multivariate_normal(np.r_[neighbour.position, neighbour.velocity],
+                                              neighbour.covariance, size=n_samples,
+                                              method='eigh')
+    noise = rng.multivariate_normal(np.zeros(2), actuation_cov, size=n_samples, method='eigh')
+    relative_position = ego_state[:, :2] - neighbour_state[:, :2]
+    relative_velocity = 2.0 * (command + noise) - ego_state[:, 2:] - neighbour_state[:, 2:]
+    return np.concatenate([relative_position, relative_velocity], axis=1)
+
+
+def rvo_condition(z, combined_radius):
+    """
+    Evaluate ``f(r, u) = (r x u)^2 - R^2 |u|^2`` (prvo-math.md section 3).
+
+    Parameters
+    ----------
+    z : numpy.ndarray
+        Relative states ``(r_x, r_y, u_x, u_y)``, shape (..., 4).
+    combined_radius : float or numpy.ndarray
+        ``R``, broadcastable to shape (...).
+
+    Returns
+    -------
+    numpy.ndarray
+        ``f``, shape (...).
+
+    """
+    cross = z[..., 0] * z[..., 3] - z[..., 1] * z[..., 2]
+    return cross ** 2 - combined_radius ** 2 * (z[..., 2] ** 2 + z[..., 3] ** 2)
+
+
+def rvo_satisfaction_probability(ego, neighbour, command, actuation_cov, n_samples=100_000,
+                                 rng=None):
+    """
+    Monte Carlo estimate of ``P(f >= 0)`` at a commanded velocity.
+
+    Samples the ego belief, the neighbour belief and the actuation noise independently, with
+    ``R`` the sum of the two radii.
+
+    Parameters
+    ----------
+    ego, neighbour : AgentBelief
+        The two beliefs.
+    command : array_like
+        Commanded ego velocity ``v_c``, shape (2,).
+    actuation_cov : array_like
+        ``S_a``, shape (2, 2).
+    n_samples : int
+        Number of samples.
+    rng : numpy.random.Generator or int or None
+        Passed to ``np.random.default_rng``.
+
+    Returns
+    -------
+    float
+        Fraction of samples with ``f >= 0``.
+
+    """
+    rng = np.random.default_rng(rng)
+    command = as_finite_array(command, (2,), 'command')
+    actuation_cov = as_covariance(actuation_cov, 2, 'actuation_cov')
+    if int(n_samples) < 1:
+        raise ValueError(f'n_samples must be >= 1, got {n_samples!r}')
+    z = sample_relative_states(ego, neighbour, command, actuation_cov, int(n_samples), rng)
+    return float(np.mean(rvo_condition(z, ego.radius + neighbour.radius) >= 0.0))

@@ -1,0 +1,260 @@
+"""
+Feasible speed sets along candidate rays: exact (quartic) and Taylor (quadratic) solvers.
+
+Along a ray the commanded velocity is ``t v_max e`` with ``t`` in [0, 1]; each condition has a
+mean polynomial (degree <= 2) and a variance polynomial (degree <= 4) in ``t``
+(:func:`prvo_planner.core.moments.ray_polynomials`). A solver returns breakpoints in
+(0, 1); between consecutive breakpoints the acceptance of every condition is constant, so it is
+decided by evaluating the conditions at the midpoint. Roots are found in closed form, vectorised
+over all pairs, and polished by Newton steps; a root missed by rounding can only shift a
+boundary by rounding-level amounts because acceptance is always re-evaluated exactly.
+"""
+
+import math
+
+import numpy as np
+
+from .moments import poly_eval
+
+# Leading coefficients below this (relative to the largest one, on t in [0, 1]) are treated as
+# zero: dropping them moves the polynomial by at most this much there, and Newton polishing on
+# the full polynomial removes the resulting root error.
+_DEGREE_TOLERANCE = 1e-7
+_NEWTON_STEPS = 2
+
+
+def quadratic_roots(constant, linear, quadratic):
+    """
+    Real roots of ``quadratic t^2 + linear t + constant``, robust to a vanishing leading term.
+
+    Parameters
+    ----------
+    constant, linear, quadratic : numpy.ndarray
+        Coefficients, same shape (...).
+
+    Returns
+    -------
+    numpy.ndarray
+        Roots, shape (..., 2), NaN where there is none.
+
+    """
+    scale = np.maximum(np.maximum(np.abs(constant), np.abs(linear)), np.abs(quadratic))
+    scale = np.where(scale > 0.0, scale, 1.0)
+    c0, c1, c2 = constant / scale, linear / scale, quadratic / scale
+    with np.errstate(divide='ignore', invalid='ignore'):
+        discriminant = c1 * c1 - 4.0 * c2 * c0
+        root_disc = np.sqrt(np.where(discriminant >= 0.0, discriminant, np.nan))
+        # half is never a difference of close numbers; with c2 = 0 the first root is -c0/c1.
+        half = -0.5 * (c1 + np.where(c1 >= 0.0, root_disc, -root_disc))
+        first = np.where(half != 0.0, c0 / half, np.where(c2 != 0.0, 0.0, np.nan))
+        roots = np.stack([first, half / c2], axis=-1)
+    return np.where(np.isfinite(roots), roots, np.nan)
+
+
+def _depressed_cubic(b, c, d):
+    """Depress ``t^3 + b t^2 + c t + d`` to ``x^3 + p x + q``, ``t = x + shift``."""
+    return -b / 3.0, c - b * b / 3.0, (2.0 * b * b * b / 27.0) - b * c / 3.0 + d
+
+
+def _cardano_root(p, q):
+    """Return the real root of ``x^3 + p x + q`` when it is the only one (Cardano)."""
+    discriminant = (0.5 * q) ** 2 + (p / 3.0) ** 3
+    big = np.cbrt(-0.5 * q - np.copysign(np.sqrt(np.abs(discriminant)), q))
+    with np.errstate(divide='ignore', invalid='ignore'):
+        return np.where(big != 0.0, big - p / (3.0 * big), 0.0), discriminant
+
+
+def _monic_cubic_roots(b, c, d):
+    """Real roots of ``t^3 + b t^2 + c t + d``, shape (..., 3), NaN for complex ones."""
+    shift, p, q = _depressed_cubic(b, c, d)
+    single, discriminant = _cardano_root(p, q)
+    rho = np.sqrt(np.maximum(-p / 3.0, 0.0))
+    with np.errstate(divide='ignore', invalid='ignore'):
+        cosine = np.clip(np.where(rho > 0.0, -0.5 * q / rho ** 3, 0.0), -1.0, 1.0)
+    theta = np.arccos(cosine)[..., None] / 3.0
+    three = 2.0 * rho[..., None] * np.cos(theta - np.array([0.0, 2.0, 4.0]) * np.pi / 3.0)
+    nan = np.full_like(single, np.nan)
+    one_real = (discriminant > 0.0)[..., None]
+    roots = np.where(one_real, np.stack([single, nan, nan], axis=-1), three)
+    return roots + shift[..., None]
+
+
+def _largest_cubic_root(b, c, d):
+    """Largest real root of ``t^3 + b t^2 + c t + d``."""
+    shift, p, q = _depressed_cubic(b, c, d)
+    single, discriminant = _cardano_root(p, q)
+    rho = np.sqrt(np.maximum(-p / 3.0, 0.0))
+    with np.errstate(divide='ignore', invalid='ignore'):
+        cosine = np.clip(np.where(rho > 0.0, -0.5 * q / rho ** 3, 0.0), -1.0, 1.0)
+    largest = 2.0 * rho * np.cos(np.arccos(cosine) / 3.0)
+    return np.where(discriminant > 0.0, single, largest) + shift
+
+
+def _monic_quadratic_roots(linear, constant):
+    """Real roots of ``t^2 + linear t + constant``, shape (..., 2), NaN for complex ones."""
+    with np.errstate(invalid='ignore', divide='ignore'):
+        half = -0.5 * (linear + np.copysign(np.sqrt(linear * linear - 4.0 * constant), linear))
+        return np.stack([half, np.where(half != 0.0, constant / half, 0.0)], axis=-1)
+
+
+def _monic_quartic_roots(b, c, d, e):
+    """Real roots of ``t^4 + b t^3 + c t^2 + d t + e`` (Ferrari), shape (..., 4)."""
+    shift = -b / 4.0
+    b2 = b * b
+    p = c - 3.0 * b2 / 8.0
+    q = d - b * c / 2.0 + b2 * b / 8.0
+    r = e - b * d / 4.0 + b2 * c / 16.0 - 3.0 * b2 * b2 / 256.0
+    # Largest root of the resolvent m^3 + p m^2 + (p^2/4 - r) m - q^2/8; it is >= 0.
+    m = np.maximum(_largest_cubic_root(p, p * p / 4.0 - r, -q * q / 8.0), 0.0)
+    root_2m = np.sqrt(2.0 * m)
+    with np.errstate(divide='ignore', invalid='ignore'):
+        offset = np.where(root_2m > 0.0, q / (2.0 * root_2m), 0.0)
+        # q ~ 0 gives m ~ 0: the quartic is biquadratic in y, y^2 = w.
+        squares = np.sqrt(_monic_quadratic_roots(p, r))
+    small_m = m <= 1e-12 * np.maximum(1.0, np.abs(p) + np.sqrt(np.abs(r)))
+    roots = np.where(small_m[..., None],
+                     np.concatenate([squares, -squares], axis=-1),
+                     np.concatenate([_monic_quadratic_roots(-root_2m, 0.5 * p + m + offset),
+                                     _monic_quadratic_roots(root_2m, 0.5 * p + m - offset)],
+                                    axis=-1))
+    return roots + shift[..., None]
+
+
+def _polish(coefficients, roots):
+    """Newton-polish ``roots`` (K, R) of polynomials ``coefficients`` (K, L)."""
+    derivative = coefficients[:, 1:] * np.arange(1, coefficients.shape[-1])
+    with np.errstate(divide='ignore', invalid='ignore'):
+        for _ in range(_NEWTON_STEPS):
+            value = poly_eval(coefficients[:, None, :], roots)
+            slope = poly_eval(derivative[:, None, :], roots)
+            step = value / slope
+            # A large step means a flat spot (near-double root): keep the closed-form value.
+            roots = np.where(np.abs(step) < 1e-3, roots - step, roots)
+    return roots
+
+
+def _bernstein_matrix(degree):
+    """Map ascending power coefficients on [0, 1] to Bernstein coefficients, (L, L)."""
+    matrix = np.zeros((degree + 1, degree + 1))
+    for power in range(degree + 1):
+        for index in range(power, degree + 1):
+            matrix[power, index] = math.comb(index, power) / math.comb(degree, power)
+    return matrix
+
+
+_BERNSTEIN = {degree: _bernstein_matrix(degree) for degree in (2, 4)}
+
+
+def sign_certificates(coefficients):
+    """
+    Certify a constant sign on [0, 1] from the Bernstein coefficients.
+
+    A polynomial is a convex combination of its Bernstein coefficients on [0, 1], so all of them
+    ``>= 0`` proves ``p >= 0`` there and all ``< 0`` proves ``p < 0``.
+
+    Parameters
+    ----------
+    coefficients : numpy.ndarray
+        Ascending coefficients, shape (..., 3) or (..., 5).
+
+    Returns
+    -------
+    nonnegative, negative : numpy.ndarray
+        Booleans, shape (...).
+
+    """
+    bernstein = np.moveaxis(coefficients @ _BERNSTEIN[coefficients.shape[-1] - 1], -1, 0)
+    # Column-wise reductions: much faster than a reduction over a short last axis.
+    low, high = bernstein[0], bernstein[0]
+    for column in bernstein[1:]:
+        low, high = np.minimum(low, column), np.maximum(high, column)
+    return low >= 0.0, high < 0.0
+
+
+def polynomial_roots(coefficients):
+    """
+    Real roots of polynomials of degree <= 4, vectorised, with degree detection.
+
+    Parameters
+    ----------
+    coefficients : numpy.ndarray
+        Ascending coefficients, shape (..., 5).
+
+    Returns
+    -------
+    numpy.ndarray
+        Real roots, shape (..., 4), NaN-padded.
+
+    """
+    flat = coefficients.reshape(-1, 5)
+    roots = np.full((flat.shape[0], 4), np.nan)
+    nonnegative, negative = sign_certificates(flat)
+    maybe_root = ~(negative | nonnegative)
+    if not np.any(maybe_root):
+        return roots.reshape(coefficients.shape[:-1] + (4,))
+    rows = flat[maybe_root]
+    rows = rows / np.max(np.abs(rows), axis=-1, keepdims=True)
+    found = np.full((rows.shape[0], 4), np.nan)
+    quartic = np.abs(rows[:, 4]) > _DEGREE_TOLERANCE
+    cubic = ~quartic & (np.abs(rows[:, 3]) > _DEGREE_TOLERANCE)
+    lower = ~quartic & ~cubic
+    if np.any(quartic):
+        monic = rows[quartic, :4] / rows[quartic, 4:5]
+        found[quartic] = _monic_quartic_roots(monic[:, 3], monic[:, 2], monic[:, 1], monic[:, 0])
+    if np.any(cubic):
+        monic = rows[cubic, :3] / rows[cubic, 3:4]
+        found[cubic, :3] = _monic_cubic_roots(monic[:, 2], monic[:, 1], monic[:, 0])
+    if np.any(lower):
+        found[lower, :2] = quadratic_roots(rows[lower, 0], rows[lower, 1], rows[lower, 2])
+    roots[maybe_root] = _polish(rows, found)
+    return roots.reshape(coefficients.shape[:-1] + (4,))
+
+
+def taylor_quadratics(means, variances, margins, preferred):
+    """
+    Build the paper's quadratic surrogate ``mean(t) - k T(t)`` (prvo-math.md 6, Taylor).
+
+    ``T`` is the second-order Taylor expansion of ``sigma = sqrt(variance)`` around ``t*``, the
+    point of ``{t in [0, 1] : mean(t) >= 0}`` closest to the preferred ``t`` on the ray (the
+    preferred ``t`` itself when that set is empty).
+
+    Parameters
+    ----------
+    means, variances : numpy.ndarray
+        Shapes (..., 3) and (..., 5).
+    margins : numpy.ndarray
+        ``k``, broadcastable to shape (...).
+    preferred : numpy.ndarray
+        Preferred ``t`` per ray, broadcastable to shape (...).
+
+    Returns
+    -------
+    numpy.ndarray
+        Quadratic coefficients, shape (..., 3).
+
+    """
+    preferred = np.clip(preferred, 0.0, 1.0)
+    shape = means.shape[:-1]
+    candidates = np.concatenate([
+        np.broadcast_to(np.asarray(preferred)[..., None], shape + (1,)),
+        np.clip(np.nan_to_num(quadratic_roots(means[..., 0], means[..., 1], means[..., 2]),
+                              nan=0.0), 0.0, 1.0),
+        np.zeros(shape + (1,)), np.ones(shape + (1,))], axis=-1)
+    usable = poly_eval(means[..., None, :], candidates) >= 0.0
+    distance = np.where(usable, np.abs(candidates - candidates[..., :1]), np.inf)
+    centre = np.take_along_axis(candidates, np.argmin(distance, axis=-1)[..., None], -1)[..., 0]
+    first = variances[..., 1:] * np.arange(1, 5)
+    second = first[..., 1:] * np.arange(1, 4)
+    variance = np.maximum(poly_eval(variances, centre), 0.0)
+    sigma = np.sqrt(variance)
+    slope_var = poly_eval(first, centre)
+    curve_var = poly_eval(second, centre)
+    with np.errstate(divide='ignore', invalid='ignore'):
+        slope = np.where(sigma > 0.0, slope_var / (2.0 * sigma), 0.0)
+        curve = np.where(sigma > 0.0,
+                         curve_var / (2.0 * sigma) - slope_var ** 2 / (4.0 * sigma ** 3), 0.0)
+    k = np.asarray(margins)
+    return np.stack([
+        means[..., 0] - k * (sigma - slope * centre + 0.5 * curve * centre ** 2),
+        means[..., 1] - k * (slope - curve * centre),
+        means[..., 2] - k * 0.5 * curve], axis=-1)

@@ -1,0 +1,113 @@
+"""``rvo_moments`` and the ray polynomials against quadrature and Monte Carlo."""
+
+import numpy as np
+from prvo_core_testing import random_covariance
+
+from prvo_planner.core import rvo_moments
+from prvo_planner.core.moments import condition_moments, ray_polynomials
+from prvo_planner.core.probability import rvo_condition
+
+# Probabilists' Gauss-Hermite rule: 5 nodes integrate polynomials of degree <= 9 exactly.
+_NODES, _WEIGHTS = np.polynomial.hermite_e.hermegauss(5)
+_GRID = np.stack(np.meshgrid(*[_NODES] * 4, indexing='ij'), axis=-1).reshape(-1, 4)
+_GRID_WEIGHTS = np.prod(np.stack(np.meshgrid(*[_WEIGHTS] * 4, indexing='ij'), axis=-1)
+                        .reshape(-1, 4), axis=1) / np.sqrt(2.0 * np.pi) ** 4
+
+
+def quadrature_values(function, mean, cov):
+    """
+    Evaluate ``function`` at the 625 tensor Gauss-Hermite nodes of ``N(mean, cov)``.
+
+    ``np.sum(_GRID_WEIGHTS * values)`` is then ``E[function(z)]`` exactly for polynomials of
+    degree <= 9 in each coordinate (``f`` and ``f^2`` have degree <= 8).
+
+    """
+    eigenvalues, eigenvectors = np.linalg.eigh(cov)
+    root = eigenvectors * np.sqrt(np.maximum(eigenvalues, 0.0))
+    return function(mean + _GRID @ root.T)
+
+
+def random_case(rng):
+    """Random mean, full covariance and radius of ``z``."""
+    mean = rng.normal(0.0, 2.0, size=4)
+    cov = random_covariance(rng, 4, rng.uniform(0.05, 1.0))
+    return mean, cov, rng.uniform(0.2, 1.5)
+
+
+def test_moments_match_gauss_hermite_quadrature():
+    rng = np.random.default_rng(11)
+    cases = [random_case(rng) for _ in range(150)]
+    means = np.array([case[0] for case in cases])
+    covs = np.array([case[1] for case in cases])
+    radii = np.array([case[2] for case in cases])
+    expectation, variance = rvo_moments(means, covs, radii)
+    for index, (mean, cov, radius) in enumerate(cases):
+        values = quadrature_values(lambda z, radius=radius: rvo_condition(z, radius), mean, cov)
+        first = np.sum(_GRID_WEIGHTS * values)
+        second = np.sum(_GRID_WEIGHTS * values ** 2)
+        reference_variance = second - first ** 2
+        # Relative to the natural scale E[f^2] so that near-zero means are not penalised.
+        assert abs(expectation[index] - first) <= 1e-9 * np.sqrt(second)
+        assert abs(variance[index] - reference_variance) <= 1e-9 * second
+
+
+def test_moments_match_monte_carlo_within_four_standard_errors():
+    rng = np.random.default_rng(12)
+    samples = 1_000_000
+    for _ in range(3):
+        mean, cov, radius = random_case(rng)
+        values = rvo_condition(rng.multivariate_normal(mean, cov, size=samples), radius)
+        expectation, variance = rvo_moments(mean, cov, radius)
+        sample_variance = np.var(values)
+        mean_error = np.sqrt(sample_variance / samples)
+        variance_error = np.sqrt(np.var((values - values.mean()) ** 2) / samples)
+        assert abs(expectation - values.mean()) <= 4.0 * mean_error
+        assert abs(variance - sample_variance) <= 4.0 * variance_error
+
+
+def test_horizon_condition_moments_match_quadrature():
+    rng = np.random.default_rng(13)
+    tau = 3.0
+    for _ in range(30):
+        mean, cov, radius = random_case(rng)
+        origin = np.r_[mean[:2], 0.0, 0.0][None, :]
+        command = 0.5 * mean[2:]
+        means, variances = condition_moments(origin, cov[None], np.array([radius]),
+                                             command[None, :], tau, True)
+        conditions = [
+            lambda z, radius=radius: rvo_condition(z, radius),
+            lambda z: np.sum(z[:, :2] * z[:, 2:], axis=1),
+            lambda z: -np.sum(z[:, :2] * z[:, 2:], axis=1) - tau * np.sum(z[:, 2:] ** 2, axis=1),
+            lambda z, radius=radius: np.sum((z[:, :2] + tau * z[:, 2:]) ** 2, axis=1)
+            - radius ** 2,
+        ]
+        for column, condition in enumerate(conditions):
+            values = quadrature_values(condition, mean, cov)
+            first = np.sum(_GRID_WEIGHTS * values)
+            second = np.sum(_GRID_WEIGHTS * values ** 2)
+            assert abs(means[0, 0, column] - first) <= 1e-9 * np.sqrt(second)
+            assert abs(variances[0, 0, column] - (second - first ** 2)) <= 1e-9 * second
+
+
+def test_ray_polynomials_reproduce_moments_along_rays():
+    rng = np.random.default_rng(14)
+    count, scale = 6, 1.7
+    origin = rng.normal(0.0, 2.0, size=(count, 4))
+    cov = np.array([random_covariance(rng, 4, 0.3) for _ in range(count)])
+    radius = rng.uniform(0.3, 1.0, size=count)
+    angles = rng.uniform(0.0, 2.0 * np.pi, size=9)
+    directions = np.stack([np.cos(angles), np.sin(angles)], axis=1)
+    means, variances = ray_polynomials(origin, cov, radius, directions, scale, 4.0, True)
+    t = rng.uniform(0.0, 1.0, size=9)
+    velocities = scale * t[:, None] * directions
+    # Each direction's own velocity through the closed form, one direction at a time.
+    for index in range(directions.shape[0]):
+        reference_mean, reference_variance = condition_moments(
+            origin, cov, radius, velocities[index][None, :], 4.0, True)
+        powers = t[index] ** np.arange(5)
+        got_mean = means[:, index] @ powers[:3]
+        got_variance = variances[:, index] @ powers
+        np.testing.assert_allclose(got_mean, reference_mean[:, 0], rtol=1e-9,
+                                   atol=1e-9 * np.max(np.abs(reference_mean)))
+        np.testing.assert_allclose(got_variance, reference_variance[:, 0], rtol=1e-9,
+                                   atol=1e-9 * np.max(np.abs(reference_variance)))

@@ -1,0 +1,208 @@
+"""``plan_velocity`` against brute-force and sampled ground truth."""
+
+import math
+
+import numpy as np
+from prvo_core_testing import random_covariance, random_two_robot_encounter
+import pytest
+
+from prvo_planner.core import (
+    AgentBelief,
+    PlannerConfig,
+    plan_velocity,
+    rvo_moments,
+    rvo_satisfaction_probability,
+)
+from prvo_planner.core.moments import ray_polynomials
+from prvo_planner.core.planner import (
+    build_encounter,
+    candidate_directions,
+    condition_layout,
+    ray_gaps,
+)
+from prvo_planner.core.probability import rvo_condition, sample_relative_states
+
+MODELS = ('prvo', 'rvo', 'inflate', 'mc')
+
+
+def deterministic_f(ego, neighbour, velocity, radius=None):
+    """``f`` at the means (section 3), computed directly."""
+    radius = ego.radius + neighbour.radius if radius is None else radius
+    relative_velocity = 2.0 * np.asarray(velocity) - ego.velocity - neighbour.velocity
+    relative_position = np.broadcast_to(ego.position - neighbour.position,
+                                        relative_velocity.shape)
+    return rvo_condition(np.concatenate([relative_position, relative_velocity], axis=-1), radius)
+
+
+def crowd(rng, count, noise):
+    """Ego at the origin and ``count`` neighbours in a 10 m box, none overlapping the ego."""
+    ego = AgentBelief([0.0, 0.0], rng.uniform(-0.5, 1.0, size=2),
+                      random_covariance(rng, 4, noise) if noise else np.zeros((4, 4)), 0.3)
+    neighbours = []
+    while len(neighbours) < count:
+        position = rng.uniform(-5.0, 5.0, size=2)
+        if np.hypot(*position) > 1.0:
+            neighbours.append(AgentBelief(
+                position, rng.uniform(-1.0, 1.0, size=2),
+                random_covariance(rng, 4, noise) if noise else np.zeros((4, 4)), 0.3))
+    return ego, neighbours
+
+
+@pytest.mark.parametrize('model', MODELS)
+@pytest.mark.parametrize('method', ('exact', 'taylor'))
+def test_no_neighbours_returns_clipped_preference(model, method):
+    ego = AgentBelief([0.0, 0.0], [0.0, 0.0], 0.01 * np.eye(4), 0.3)
+    config = PlannerConfig(max_speed=1.5, model=model, method=method, seed=0)
+    far = AgentBelief([50.0, 0.0], [0.0, 0.0], 0.01 * np.eye(4), 0.3)
+    for neighbours in ([], [far]):
+        slow = plan_velocity(ego, neighbours, [0.3, -0.4], config)
+        fast = plan_velocity(ego, neighbours, [3.0, 4.0], config)
+        np.testing.assert_allclose(slow.velocity, [0.3, -0.4])
+        np.testing.assert_allclose(fast.velocity, [0.9, 1.2])
+        assert fast.feasible and fast.achieved_k == math.inf and fast.eta_bound == 1.0
+        assert fast.num_constraints == 0
+
+
+def test_noise_free_rvo_satisfies_every_neighbour_when_a_candidate_does():
+    rng = np.random.default_rng(21)
+    config = PlannerConfig(model='rvo', receding_gate=False, time_horizon=math.inf,
+                           num_directions=32, max_speed=1.2)
+    speeds = np.linspace(0.0, 1.0, 401)
+    checked = 0
+    for _ in range(60):
+        ego, neighbours = crowd(rng, int(rng.integers(1, 5)), 0.0)
+        v_pref = rng.uniform(-1.5, 1.5, size=2)
+        result = plan_velocity(ego, neighbours, v_pref, config)
+        # Brute force over the same candidate rays.
+        directions = candidate_directions(ego, v_pref, config)
+        grid = config.max_speed * speeds[None, :, None] * directions[:, None, :]
+        satisfied = np.ones(grid.shape[:2], dtype=bool)
+        for neighbour in neighbours:
+            satisfied &= deterministic_f(ego, neighbour, grid) >= 0.0
+        margins = [deterministic_f(ego, neighbour, result.velocity) for neighbour in neighbours]
+        if np.any(satisfied):
+            checked += 1
+            assert result.feasible
+            scale = max(abs(deterministic_f(ego, n, np.zeros(2))) for n in neighbours) + 1.0
+            assert min(margins) >= -1e-6 * scale
+            # Optimal on the rays: no satisfied grid point is closer to v_pref.
+            best_grid = np.min(np.linalg.norm(grid[satisfied] - v_pref, axis=-1))
+            # 1e-8: the planner keeps its speed 1e-9 v_max inside the feasible interval.
+            assert np.linalg.norm(result.velocity - v_pref) <= best_grid + 1e-8
+        elif result.feasible:
+            assert min(margins) >= -1e-6
+    assert checked >= 40
+
+
+def test_exact_ray_intervals_match_dense_evaluation_of_the_surrogate():
+    rng = np.random.default_rng(22)
+    t = np.linspace(0.0, 1.0, 2001)
+    for _ in range(12):
+        ego, neighbours = crowd(rng, int(rng.integers(1, 4)), 0.15)
+        config = PlannerConfig(receding_gate=False, time_horizon=math.inf, num_directions=24,
+                               k=float(rng.uniform(0.5, 3.0)), actuation_cov=0.01 * np.eye(2))
+        encounter = build_encounter(ego, neighbours, config)
+        layout = condition_layout(encounter, config)
+        directions = candidate_directions(ego, np.array([1.0, 0.0]), config)
+        means, variances = ray_polynomials(encounter.origin, encounter.cov,
+                                           encounter.combined_radius, directions,
+                                           config.max_speed, config.time_horizon, False)
+        gap_direction, lower, upper = ray_gaps(means, variances, layout.margins(encounter),
+                                               layout, 'exact', False, directions[:, 0])
+        # Independent: closed-form moments at every grid velocity, no ray polynomials.
+        velocities = config.max_speed * t[None, :, None] * directions[:, None, :]
+        accepted = np.ones(velocities.shape[:2], dtype=bool)
+        for index in range(encounter.origin.shape[0]):
+            mean = np.concatenate(np.broadcast_arrays(
+                encounter.origin[index, :2], encounter.origin[index, 2:] + 2.0 * velocities),
+                axis=-1)
+            expectation, variance = rvo_moments(mean, encounter.cov[index],
+                                                encounter.combined_radius[index])
+            accepted &= expectation - config.k * np.sqrt(np.maximum(variance, 0.0)) >= 0.0
+        inside = np.zeros_like(accepted)
+        near_boundary = np.zeros_like(accepted)
+        for direction, low, high in zip(gap_direction, lower, upper, strict=True):
+            inside[direction] |= (t >= low) & (t <= high)
+            near_boundary[direction] |= (np.abs(t - low) < 1e-6) | (np.abs(t - high) < 1e-6)
+        assert np.all((inside == accepted) | near_boundary)
+
+
+def test_inflate_equals_rvo_without_noise_and_respects_the_enlarged_radius():
+    rng = np.random.default_rng(23)
+    for _ in range(20):
+        ego, neighbours = crowd(rng, 2, 0.0)
+        v_pref = rng.uniform(-1.0, 1.0, size=2)
+        common = {'receding_gate': False, 'time_horizon': math.inf, 'num_directions': 32}
+        rvo = plan_velocity(ego, neighbours, v_pref, PlannerConfig(model='rvo', **common))
+        inflate = plan_velocity(ego, neighbours, v_pref, PlannerConfig(model='inflate', **common))
+        np.testing.assert_allclose(inflate.velocity, rvo.velocity, atol=1e-12)
+    for _ in range(20):
+        ego, neighbours = crowd(rng, 2, 0.1)
+        config = PlannerConfig(model='inflate', eta=0.9, receding_gate=False,
+                               time_horizon=math.inf, num_directions=32)
+        result = plan_velocity(ego, neighbours, rng.uniform(-1.0, 1.0, size=2), config)
+        if result.feasible:
+            for neighbour in neighbours:
+                spread = np.linalg.eigvalsh(ego.covariance[:2, :2]
+                                            + neighbour.covariance[:2, :2])[-1]
+                radius = ego.radius + neighbour.radius \
+                    + np.sqrt(-2.0 * np.log(1.0 - 0.9)) * np.sqrt(spread)
+                assert deterministic_f(ego, neighbour, result.velocity, radius) >= -1e-6
+
+
+def test_monte_carlo_baseline_meets_eta_under_independent_sampling():
+    rng = np.random.default_rng(24)
+    config = PlannerConfig(model='mc', eta=0.8, receding_gate=False, time_horizon=math.inf,
+                           num_directions=16, mc_samples=4000, seed=5,
+                           actuation_cov=0.005 * np.eye(2))
+    samples = 20_000
+    for _ in range(10):
+        ego, neighbour = random_two_robot_encounter(rng)
+        result = plan_velocity(ego, [neighbour], [1.0, 0.0], config)
+        if result.feasible:
+            probability = rvo_satisfaction_probability(ego, neighbour, result.velocity,
+                                                       config.actuation_cov, samples, rng)
+            # The planner's estimate (4000 samples) and ours (20000) both err.
+            error = math.sqrt(0.8 * 0.2 / 4000) + math.sqrt(0.8 * 0.2 / samples)
+            assert probability >= 0.8 - 4.0 * error
+
+
+def test_joint_risk_bounds_the_probability_that_all_constraints_hold():
+    rng = np.random.default_rng(25)
+    eta, samples = 0.8, 20_000
+    config = PlannerConfig(eta=eta, risk='joint', receding_gate=False, time_horizon=math.inf,
+                           num_directions=32, actuation_cov=0.005 * np.eye(2))
+    checked = 0
+    for _ in range(15):
+        ego, neighbours = crowd(rng, 3, 0.08)
+        result = plan_velocity(ego, neighbours, rng.uniform(-1.0, 1.0, size=2), config)
+        if not result.feasible:
+            continue
+        checked += 1
+        # Shared ego and actuation samples: the events of different neighbours are dependent.
+        ego_state = rng.multivariate_normal(np.r_[ego.position, ego.velocity], ego.covariance,
+                                            size=samples)
+        command = result.velocity + rng.multivariate_normal(np.zeros(2), config.actuation_cov,
+                                                            size=samples)
+        all_hold = np.ones(samples, dtype=bool)
+        for neighbour in neighbours:
+            other = rng.multivariate_normal(np.r_[neighbour.position, neighbour.velocity],
+                                            neighbour.covariance, size=samples)
+            z = np.concatenate([ego_state[:, :2] - other[:, :2],
+                                2.0 * command - ego_state[:, 2:] - other[:, 2:]], axis=1)
+            all_hold &= rvo_condition(z, ego.radius + neighbour.radius) >= 0.0
+        assert all_hold.mean() >= eta - 4.0 * math.sqrt(eta * (1.0 - eta) / samples)
+    assert checked >= 5
+
+
+def test_sampler_matches_the_relative_gaussian_of_section_2():
+    rng = np.random.default_rng(26)
+    ego = AgentBelief([0.0, 0.0], [0.5, 0.0], random_covariance(rng, 4, 0.3), 0.3)
+    neighbour = AgentBelief([3.0, 1.0], [-0.5, 0.1], random_covariance(rng, 4, 0.3), 0.4)
+    actuation = 0.02 * np.eye(2)
+    z = sample_relative_states(ego, neighbour, np.array([0.4, 0.2]), actuation, 200_000, rng)
+    config = PlannerConfig(actuation_cov=actuation)
+    encounter = build_encounter(ego, [neighbour], config)
+    expected_mean = encounter.origin[0] + np.r_[0.0, 0.0, 0.8, 0.4]
+    np.testing.assert_allclose(z.mean(axis=0), expected_mean, atol=0.01)
+    np.testing.assert_allclose(np.cov(z.T), encounter.cov[0], atol=0.02)
