@@ -5,43 +5,26 @@ on one machine never see each other's topics), observe them through a probe node
 background thread, and wait on events with timeouts, never on fixed sleeps.
 """
 
-import fcntl
 import os
 import pathlib
 import signal
 import subprocess
 import sys
-import tempfile
 import threading
 import time
 
 import pytest
-
-# Domain ids 0-101 are safe on Linux for the default port mapping; 0 is everyone's default.
-_DOMAIN_IDS = range(30, 100)
-_LOCK_DIR = pathlib.Path(tempfile.gettempdir()) / 'prvo-ros-domains'
 
 os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
 
 
 @pytest.fixture
 def ros_domain():
-    """Claim a ROS_DOMAIN_ID no other test process on this machine holds; release it after."""
-    _LOCK_DIR.mkdir(exist_ok=True)
-    for domain_id in _DOMAIN_IDS:
-        lock_file = open(_LOCK_DIR / f'{domain_id}.lock', 'w')
-        try:
-            fcntl.flock(lock_file, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except OSError:
-            lock_file.close()
-            continue
-        try:
-            yield domain_id
-        finally:
-            fcntl.flock(lock_file, fcntl.LOCK_UN)
-            lock_file.close()
-        return
-    pytest.fail(f'no free ROS_DOMAIN_ID in {_DOMAIN_IDS}')
+    """Claim a ROS_DOMAIN_ID no test or scenario run on this machine holds; release it after."""
+    from prvo_sim.run_scenario import claimed_domain
+
+    with claimed_domain(None) as domain_id:
+        yield domain_id
 
 
 @pytest.fixture

@@ -23,7 +23,6 @@ import math
 import os
 import pathlib
 import shlex
-import signal
 import sys
 import time
 
@@ -429,18 +428,7 @@ def main(argv=None):
     except run_scenario.UsageError as error:
         print(f'bench_team: error: {error}', file=sys.stderr)
         return 2
-    previous_handlers = {signum: signal.signal(signum, run_scenario.INTERRUPTS.handle)
-                         for signum in (signal.SIGINT, signal.SIGTERM)}
-    try:
-        return run(options)
-    except run_scenario.RunInterruptedError as interruption:
-        # Arrived between runs, when no child is alive.
-        print(f'bench_team: interrupted by {interruption}', file=sys.stderr)
-        return 128 + interruption.signum
-    finally:
-        for signum, handler in previous_handlers.items():
-            signal.signal(signum, handler)
-
+    return run_scenario.run_interruptibly('bench_team', lambda: run(options))
 
 if __name__ == '__main__':
     sys.exit(main())

@@ -38,8 +38,10 @@ MODES = ('lockstep', 'realtime')
 WORLD_FRAME = 'map'
 DEFAULT_ETA = 0.8
 # Private domains, disjoint from the test fixtures' (30-99) and hand-run processes' (111-120).
-DOMAIN_IDS = range(140, 231)
-DOMAIN_LOCK_DIR = pathlib.Path(tempfile.gettempdir()) / 'prvo-run-domains'
+# Ids above 101 put Fast DDS's ports into Linux's ephemeral range; 0 is everyone's default.
+# Tests claim their domains here too, so runs and tests on one machine never share one.
+DOMAIN_IDS = range(1, 102)
+DOMAIN_LOCK_DIR = pathlib.Path(tempfile.gettempdir()) / 'prvo-ros-domains'
 STEP_TIMEOUT = 2.0  # wall seconds the sim waits for a late planner before reusing its command
 SHUTDOWN_GRACE = 10.0  # wall seconds children get to exit after SIGINT before SIGKILL
 STARTUP_LIMIT = 60.0  # wall seconds to the first ground truth before the run counts as failed
@@ -736,6 +738,23 @@ def run(options, scenario):
     return 1 if any('failure' in run_metrics for run_metrics, _ in runs) else 0
 
 
+def run_interruptibly(program, job):
+    """Return JOB()'s exit code, with SIGINT/SIGTERM turned into RunInterruptedError meanwhile.
+
+    A signal that arrives between runs, when no child is alive, ends PROGRAM with 128 + signal.
+    """
+    previous_handlers = {signum: signal.signal(signum, INTERRUPTS.handle)
+                         for signum in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        return job()
+    except RunInterruptedError as interruption:
+        print(f'{program}: interrupted by {interruption}', file=sys.stderr)
+        return 128 + interruption.signum
+    finally:
+        for signum, handler in previous_handlers.items():
+            signal.signal(signum, handler)
+
+
 def main(argv=None):
     """Run the scenario runner's command line; return the exit code."""
     argv = sys.argv[1:] if argv is None else argv
@@ -744,18 +763,7 @@ def main(argv=None):
     except UsageError as error:
         print(f'run_scenario: error: {error}', file=sys.stderr)
         return 2
-    previous_handlers = {signum: signal.signal(signum, INTERRUPTS.handle)
-                         for signum in (signal.SIGINT, signal.SIGTERM)}
-    try:
-        return run(options, scenario)
-    except RunInterruptedError as interruption:
-        # Arrived between runs, when no child is alive.
-        print(f'run_scenario: interrupted by {interruption}', file=sys.stderr)
-        return 128 + interruption.signum
-    finally:
-        for signum, handler in previous_handlers.items():
-            signal.signal(signum, handler)
-
+    return run_interruptibly('run_scenario', lambda: run(options, scenario))
 
 if __name__ == '__main__':
     sys.exit(main())
