@@ -41,16 +41,6 @@ _POSITION = np.diag([1.0, 1.0, 0.0, 0.0])
 NUM_RVO_FORMS = 9
 
 
-def poly_mul(first, second):
-    """Multiply two polynomials (last axis, ascending powers), broadcasting leading axes."""
-    length = first.shape[-1] + second.shape[-1] - 1
-    shape = np.broadcast_shapes(first.shape[:-1], second.shape[:-1]) + (length,)
-    product = np.zeros(shape)
-    for power in range(first.shape[-1]):
-        product[..., power:power + second.shape[-1]] += first[..., power:power + 1] * second
-    return product
-
-
 def poly_eval(poly, t):
     """
     Evaluate polynomials at points by Horner's rule.
@@ -248,7 +238,9 @@ def condition_moments(origin, cov, combined_radius, velocities, time_horizon, re
     matrices = np.concatenate([rvo_matrices, extra_matrices], axis=1)
     mean = np.concatenate(np.broadcast_arrays(
         origin[:, None, :2], origin[:, None, 2:] + 2.0 * velocities), axis=-1)
-    forms = np.einsum('npi,nkij,npj->npk', mean, matrices, mean)
+    # mu'X mu as (X mu) . mu with the points last: small products, contiguous reductions.
+    mean_t = np.swapaxes(mean, -1, -2)[:, None]
+    forms = np.sum(np.matmul(matrices, mean_t) * mean_t, axis=-2).swapaxes(-1, -2)
     f_mean, f_variance = rvo_moments_from_forms(forms[..., :NUM_RVO_FORMS],
                                                 rvo_traces[:, None, :], combined_radius[:, None])
     means, variances = [f_mean], [f_variance]
@@ -275,6 +267,8 @@ _EXPONENTS = _monomial_exponents()
 _NODES_1D = np.cos(np.pi * np.arange(5) / 4.0)
 _NODES = np.stack(np.meshgrid(_NODES_1D, _NODES_1D, indexing='ij'), axis=-1).reshape(-1, 2)
 _FIT = np.linalg.pinv(np.prod(_NODES[:, None, :] ** _EXPONENTS[None, :, :], axis=-1))
+# Total degree of each monomial of _EXPONENTS.
+_DEGREES = _EXPONENTS.sum(axis=1)
 
 
 def ray_polynomials(origin, cov, combined_radius, directions, scale, time_horizon,
@@ -303,15 +297,15 @@ def ray_polynomials(origin, cov, combined_radius, directions, scale, time_horizo
     """
     means, variances = condition_moments(origin, cov, combined_radius, scale * _NODES,
                                          time_horizon, receding_gate)
-    # Bivariate coefficient k multiplies t^(i+j) e_x^i e_y^j along the ray.
-    direction_monomials = np.prod(directions[:, None, :] ** _EXPONENTS[None, :, :], axis=-1)
-    degree = _EXPONENTS.sum(axis=1)
-    to_ray = np.zeros((directions.shape[0], _EXPONENTS.shape[0], 5))
-    to_ray[:, np.arange(degree.size), degree] = direction_monomials
-    fit_to_ray = np.einsum('kp,mkd->pmd', _FIT, to_ray).reshape(_NODES.shape[0], -1)
     count, conditions = origin.shape[0], means.shape[-1]
-    values = np.concatenate([means, variances], axis=-1).transpose(0, 2, 1).reshape(
-        -1, _NODES.shape[0])
-    coefficients = (values @ fit_to_ray).reshape(count, 2, conditions, directions.shape[0], 5)
-    coefficients = coefficients.transpose(1, 0, 3, 2, 4)
-    return coefficients[0, ..., :3], coefficients[1]
+    # Bivariate coefficient k multiplies t^(i+j) e_x^i e_y^j along the ray: one (5 M, 15) map
+    # from bivariate coefficients to ray coefficients, degree-major, applied per neighbour (many
+    # small products, which never wake BLAS threads: those cost more than they save here).
+    direction_monomials = np.prod(directions[:, None, :] ** _EXPONENTS[None, :, :], axis=-1)
+    to_ray = np.where(_DEGREES == np.arange(5)[:, None, None], direction_monomials, 0.0)
+    bivariate = _FIT @ np.concatenate([means, variances], axis=-1)
+    ray = (to_ray.reshape(-1, _EXPONENTS.shape[0]) @ bivariate).reshape(
+        count, 5, directions.shape[0], 2 * conditions)
+    # Views of shape (N, M, C, L): coefficient-major memory suits Horner's rule downstream.
+    ray = np.moveaxis(ray, 1, -1)
+    return ray[:, :, :conditions, :3], ray[:, :, conditions:]

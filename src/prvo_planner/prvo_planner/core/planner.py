@@ -15,7 +15,7 @@ import numpy as np
 
 from .beliefs import AgentBelief, as_finite_array
 from .config import PlannerConfig, PlanResult
-from .moments import condition_moments, poly_eval, poly_mul, ray_polynomials
+from .moments import condition_moments, poly_eval, ray_polynomials
 from .probability import eta_from_k
 from .ray_solver import polynomial_roots, quadratic_roots, sign_certificates, taylor_quadratics
 
@@ -235,9 +235,11 @@ def achieved_margins(means, variances, layout, receding_enabled, rank=False):
         Shape (...).
 
     """
-    sigma = np.sqrt(np.maximum(variances, 0.0))
+    variances = np.maximum(variances, 0.0)
     if rank:
-        sigma = np.hypot(sigma, _RANK_FLOOR * np.abs(means))
+        # sqrt of a sum, not np.hypot: the same floor at a fraction of the cost.
+        variances = variances + (_RANK_FLOOR * means) ** 2
+    sigma = np.sqrt(variances)
     with np.errstate(divide='ignore', invalid='ignore'):
         margins = np.where(sigma > 0.0, means / sigma, np.where(means >= 0.0, np.inf, -np.inf))
     if layout.has_horizon:
@@ -249,38 +251,115 @@ def achieved_margins(means, variances, layout, receding_enabled, rank=False):
     return combine_conditions(margins, layout, receding_enabled, np.maximum, np.minimum)
 
 
+def _coefficient_major(polynomial):
+    """View polynomials of shape (N, M, C, L) as (N, L, M, C)."""
+    return np.moveaxis(polynomial, -1, 1)
+
+
+def _squared_minus(means, scaled_variances):
+    """
+    Return ``mean^2 - scaled_variance`` for coefficient-major polynomials.
+
+    Parameters
+    ----------
+    means : numpy.ndarray
+        Shape (N, 3, M, C).
+    scaled_variances : numpy.ndarray
+        Shape (N, 5, M, C).
+
+    Returns
+    -------
+    numpy.ndarray
+        Shape (N, 5, M, C).
+
+    """
+    constant, linear, quadratic = means[:, 0], means[:, 1], means[:, 2]
+    return np.stack([constant * constant, 2.0 * constant * linear,
+                     linear * linear + 2.0 * constant * quadratic, 2.0 * linear * quadratic,
+                     quadratic * quadratic], axis=1) - scaled_variances
+
+
+def _certificates(polynomial):
+    """Sign certificates of coefficient-major (N, L, M, C) polynomials, each (N, M, C)."""
+    count, length, directions, conditions = polynomial.shape
+    nonnegative, negative = sign_certificates(polynomial.reshape(count, length, -1))
+    return (nonnegative.reshape(count, directions, conditions),
+            negative.reshape(count, directions, conditions))
+
+
 def _pair_status(means, variances, margins, method, deterministic, preferred):
     """
     Certify conditions accepted or rejected on the whole ray; prepare the per-piece tests.
 
     For the exact method ``mean - k sigma >= 0`` iff ``mean >= 0`` and ``mean^2 - k^2 var >= 0``
-    (the quartic). Where the variance is certified positive the mean cannot change sign inside
-    a piece on which the quartic is ``>= 0``, so only the quartic's roots bound pieces.
+    (the quartic). Where the variance is certified ``>= 0`` the mean can change sign inside a
+    piece on which the quartic is ``>= 0`` only at a root of the quartic, so there only the
+    quartic's roots bound pieces. Roots are needed only for conditions undecided on the ray.
 
     Returns
     -------
     accept_all, reject_all : numpy.ndarray
         Per condition, shape (N, M, C).
     tests : list of numpy.ndarray
-        Polynomials that decide acceptance (all must be ``>= 0``), each (N, M, C, L).
-    bounding : list of numpy.ndarray
-        Polynomials whose roots bound the pieces, each (N, M, C, L).
+        Coefficient-major polynomials that decide acceptance (all must be ``>= 0``), each
+        (N, L, M, C).
+    bounding : list of (numpy.ndarray, numpy.ndarray)
+        Coefficient-major polynomials (N, L, M, C) whose roots bound the pieces, each with
+        whether its sign on [0, 1] is undecided, (N, M, C).
 
     """
     if deterministic:
-        tests = bounding = [means]
+        tests = [_coefficient_major(means)]
     elif method == 'taylor':
-        tests = bounding = [taylor_quadratics(means, variances, margins, preferred[None, :, None])]
+        tests = [_coefficient_major(
+            taylor_quadratics(means, variances, margins, preferred[None, :, None]))]
     else:
-        quartics = poly_mul(means, means) - (margins ** 2)[:, None] * variances
-        tests = [quartics, means]
-        positive_variance, _ = sign_certificates(variances)
-        bounding = [quartics] if np.all(positive_variance) else tests
+        variances = _coefficient_major(variances)
+        tests = [_squared_minus(_coefficient_major(means), margins ** 2 * variances),
+                 _coefficient_major(means)]
+    certificates = [_certificates(test) for test in tests]
     accept, reject = True, False
-    for test in tests:
-        nonnegative, negative = sign_certificates(test)
+    for nonnegative, negative in certificates:
         accept, reject = accept & nonnegative, reject | negative
+    # Only a condition undecided on the whole ray can split it, and only where its own test is.
+    undecided = ~(accept | reject)
+    bounding = [(test, undecided & ~(nonnegative | negative))
+                for test, (nonnegative, negative) in zip(tests, certificates, strict=True)]
+    if len(tests) == 2:
+        mean, mean_undecided = bounding[1]
+        bounding[1] = (mean, mean_undecided & ~_certificates(variances)[0])
     return accept, reject, tests, bounding
+
+
+def _relevant_conditions(reject_all, layout, receding_enabled):
+    """
+    Mark the conditions whose acceptance can change their pair's.
+
+    A disabled ``g`` cannot, nor can ``h1`` (``h2``) when ``h2`` (``h1``) is rejected on the
+    whole ray; their roots need not bound pieces.
+
+    Parameters
+    ----------
+    reject_all : numpy.ndarray
+        Per condition, rejected on the whole ray, shape (N, M, C).
+    layout : ConditionLayout
+        Column meaning.
+    receding_enabled : numpy.ndarray
+        Whether ``g`` counts, broadcastable to shape (N, M).
+
+    Returns
+    -------
+    numpy.ndarray
+        Booleans, shape (N, M, C).
+
+    """
+    relevant = np.ones(reject_all.shape, dtype=bool)
+    if layout.has_receding:
+        relevant[..., 1] = receding_enabled
+    if layout.has_horizon:
+        relevant[..., -2] = ~reject_all[..., -1]
+        relevant[..., -1] = ~reject_all[..., -2]
+    return relevant
 
 
 def ray_gaps(means, variances, margins, layout, method, deterministic, preferred):
@@ -313,44 +392,59 @@ def ray_gaps(means, variances, margins, layout, method, deterministic, preferred
     accept_all, reject_all, tests, bounding = _pair_status(means, variances, margins, method,
                                                            deterministic, preferred)
     enabled = layout.receding_enabled[:, None]
+    relevant = _relevant_conditions(reject_all, layout, enabled)
     accept_all = combine_conditions(accept_all, layout, enabled)
     reject_all = ~combine_conditions(~reject_all, layout, enabled)
     open_directions = ~np.any(reject_all, axis=0)
-    pair_neighbour, pair_direction = np.nonzero(~accept_all & open_directions[None, :])
+    open_pairs = ~accept_all & open_directions[None, :]
+    pair_neighbour, pair_direction = np.nonzero(open_pairs)
+    count = pair_neighbour.size
+    pair_index = np.zeros(open_pairs.shape, dtype=int)
+    pair_index[pair_neighbour, pair_direction] = np.arange(count)
     breakpoints = []
-    for polynomial in bounding:
-        polynomial = polynomial[pair_neighbour, pair_direction]
-        breakpoints.append(polynomial_roots(polynomial) if polynomial.shape[-1] == 5 else
-                           quadratic_roots(polynomial[..., 0], polynomial[..., 1],
-                                           polynomial[..., 2]))
-    breakpoints = np.concatenate(breakpoints, axis=-1)
-    count = breakpoints.shape[0]
+    for polynomial, undecided in bounding:
+        # One coefficient-major column per undecided (pair, condition) row.
+        neighbour, direction, condition = np.nonzero(undecided & relevant
+                                                     & open_pairs[..., None])
+        if neighbour.size == 0:
+            continue
+        columns = np.ascontiguousarray(polynomial[neighbour, :, direction, condition].T)
+        roots = (polynomial_roots(columns) if columns.shape[0] == 5 else
+                 quadratic_roots(columns[0], columns[1], columns[2]))
+        found = np.full((count, margins.size, roots.shape[-1]), np.nan)
+        found[pair_index[neighbour, direction], condition] = roots
+        breakpoints.append(found)
+    breakpoints = np.concatenate(breakpoints or [np.empty((count, margins.size, 0))], axis=-1)
     breakpoints = breakpoints.reshape(count, breakpoints.shape[1] * breakpoints.shape[2])
     inside = (breakpoints > 0.0) & (breakpoints < 1.0)
+    inside_count = np.count_nonzero(inside, axis=1)
     bounds = np.sort(np.concatenate([np.zeros((count, 1)), np.where(inside, breakpoints, 1.0),
                                      np.ones((count, 1))], axis=-1), axis=-1)
-    # Roots outside (0, 1) became trailing 1.0 padding: drop the columns that are all padding.
-    bounds = bounds[:, :2 + int(np.max(np.count_nonzero(inside, axis=1), initial=0))]
-    midpoints = 0.5 * (bounds[:, None, 1:] + bounds[:, None, :-1])
+    # Roots outside (0, 1) became trailing 1.0 padding: keep each pair's own pieces only, flat.
+    bounds = bounds[:, :2 + int(np.max(inside_count, initial=0))]
+    own_piece = np.arange(bounds.shape[1] - 1) <= inside_count[:, None]
+    piece_pair = np.nonzero(own_piece)[0]
+    piece_start, piece_end = bounds[:, :-1][own_piece], bounds[:, 1:][own_piece]
+    midpoints = (0.5 * (piece_end + piece_start))[:, None]
     accepted = True
     for test in tests:
-        # Coefficient-major copies keep Horner's rule on contiguous arrays.
-        coefficients = np.moveaxis(test[pair_neighbour, pair_direction], -1, 0)[..., None]
-        value = coefficients[-1]
-        for coefficient in coefficients[-2::-1]:
-            value = value * midpoints + coefficient
+        # (Q, L, C): each piece's pair's coefficients; Horner's rule over the coefficient axis.
+        coefficients = test[pair_neighbour, :, pair_direction][piece_pair]
+        value = coefficients[:, -1]
+        for power in range(coefficients.shape[1] - 2, -1, -1):
+            value = value * midpoints + coefficients[:, power]
         accepted = accepted & (value >= 0.0)
-    accepted = combine_conditions(np.moveaxis(accepted, 1, -1), layout,
-                                  layout.receding_enabled[pair_neighbour, None])
+    accepted = combine_conditions(accepted, layout,
+                                  layout.receding_enabled[pair_neighbour[piece_pair]])
     # Sweep the rejected pieces of each open direction, shifted by 4 per direction so that one
     # sort handles every direction; sentinels reject t < 0 and t > 1 and end where the next
     # direction's first sentinel starts, so no gap spans two directions.
     rejected = ~accepted
-    piece_direction = np.broadcast_to(pair_direction[:, None], rejected.shape)[rejected]
+    piece_direction = pair_direction[piece_pair[rejected]]
     sentinel_direction = np.nonzero(open_directions)[0]
-    starts = np.concatenate([bounds[:, :-1][rejected], np.full(sentinel_direction.size, -1.0),
+    starts = np.concatenate([piece_start[rejected], np.full(sentinel_direction.size, -1.0),
                              np.full(sentinel_direction.size, 1.0)])
-    ends = np.concatenate([bounds[:, 1:][rejected], np.zeros(sentinel_direction.size),
+    ends = np.concatenate([piece_end[rejected], np.zeros(sentinel_direction.size),
                            np.full(sentinel_direction.size, 3.0)])
     direction = np.concatenate([piece_direction, sentinel_direction, sentinel_direction])
     starts = starts + 4.0 * direction
@@ -511,11 +605,7 @@ def plan_velocity(ego, neighbours, v_pref, config):
             best = int(np.argmin(np.linalg.norm(candidates - v_pref, axis=1)))
             direction_index, chosen_t = gap_direction[best], best_t[best]
         else:
-            grid_means = poly_eval(means[:, :, None], speeds[None, :, :, None])
-            grid_variances = poly_eval(variances[:, :, None], speeds[None, :, :, None])
-            score = np.min(achieved_margins(grid_means, grid_variances, layout,
-                                            layout.receding_enabled[:, None, None], rank=True),
-                           axis=0)
+            score = _grid_scores(means, variances, speeds, layout)
             direction_index, speed_index = np.unravel_index(_best_ranked(score, grid_costs),
                                                             speeds.shape)
             chosen_t = speeds[direction_index, speed_index]
@@ -534,6 +624,37 @@ def plan_velocity(ego, neighbours, v_pref, config):
                       feasible=bool(candidates_feasible) and not np.any(encounter.overlapping),
                       achieved_k=achieved, eta_bound=_cantelli(achieved),
                       num_constraints=count, candidates_feasible=candidates_feasible)
+
+
+def _grid_scores(means, variances, speeds, layout):
+    """
+    Ranked achieved ``k`` at candidate speeds, minimised over neighbours.
+
+    Parameters
+    ----------
+    means, variances : numpy.ndarray
+        Condition polynomials, shapes (N, M, C, 3) and (N, M, C, 5).
+    speeds : numpy.ndarray
+        ``t`` per direction, shape (M, T).
+    layout : ConditionLayout
+        Column meaning.
+
+    Returns
+    -------
+    numpy.ndarray
+        Shape (M, T).
+
+    """
+    count, directions, conditions = means.shape[:3]
+    powers = speeds[..., None] ** np.arange(variances.shape[-1])
+    # Per direction, speed powers (T, L) times coefficients (L, N C): one small product each.
+    grid_means, grid_variances = (
+        (powers[..., :polynomial.shape[-1]] @ polynomial.transpose(1, 3, 0, 2).reshape(
+            directions, polynomial.shape[-1], -1)).reshape(
+                directions, speeds.shape[1], count, conditions)
+        for polynomial in (means, variances))
+    return np.min(achieved_margins(grid_means, grid_variances, layout,
+                                   layout.receding_enabled, rank=True), axis=-1)
 
 
 def _cantelli(margin):

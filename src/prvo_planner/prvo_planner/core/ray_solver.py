@@ -120,16 +120,29 @@ def _monic_quartic_roots(b, c, d, e):
     return roots + shift[..., None]
 
 
-def _polish(coefficients, roots):
-    """Newton-polish ``roots`` (K, R) of polynomials ``coefficients`` (K, L)."""
-    derivative = coefficients[:, 1:] * np.arange(1, coefficients.shape[-1])
+def _polish(columns, roots):
+    """
+    Newton-polish the roots (K, R) of polynomials with coefficient-major ``columns`` (L, K).
+
+    Only roots within 2e-3 of [0, 1] are polished: each step moves a root by less than 1e-3,
+    so no other root can enter (0, 1), where breakpoints matter.
+    """
+    near = np.abs(roots - 0.5) <= 0.5 + 2e-3
+    row, column = np.nonzero(near)
+    coefficients = columns[:, row]
+    derivative = coefficients[1:] * np.arange(1, coefficients.shape[0])[:, None]
+    points = roots[row, column]
     with np.errstate(divide='ignore', invalid='ignore'):
         for _ in range(_NEWTON_STEPS):
-            value = poly_eval(coefficients[:, None, :], roots)
-            slope = poly_eval(derivative[:, None, :], roots)
+            value, slope = coefficients[-1], derivative[-1]
+            for power in range(coefficients.shape[0] - 2, -1, -1):
+                value = value * points + coefficients[power]
+                if power > 0:
+                    slope = slope * points + derivative[power - 1]
             step = value / slope
             # A large step means a flat spot (near-double root): keep the closed-form value.
-            roots = np.where(np.abs(step) < 1e-3, roots - step, roots)
+            points = np.where(np.abs(step) < 1e-3, points - step, points)
+    roots[row, column] = points
     return roots
 
 
@@ -155,59 +168,53 @@ def sign_certificates(coefficients):
     Parameters
     ----------
     coefficients : numpy.ndarray
-        Ascending coefficients, shape (..., 3) or (..., 5).
+        Ascending coefficients, coefficient-major: shape (B, L, K) with L = 3 or 5.
 
     Returns
     -------
     nonnegative, negative : numpy.ndarray
-        Booleans, shape (...).
+        Booleans, shape (B, K).
 
     """
-    bernstein = np.moveaxis(coefficients @ _BERNSTEIN[coefficients.shape[-1] - 1], -1, 0)
-    # Column-wise reductions: much faster than a reduction over a short last axis.
-    low, high = bernstein[0], bernstein[0]
-    for column in bernstein[1:]:
-        low, high = np.minimum(low, column), np.maximum(high, column)
-    return low >= 0.0, high < 0.0
+    # One small product per batch: a single large one would wake BLAS threads for nothing.
+    bernstein = _BERNSTEIN[coefficients.shape[1] - 1].T @ coefficients
+    return np.min(bernstein, axis=1) >= 0.0, np.max(bernstein, axis=1) < 0.0
 
 
-def polynomial_roots(coefficients):
+def polynomial_roots(columns):
     """
     Real roots of polynomials of degree <= 4, vectorised, with degree detection.
 
     Parameters
     ----------
-    coefficients : numpy.ndarray
-        Ascending coefficients, shape (..., 5).
+    columns : numpy.ndarray
+        Ascending coefficients, coefficient-major: shape (5, K).
 
     Returns
     -------
     numpy.ndarray
-        Real roots, shape (..., 4), NaN-padded.
+        Real roots, shape (K, 4), NaN-padded.
 
     """
-    flat = coefficients.reshape(-1, 5)
-    roots = np.full((flat.shape[0], 4), np.nan)
-    nonnegative, negative = sign_certificates(flat)
-    maybe_root = ~(negative | nonnegative)
-    if not np.any(maybe_root):
-        return roots.reshape(coefficients.shape[:-1] + (4,))
-    rows = flat[maybe_root]
-    rows = rows / np.max(np.abs(rows), axis=-1, keepdims=True)
-    found = np.full((rows.shape[0], 4), np.nan)
-    quartic = np.abs(rows[:, 4]) > _DEGREE_TOLERANCE
-    cubic = ~quartic & (np.abs(rows[:, 3]) > _DEGREE_TOLERANCE)
-    lower = ~quartic & ~cubic
-    if np.any(quartic):
-        monic = rows[quartic, :4] / rows[quartic, 4:5]
-        found[quartic] = _monic_quartic_roots(monic[:, 3], monic[:, 2], monic[:, 1], monic[:, 0])
-    if np.any(cubic):
-        monic = rows[cubic, :3] / rows[cubic, 3:4]
-        found[cubic, :3] = _monic_cubic_roots(monic[:, 2], monic[:, 1], monic[:, 0])
-    if np.any(lower):
-        found[lower, :2] = quadratic_roots(rows[lower, 0], rows[lower, 1], rows[lower, 2])
-    roots[maybe_root] = _polish(rows, found)
-    return roots.reshape(coefficients.shape[:-1] + (4,))
+    scale = np.abs(columns[0])
+    for column in columns[1:]:
+        scale = np.maximum(scale, np.abs(column))
+    columns = columns / scale
+    quartic = np.abs(columns[4]) > _DEGREE_TOLERANCE
+    if np.all(quartic):
+        monic = columns[:4] / columns[4]
+        found = _monic_quartic_roots(monic[3], monic[2], monic[1], monic[0])
+    else:
+        found = np.full((columns.shape[1], 4), np.nan)
+        cubic = ~quartic & (np.abs(columns[3]) > _DEGREE_TOLERANCE)
+        lower = ~quartic & ~cubic
+        monic = columns[:4, quartic] / columns[4, quartic]
+        found[quartic] = _monic_quartic_roots(monic[3], monic[2], monic[1], monic[0])
+        monic = columns[:3, cubic] / columns[3, cubic]
+        found[cubic, :3] = _monic_cubic_roots(monic[2], monic[1], monic[0])
+        found[lower, :2] = quadratic_roots(columns[0, lower], columns[1, lower],
+                                           columns[2, lower])
+    return _polish(columns, found)
 
 
 def taylor_quadratics(means, variances, margins, preferred):
