@@ -14,4 +14,7 @@ case ":${AMENT_PREFIX_PATH:-}:" in
   *) export AMENT_PREFIX_PATH="$_prvo_root/.venv${AMENT_PREFIX_PATH:+:$AMENT_PREFIX_PATH}" ;;
 esac
 export RMW_IMPLEMENTATION=${RMW_IMPLEMENTATION:-rmw_fastrtps_cpp}
+# One BLAS thread per process: a team runs a planner per robot, and idle BLAS threads spinning
+# on a few cores cost more than the small products they would speed up.
+export OPENBLAS_NUM_THREADS=${OPENBLAS_NUM_THREADS:-1}
 unset _prvo_root

@@ -35,6 +35,7 @@ def ros_env(ros_domain):
     env['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
     env['PYTHONUNBUFFERED'] = '1'
     env['RCUTILS_LOGGING_BUFFERED_STREAM'] = '0'
+    env.setdefault('OPENBLAS_NUM_THREADS', '1')
     return env
 
 

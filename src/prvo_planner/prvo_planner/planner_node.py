@@ -9,6 +9,7 @@ tracks every robot with `prvo_planner.estimation`, plans with `prvo_planner.core
 and publishes.
 """
 
+import dataclasses
 import math
 import sys
 import time
@@ -193,6 +194,16 @@ def preferred_velocity(position, goal, max_speed, approach_time, goal_tolerance)
         return np.zeros(2), True
     speed = min(max_speed, distance / approach_time)
     return offset * (speed / distance), False
+
+
+def goal_horizon(distance_to_goal, max_speed, approach_time, time_horizon):
+    """Return the time horizon of one plan [s]: no longer than the way to the goal takes.
+
+    A robot that stops at its goal in about distance / max_speed, plus approach_time of slowing
+    down, cannot collide later on the straight line it is planned on; without this cap, robots
+    standing beyond a goal would forbid approaching it.
+    """
+    return min(time_horizon, distance_to_goal / max_speed + approach_time)
 
 
 class _Track:
@@ -431,11 +442,14 @@ class PlannerNode(Node):
         if arrived or self._goal is None:
             velocity, result = np.zeros(2), None
         else:
+            horizon = goal_horizon(
+                float(np.hypot(*(self._goal - own.mean[:2]))), self._values['max_speed'],
+                self._values['approach_time'], self._config.time_horizon)
             result = plan_velocity(
                 AgentBelief(own.mean[:2], own.mean[2:], own.covariance, radius),
                 [AgentBelief(belief.mean[:2], belief.mean[2:], belief.covariance,
                              neighbour_radius) for belief in neighbour_beliefs],
-                v_pref, self._config)
+                v_pref, dataclasses.replace(self._config, time_horizon=horizon))
             velocity = result.velocity
         plan_time_ms = (time.perf_counter() - started) * 1e3
 

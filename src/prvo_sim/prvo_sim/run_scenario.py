@@ -265,6 +265,8 @@ def child_environment(domain_id):
     env = dict(os.environ)
     env.update({'ROS_DOMAIN_ID': str(domain_id), 'ROS_AUTOMATIC_DISCOVERY_RANGE': 'LOCALHOST',
                 'PYTHONUNBUFFERED': '1', 'RCUTILS_LOGGING_BUFFERED_STREAM': '0'})
+    # A process per robot: idle BLAS threads spinning on few cores would cost more than they give.
+    env.setdefault('OPENBLAS_NUM_THREADS', '1')
     return env
 
 
