@@ -232,7 +232,7 @@ def run_for_steps(probe, children, ros2_executable, label, seed, steps):
     sim = start_sim(children, ros2_executable, label, seed=seed)
     probe.wait_until(
         lambda: all(len(planners.steps(robot, 'ground_truth')) > steps for robot in ROBOTS),
-        20.0, f'{steps} steps of {label}')
+        60.0, f'{steps} steps of {label}')
     assert children.interrupt(sim) == 0
     planners.close()
     trajectories = []

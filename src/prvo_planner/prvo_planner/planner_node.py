@@ -121,7 +121,7 @@ _PARAMETERS = {
         read_only=True, dynamic=True)),
     'neighbor_timeout': (2.0, _descriptor(
         'A neighbour silent this long [s, wall time] is dropped.', floating=(0.01, 3600.0))),
-    'sync_timeout': (0.05, _descriptor(
+    'sync_timeout': (0.2, _descriptor(
         "Wall time [s] to wait for neighbours' odometry of the same stamp before planning.",
         floating=(0.0, 10.0))),
     'status_period': (0.2, _descriptor(
@@ -243,7 +243,9 @@ class PlannerNode(Node):
         self._last_command_stamp = None
         self._warned_at = {}
         self._status_published_at = -math.inf
-        self._started_at = time.monotonic()
+        # Listed neighbours are waited for from the first own odometry on, not from start-up:
+        # a team's processes start at different speeds, and a run begins with all of them.
+        self._first_odometry_at = None
 
         self._stamped = self._values['stamped_cmd_vel']
         self._cmd_vel_publisher = self.create_publisher(
@@ -341,6 +343,8 @@ class PlannerNode(Node):
             self._cmd_vel_publisher.publish(self._last_command)
         if outcome != 'fused':
             return
+        if self._first_odometry_at is None:
+            self._first_odometry_at = time.monotonic()
         self._pending_stamp = measurement.stamp
         self._own_yaw = measurement.yaw
         if self._neighbours_caught_up():
@@ -369,8 +373,8 @@ class PlannerNode(Node):
 
     def _awaiting_listed_neighbours(self):
         """Whether a listed neighbour has not been heard yet and may still turn up."""
-        if (self._neighbours_listed is None
-                or time.monotonic() - self._started_at > self._values['neighbor_timeout']):
+        if (self._neighbours_listed is None or self._first_odometry_at is None
+                or time.monotonic() - self._first_odometry_at > self._values['neighbor_timeout']):
             return False
         return any(name not in self._neighbour_tracks for name in self._neighbour_names())
 

@@ -47,6 +47,7 @@ SHUTDOWN_GRACE = 10.0  # wall seconds children get to exit after SIGINT before S
 STARTUP_LIMIT = 60.0  # wall seconds to the first ground truth before the run counts as failed
 SETTLE_TIME = 1.0  # sim seconds every robot must stay at its goal before the run ends
 PROGRESS_PERIOD = 0.5
+DOMAIN_CHECK_TIME = 2.0  # wall seconds of listening for strangers on the domain before a run
 # Parameters the runner sets itself; a scenario's planner block cannot override them.
 RUNNER_PARAMETERS = ('use_sim_time', 'goal', 'radius', 'max_speed', 'actuation_std',
                      'goal_tolerance', 'model', 'eta')
@@ -361,6 +362,7 @@ class Recorder:
         # The runner handles SIGINT/SIGTERM itself, so that children are always stopped.
         rclpy.init(context=self.context, domain_id=domain_id,
                    signal_handler_options=SignalHandlerOptions.NO)
+        self.domain_id = domain_id
         self.node = rclpy.create_node('prvo_run_recorder', context=self.context)
         self._executor = SingleThreadedExecutor(context=self.context)
         self._executor.add_node(self.node)
@@ -400,6 +402,24 @@ class Recorder:
                 if value is not None:
                     with contextlib.suppress(ValueError):
                         self.plan_times_ms.append(float(value))
+
+    def foreign_traffic(self, duration):
+        """Watch the domain for DURATION s before anything starts; describe what is there.
+
+        Returns None for an empty domain, else a one-line failure: a simulator left over from
+        a killed run would otherwise feed this run its clock and its 'finished' status.
+        """
+        from prvo_msgs_util import CLOCK, DIAGNOSTICS
+
+        deadline = time.monotonic() + duration
+        while time.monotonic() < deadline:
+            self._executor.spin_once(timeout_sec=0.05)
+            busy = [topic for topic in (CLOCK, DIAGNOSTICS) if self.node.count_publishers(topic)]
+            if busy:
+                return (f'ROS_DOMAIN_ID {self.domain_id} is in use by processes this runner did '
+                        f'not start (publishers on {", ".join(busy)}): stop them or pass '
+                        f'--domain-id')
+        return None
 
     def spin_once(self, timeout):
         """Handle at most one pending message, waiting up to TIMEOUT s for it."""
@@ -530,10 +550,12 @@ def run_once(spec, domain_id, monitor=None):
     started = time.monotonic()
     try:
         recorder = Recorder(domain_id, [robot.name for robot in scenario.robots])
-        start_children(children, spec)
-        if monitor is not None:
-            monitor.started(children, recorder)
-        failure = wait_for_end(recorder, children, spec, progress)
+        failure = recorder.foreign_traffic(DOMAIN_CHECK_TIME)
+        if failure is None:
+            start_children(children, spec)
+            if monitor is not None:
+                monitor.started(children, recorder)
+            failure = wait_for_end(recorder, children, spec, progress)
         if monitor is not None:
             monitor.ending(children, recorder)
     except RunInterruptedError as interruption:
