@@ -174,9 +174,11 @@ def test_silent_robot_times_out_and_bad_command_is_skipped(probe, children, ros2
     diagnostics = probe.record(DiagnosticArray, '/diagnostics', DIAGNOSTICS_QOS)
     # robot_0 answers every odometry; robot_1 only ever sends NaN, which must not count.
     planners = Planners(probe, {'robot_0': HEAD_ON['robot_0']}, rogue=('robot_1',))
-    step_timeout = 0.3
+    step_timeout = 0.5
+    # The first step waits longer: the probe's subscriptions may match after t_0 went out, and
+    # robot_0 answers the re-sent t_0.
     sim = start_sim(children, ros2_executable, 'sim', step_timeout=step_timeout,
-                    startup_timeout=step_timeout)
+                    startup_timeout=3.0)
 
     def stepped_four_times():
         return int(latest_statuses(diagnostics).get('prvo_sim', {}).get('step', 0)) >= 4
