@@ -140,8 +140,10 @@ def plot_validation(path, scenario, rows, row_titles):
             joint = record['satisfied'].all(axis=1)
             shown = slice(0, 1500)
             points = record['positions'][shown]
-            axes.scatter(*points[joint[shown]].T, s=2, color='tab:red', label='RVO holds')
+            # The violations first: drawn last, the minority would hide the samples that hold.
             axes.scatter(*points[~joint[shown]].T, s=2, color='black', label='RVO violated')
+            axes.scatter(*points[joint[shown]].T, s=2, color='tab:red', alpha=0.6,
+                         label='RVO holds')
             for other, belief in enumerate(beliefs):
                 axes.add_patch(plt.Circle(belief.position, belief.radius, fill=False,
                                           color=colours[other]))
