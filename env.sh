@@ -17,4 +17,7 @@ export RMW_IMPLEMENTATION=${RMW_IMPLEMENTATION:-rmw_fastrtps_cpp}
 # One BLAS thread per process: a team runs a planner per robot, and idle BLAS threads spinning
 # on a few cores cost more than the small products they would speed up.
 export OPENBLAS_NUM_THREADS=${OPENBLAS_NUM_THREADS:-1}
+# Fast DDS over UDP on loopback: its shared-memory transport can keep a restarted process (a
+# simulator started again) from hearing the nodes that outlived the old one.
+export FASTDDS_BUILTIN_TRANSPORTS=${FASTDDS_BUILTIN_TRANSPORTS:-UDPv4}
 unset _prvo_root

@@ -16,6 +16,8 @@ import time
 import pytest
 
 os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
+# The probe talks to the children over the same transport they use (see env.sh).
+os.environ.setdefault('FASTDDS_BUILTIN_TRANSPORTS', 'UDPv4')
 
 
 @pytest.fixture
@@ -36,6 +38,7 @@ def ros_env(ros_domain):
     env['PYTHONUNBUFFERED'] = '1'
     env['RCUTILS_LOGGING_BUFFERED_STREAM'] = '0'
     env.setdefault('OPENBLAS_NUM_THREADS', '1')
+    env.setdefault('FASTDDS_BUILTIN_TRANSPORTS', 'UDPv4')
     return env
 
 

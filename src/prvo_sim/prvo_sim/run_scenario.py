@@ -268,6 +268,8 @@ def child_environment(domain_id):
                 'PYTHONUNBUFFERED': '1', 'RCUTILS_LOGGING_BUFFERED_STREAM': '0'})
     # A process per robot: idle BLAS threads spinning on few cores would cost more than they give.
     env.setdefault('OPENBLAS_NUM_THREADS', '1')
+    # Shared memory can keep a restarted process from hearing the ones that outlived the old.
+    env.setdefault('FASTDDS_BUILTIN_TRANSPORTS', 'UDPv4')
     return env
 
 
