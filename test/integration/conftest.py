@@ -120,7 +120,9 @@ class Team:
             'radius': spec.radius, 'max_speed': spec.max_speed,
             'actuation_std': spec.noise.actuation_std,
             'goal_tolerance': 0.5 * self.scenario.goal_tolerance,
-            'neighbors': [r.name for r in self.scenario.robots if r.name != robot]}
+            'neighbors': [r.name for r in self.scenario.robots if r.name != robot],
+            # Lockstep waits, as the runner sets them: reproducible however loaded the host.
+            'sync_timeout': 1.0, 'neighbor_timeout': 5.0}
         values.update(spec.planner)
         values.update(parameters)
         argv = [self._ros2_executable('prvo_planner', 'planner'), '--ros-args',

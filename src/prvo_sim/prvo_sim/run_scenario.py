@@ -47,6 +47,9 @@ SHUTDOWN_GRACE = 10.0  # wall seconds children get to exit after SIGINT before S
 STARTUP_LIMIT = 60.0  # wall seconds to the first ground truth before the run counts as failed
 SETTLE_TIME = 1.0  # sim seconds every robot must stay at its goal before the run ends
 PROGRESS_PERIOD = 0.5
+# Planner waits in lockstep [s]: for same-stamp odometry (under the sim's step_timeout), and
+# for every listed neighbour's first message.
+LOCKSTEP_SYNC = {'sync_timeout': '1.0', 'neighbor_timeout': '5.0'}
 DOMAIN_CHECK_TIME = 2.0  # wall seconds of listening for strangers on the domain before a run
 # Parameters the runner sets itself; a scenario's planner block cannot override them.
 RUNNER_PARAMETERS = ('use_sim_time', 'goal', 'radius', 'max_speed', 'actuation_std',
@@ -228,7 +231,7 @@ def ros_parameter(value):
     return str(value)
 
 
-def planner_parameters(robot, scenario, method, eta):
+def planner_parameters(robot, scenario, method, eta, mode='lockstep'):
     """Return the planner parameters of ROBOT, in order, as a dict of ROS-formatted values."""
     parameters = {
         'use_sim_time': 'true',
@@ -248,6 +251,10 @@ def planner_parameters(robot, scenario, method, eta):
         'neighbors': ros_parameter(
             [other.name for other in scenario.robots if other.name != robot.name]),
     }
+    if mode == 'lockstep':
+        # The simulator waits for every answer, so a planner can wait for every neighbour's
+        # odometry of the same stamp however loaded the machine: that makes runs reproducible.
+        parameters.update(LOCKSTEP_SYNC)
     for key, value in robot.planner.items():
         if key not in RUNNER_PARAMETERS:
             parameters[key] = ros_parameter(value)
@@ -483,7 +490,8 @@ def start_children(children, spec):
     for robot in scenario.robots:
         argv = [*spec.planner_command, '--ros-args', '-r', f'__ns:=/{robot.name}',
                 '-r', '__node:=planner']
-        for key, value in planner_parameters(robot, scenario, spec.method, spec.eta).items():
+        parameters = planner_parameters(robot, scenario, spec.method, spec.eta, spec.mode)
+        for key, value in parameters.items():
             argv += ['-p', f'{key}:={value}']
         children.start(f'planner_{robot.name}', argv)
     sim_parameters = {'scenario': str(pathlib.Path(scenario.path).resolve()), 'mode': spec.mode,
