@@ -80,14 +80,12 @@ def _monic_cubic_roots(b, c, d):
 
 
 def _largest_cubic_root(b, c, d):
-    """Largest real root of ``t^3 + b t^2 + c t + d``."""
-    shift, p, q = _depressed_cubic(b, c, d)
-    single, discriminant = _cardano_root(p, q)
-    rho = np.sqrt(np.maximum(-p / 3.0, 0.0))
-    with np.errstate(divide='ignore', invalid='ignore'):
-        cosine = np.clip(np.where(rho > 0.0, -0.5 * q / rho ** 3, 0.0), -1.0, 1.0)
-    largest = 2.0 * rho * np.cos(np.arccos(cosine) / 3.0)
-    return np.where(discriminant > 0.0, single, largest) + shift
+    """Largest real root of ``t^3 + b t^2 + c t + d``.
+
+    The first of `_monic_cubic_roots`: Cardano's single root, or the trigonometric root with
+    the smallest angle, which is the largest of three.
+    """
+    return _monic_cubic_roots(b, c, d)[..., 0]
 
 
 def _monic_quadratic_roots(linear, constant):
