@@ -245,7 +245,8 @@ def run_for_steps(probe, children, ros2_executable, label, seed, steps):
         for source in (planners.ground_truth[robot], planners.odometry[robot]):
             trajectories.append([
                 odometry_to_measurement(source[round(k * HEADON2.dt * 1e9)]).position
-                for k in range(steps + 1)])
+                # From t_1: t_0 can go out before the probe's subscriptions have matched.
+                for k in range(1, steps + 1)])
     return np.array(trajectories)
 
 
@@ -255,7 +256,7 @@ def test_same_seed_gives_the_same_run(probe, children, ros2_executable):
     other_seed = run_for_steps(probe, children, ros2_executable, 'other', 43, 15)
     np.testing.assert_array_equal(first, second)
     # The seed parameter really reaches the noise: another seed, other trajectories.
-    assert np.abs(first - other_seed)[:, 1:].min() > 0.0
+    assert np.abs(first - other_seed).min() > 0.0
 
 
 @pytest.mark.parametrize(('parameters', 'expected'), [
