@@ -267,8 +267,9 @@ _EXPONENTS = _monomial_exponents()
 _NODES_1D = np.cos(np.pi * np.arange(5) / 4.0)
 _NODES = np.stack(np.meshgrid(_NODES_1D, _NODES_1D, indexing='ij'), axis=-1).reshape(-1, 2)
 _FIT = np.linalg.pinv(np.prod(_NODES[:, None, :] ** _EXPONENTS[None, :, :], axis=-1))
-# Total degree of each monomial of _EXPONENTS.
+# Total degree of each monomial of _EXPONENTS; the first six have degree <= 2.
 _DEGREES = _EXPONENTS.sum(axis=1)
+_QUADRATIC_TERMS = 6
 
 
 def ray_polynomials(origin, cov, combined_radius, directions, scale, time_horizon,
@@ -290,22 +291,19 @@ def ray_polynomials(origin, cov, combined_radius, directions, scale, time_horizo
     Returns
     -------
     means : numpy.ndarray
-        Shape (N, M, C, 3).
+        Shape (N, M, C, 3), contiguous.
     variances : numpy.ndarray
-        Shape (N, M, C, 5).
+        Shape (N, M, C, 5), contiguous.
 
     """
     means, variances = condition_moments(origin, cov, combined_radius, scale * _NODES,
                                          time_horizon, receding_gate)
-    count, conditions = origin.shape[0], means.shape[-1]
-    # Bivariate coefficient k multiplies t^(i+j) e_x^i e_y^j along the ray: one (5 M, 15) map
-    # from bivariate coefficients to ray coefficients, degree-major, applied per neighbour (many
-    # small products, which never wake BLAS threads: those cost more than they save here).
+    # Bivariate coefficient k multiplies t^(i+j) e_x^i e_y^j along the ray: per direction a
+    # (15, 5) map from bivariate to ray coefficients. Products of shape (N, 1, C, 15) by
+    # (M, 15, L) give (N, M, C, L) rows directly, in the order the ray solver reads them.
     direction_monomials = np.prod(directions[:, None, :] ** _EXPONENTS[None, :, :], axis=-1)
-    to_ray = np.where(_DEGREES == np.arange(5)[:, None, None], direction_monomials, 0.0)
-    bivariate = _FIT @ np.concatenate([means, variances], axis=-1)
-    ray = (to_ray.reshape(-1, _EXPONENTS.shape[0]) @ bivariate).reshape(
-        count, 5, directions.shape[0], 2 * conditions)
-    # Views of shape (N, M, C, L): coefficient-major memory suits Horner's rule downstream.
-    ray = np.moveaxis(ray, 1, -1)
-    return ray[:, :, :conditions, :3], ray[:, :, conditions:]
+    to_ray = np.where(_DEGREES[:, None] == np.arange(5), direction_monomials[:, :, None], 0.0)
+    mean_coefficients = np.swapaxes(_FIT[:_QUADRATIC_TERMS] @ means, -1, -2)[:, None]
+    variance_coefficients = np.swapaxes(_FIT @ variances, -1, -2)[:, None]
+    return (mean_coefficients @ to_ray[:, :_QUADRATIC_TERMS, :3],
+            variance_coefficients @ to_ray)

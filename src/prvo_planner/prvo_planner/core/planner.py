@@ -9,6 +9,7 @@ vectorised over neighbours and directions.
 """
 
 from dataclasses import dataclass
+import functools
 import math
 
 import numpy as np
@@ -17,7 +18,13 @@ from .beliefs import AgentBelief, as_finite_array
 from .config import PlannerConfig, PlanResult
 from .moments import condition_moments, poly_eval, ray_polynomials
 from .probability import eta_from_k
-from .ray_solver import polynomial_roots, quadratic_roots, sign_certificates, taylor_quadratics
+from .ray_solver import (
+    bernstein_minimum,
+    polynomial_roots,
+    quadratic_roots,
+    sign_certificates,
+    taylor_quadratics,
+)
 
 # Speeds, as fractions of v_max, tried on every direction when no direction is feasible (and by
 # the Monte Carlo baseline), besides the preferred speed on the direction.
@@ -111,6 +118,19 @@ def build_encounter(ego, neighbours, config):
         horizon_margin=math.sqrt(1.0 + 2.0 * margin ** 2), eta=eta_from_k(margin))
 
 
+@functools.lru_cache(maxsize=16)
+def _headings(count, seed):
+    """``count`` evenly spaced unit headings, rotated by a random offset when seeded (M, 2)."""
+    offset = 0.0
+    if seed is not None:
+        offset = np.random.default_rng(seed).uniform(0.0, 2.0 * np.pi / count)
+    headings = offset + 2.0 * np.pi * np.arange(count) / count
+    directions = np.stack([np.cos(headings), np.sin(headings)], axis=1)
+    # Shared between calls: read-only so that no caller can alter the cached value.
+    directions.flags.writeable = False
+    return directions
+
+
 def candidate_directions(ego, v_pref, config):
     """
     Return unit candidate directions: ``v_pref``'s, the current velocity's, ``M`` headings.
@@ -130,12 +150,7 @@ def candidate_directions(ego, v_pref, config):
         Shape (M', 2) with M' in [M, M + 2].
 
     """
-    offset = 0.0
-    if config.seed is not None:
-        offset = np.random.default_rng(config.seed).uniform(
-            0.0, 2.0 * np.pi / config.num_directions)
-    headings = offset + 2.0 * np.pi * np.arange(config.num_directions) / config.num_directions
-    directions = [np.stack([np.cos(headings), np.sin(headings)], axis=1)]
+    directions = [_headings(config.num_directions, config.seed)]
     for vector in (ego.velocity, v_pref):
         norm = math.hypot(vector[0], vector[1])
         if norm > 1e-9:
@@ -235,100 +250,69 @@ def achieved_margins(means, variances, layout, receding_enabled, rank=False):
         Shape (...).
 
     """
-    variances = np.maximum(variances, 0.0)
+    sigma = np.maximum(variances, 0.0)
     if rank:
-        # sqrt of a sum, not np.hypot: the same floor at a fraction of the cost.
-        variances = variances + (_RANK_FLOOR * means) ** 2
-    sigma = np.sqrt(variances)
+        # sqrt of a sum, not np.hypot: the same floor at a fraction of the cost; in place, as
+        # the grid of candidates can be large.
+        floor = np.multiply(means, _RANK_FLOOR)
+        floor *= floor
+        sigma += floor
+    np.sqrt(sigma, out=sigma)
     with np.errstate(divide='ignore', invalid='ignore'):
-        margins = np.where(sigma > 0.0, means / sigma, np.where(means >= 0.0, np.inf, -np.inf))
+        # mean / 0 is +-inf as it should be; 0 / 0 (a zero mean known exactly) meets any k.
+        margins = np.divide(means, sigma, out=sigma)
+    margins[np.isnan(margins)] = np.inf
+    result = margins[..., 0]
+    if layout.has_receding:
+        result = np.maximum(result, np.where(receding_enabled, margins[..., 1], -np.inf))
     if layout.has_horizon:
         joint = np.minimum(margins[..., -2], margins[..., -1])
         pairwise = np.where(joint >= 1.0, np.sqrt(np.maximum(joint * joint - 1.0, 0.0) / 2.0),
                             joint - 1.0)
-        margins = np.concatenate([margins[..., :-2], pairwise[..., None], pairwise[..., None]],
-                                 axis=-1)
-    return combine_conditions(margins, layout, receding_enabled, np.maximum, np.minimum)
+        result = np.maximum(result, pairwise)
+    return result
 
 
-def _coefficient_major(polynomial):
-    """View polynomials of shape (N, M, C, L) as (N, L, M, C)."""
-    return np.moveaxis(polynomial, -1, 1)
-
-
-def _squared_minus(means, scaled_variances):
+def _row_tests(means, variances, margins, method, deterministic, preferred):
     """
-    Return ``mean^2 - scaled_variance`` for coefficient-major polynomials.
+    Build the acceptance tests of every (neighbour, direction, condition) row, row-major.
+
+    For the exact method ``mean - k sigma >= 0`` iff ``mean >= 0`` and ``mean^2 - k^2 var >= 0``
+    (the quartic). Where the variance is certified positive on the ray, the surrogate changes
+    only where ``mean = k sigma``, a root of the quartic, so the mean's roots bound pieces only
+    where the variance may vanish (there the quartic has a double root at the mean's root,
+    which closed-form roots resolve poorly).
 
     Parameters
     ----------
-    means : numpy.ndarray
-        Shape (N, 3, M, C).
-    scaled_variances : numpy.ndarray
-        Shape (N, 5, M, C).
+    means, variances, margins, method, deterministic, preferred
+        As for :func:`ray_gaps`.
 
     Returns
     -------
-    numpy.ndarray
-        Shape (N, 5, M, C).
+    list of (numpy.ndarray, numpy.ndarray or None)
+        Each test's coefficients, shape (K, L) over the K = N M C rows in (neighbour,
+        direction, condition) order (acceptance needs every test ``>= 0``), with the rows where
+        its roots need not bound pieces (shape (K,), or ``None`` for none).
 
     """
-    constant, linear, quadratic = means[:, 0], means[:, 1], means[:, 2]
-    return np.stack([constant * constant, 2.0 * constant * linear,
-                     linear * linear + 2.0 * constant * quadratic, 2.0 * linear * quadratic,
-                     quadratic * quadratic], axis=1) - scaled_variances
-
-
-def _certificates(polynomial):
-    """Sign certificates of coefficient-major (N, L, M, C) polynomials, each (N, M, C)."""
-    count, length, directions, conditions = polynomial.shape
-    nonnegative, negative = sign_certificates(polynomial.reshape(count, length, -1))
-    return (nonnegative.reshape(count, directions, conditions),
-            negative.reshape(count, directions, conditions))
-
-
-def _pair_status(means, variances, margins, method, deterministic, preferred):
-    """
-    Certify conditions accepted or rejected on the whole ray; prepare the per-piece tests.
-
-    For the exact method ``mean - k sigma >= 0`` iff ``mean >= 0`` and ``mean^2 - k^2 var >= 0``
-    (the quartic). Where the variance is certified ``>= 0`` the mean can change sign inside a
-    piece on which the quartic is ``>= 0`` only at a root of the quartic, so there only the
-    quartic's roots bound pieces. Roots are needed only for conditions undecided on the ray.
-
-    Returns
-    -------
-    accept_all, reject_all : numpy.ndarray
-        Per condition, shape (N, M, C).
-    tests : list of numpy.ndarray
-        Coefficient-major polynomials that decide acceptance (all must be ``>= 0``), each
-        (N, L, M, C).
-    bounding : list of (numpy.ndarray, numpy.ndarray)
-        Coefficient-major polynomials (N, L, M, C) whose roots bound the pieces, each with
-        whether its sign on [0, 1] is undecided, (N, M, C).
-
-    """
+    rows = means.shape[0] * means.shape[1] * means.shape[2]
+    mean_rows = means.reshape(rows, 3)
     if deterministic:
-        tests = [_coefficient_major(means)]
-    elif method == 'taylor':
-        tests = [_coefficient_major(
-            taylor_quadratics(means, variances, margins, preferred[None, :, None]))]
-    else:
-        variances = _coefficient_major(variances)
-        tests = [_squared_minus(_coefficient_major(means), margins ** 2 * variances),
-                 _coefficient_major(means)]
-    certificates = [_certificates(test) for test in tests]
-    accept, reject = True, False
-    for nonnegative, negative in certificates:
-        accept, reject = accept & nonnegative, reject | negative
-    # Only a condition undecided on the whole ray can split it, and only where its own test is.
-    undecided = ~(accept | reject)
-    bounding = [(test, undecided & ~(nonnegative | negative))
-                for test, (nonnegative, negative) in zip(tests, certificates, strict=True)]
-    if len(tests) == 2:
-        mean, mean_undecided = bounding[1]
-        bounding[1] = (mean, mean_undecided & ~_certificates(variances)[0])
-    return accept, reject, tests, bounding
+        return [(mean_rows, None)]
+    if method == 'taylor':
+        quadratic = taylor_quadratics(means, variances, margins, preferred[None, :, None])
+        return [(quadratic.reshape(rows, 3), None)]
+    variance_rows = variances.reshape(rows, 5)
+    constant, linear, square = mean_rows.T
+    quartic = np.empty((rows, 5))
+    quartic[:, 0] = constant * constant
+    quartic[:, 1] = 2.0 * constant * linear
+    quartic[:, 2] = linear * linear + 2.0 * constant * square
+    quartic[:, 3] = 2.0 * linear * square
+    quartic[:, 4] = square * square
+    quartic -= np.tile(margins ** 2, rows // margins.size)[:, None] * variance_rows
+    return [(quartic, None), (mean_rows, bernstein_minimum(variance_rows) > 0.0)]
 
 
 def _relevant_conditions(reject_all, layout, receding_enabled):
@@ -341,30 +325,34 @@ def _relevant_conditions(reject_all, layout, receding_enabled):
     Parameters
     ----------
     reject_all : numpy.ndarray
-        Per condition, rejected on the whole ray, shape (N, M, C).
+        Per condition, rejected on the whole ray, shape (P, C).
     layout : ConditionLayout
         Column meaning.
     receding_enabled : numpy.ndarray
-        Whether ``g`` counts, broadcastable to shape (N, M).
+        Whether ``g`` counts, shape (P,).
 
     Returns
     -------
     numpy.ndarray
-        Booleans, shape (N, M, C).
+        Booleans, shape (P, C).
 
     """
     relevant = np.ones(reject_all.shape, dtype=bool)
     if layout.has_receding:
-        relevant[..., 1] = receding_enabled
+        relevant[:, 1] = receding_enabled
     if layout.has_horizon:
-        relevant[..., -2] = ~reject_all[..., -1]
-        relevant[..., -1] = ~reject_all[..., -2]
+        relevant[:, -2] = ~reject_all[:, -1]
+        relevant[:, -1] = ~reject_all[:, -2]
     return relevant
 
 
 def ray_gaps(means, variances, margins, layout, method, deterministic, preferred):
     """
     Feasible speed intervals on every ray: the intersection over neighbours of accepted sets.
+
+    Every (neighbour, direction) pair whose acceptance is not certified on the whole ray by
+    Bernstein bounds is cut at the roots of its tests in (0, 1); each piece is accepted or not
+    by its midpoint, and the rejected pieces of each direction are swept in one sort.
 
     Parameters
     ----------
@@ -389,69 +377,83 @@ def ray_gaps(means, variances, margins, layout, method, deterministic, preferred
         Interval ends in ``t``, shape (G,), ``lower < upper``.
 
     """
-    accept_all, reject_all, tests, bounding = _pair_status(means, variances, margins, method,
-                                                           deterministic, preferred)
-    enabled = layout.receding_enabled[:, None]
-    relevant = _relevant_conditions(reject_all, layout, enabled)
-    accept_all = combine_conditions(accept_all, layout, enabled)
-    reject_all = ~combine_conditions(~reject_all, layout, enabled)
-    open_directions = ~np.any(reject_all, axis=0)
-    open_pairs = ~accept_all & open_directions[None, :]
-    pair_neighbour, pair_direction = np.nonzero(open_pairs)
-    count = pair_neighbour.size
-    pair_index = np.zeros(open_pairs.shape, dtype=int)
-    pair_index[pair_neighbour, pair_direction] = np.arange(count)
-    breakpoints = []
-    for polynomial, undecided in bounding:
-        # One coefficient-major column per undecided (pair, condition) row.
-        neighbour, direction, condition = np.nonzero(undecided & relevant
-                                                     & open_pairs[..., None])
-        if neighbour.size == 0:
-            continue
-        columns = np.ascontiguousarray(polynomial[neighbour, :, direction, condition].T)
-        roots = (polynomial_roots(columns) if columns.shape[0] == 5 else
-                 quadratic_roots(columns[0], columns[1], columns[2]))
-        found = np.full((count, margins.size, roots.shape[-1]), np.nan)
-        found[pair_index[neighbour, direction], condition] = roots
-        breakpoints.append(found)
-    breakpoints = np.concatenate(breakpoints or [np.empty((count, margins.size, 0))], axis=-1)
-    breakpoints = breakpoints.reshape(count, breakpoints.shape[1] * breakpoints.shape[2])
-    inside = (breakpoints > 0.0) & (breakpoints < 1.0)
-    inside_count = np.count_nonzero(inside, axis=1)
-    bounds = np.sort(np.concatenate([np.zeros((count, 1)), np.where(inside, breakpoints, 1.0),
-                                     np.ones((count, 1))], axis=-1), axis=-1)
-    # Roots outside (0, 1) became trailing 1.0 padding: keep each pair's own pieces only, flat.
-    bounds = bounds[:, :2 + int(np.max(inside_count, initial=0))]
-    own_piece = np.arange(bounds.shape[1] - 1) <= inside_count[:, None]
-    piece_pair = np.nonzero(own_piece)[0]
-    piece_start, piece_end = bounds[:, :-1][own_piece], bounds[:, 1:][own_piece]
-    midpoints = (0.5 * (piece_end + piece_start))[:, None]
+    count, directions, conditions = means.shape[:3]
+    pairs = count * directions
+    tests = _row_tests(means, variances, margins, method, deterministic, preferred)
+    certificates = [sign_certificates(test) for test, _ in tests]
+    accept, reject = certificates[0]
+    for nonnegative, negative in certificates[1:]:
+        accept, reject = accept & nonnegative, reject | negative
+    enabled = np.repeat(layout.receding_enabled, directions)
+    accept = accept.reshape(pairs, conditions)
+    reject = reject.reshape(pairs, conditions)
+    accept_pair = combine_conditions(accept, layout, enabled)
+    reject_pair = ~combine_conditions(~reject, layout, enabled)
+    open_directions = ~np.any(reject_pair.reshape(count, directions), axis=0)
+    open_pair = ~accept_pair & np.tile(open_directions, count)
+    open_index = np.nonzero(open_pair)[0]
+    pair_slot = np.zeros(pairs, dtype=int)
+    pair_slot[open_index] = np.arange(open_index.size)
+    # Only a condition undecided on the whole ray can split it, and only where its own test is.
+    splitting = (~(accept | reject) & _relevant_conditions(reject, layout, enabled)
+                 & open_pair[:, None])
+    # g's quartic is a quadratic: its mean is linear and its variance quadratic in t.
+    quadratic_condition = np.zeros(conditions, dtype=bool)
+    quadratic_condition[1:2] = layout.has_receding
+    # Every open pair's cuts in (0, 1), flat, with 0 and 1 as the ends of its first and last
+    # pieces: cut values and the open pair (slot) each belongs to.
+    cut_values = [np.zeros(open_index.size), np.ones(open_index.size)]
+    cut_slots = [np.arange(open_index.size)] * 2
+    for (test, quiet), (nonnegative, negative) in zip(tests, certificates, strict=True):
+        undecided = splitting & ~(nonnegative | negative).reshape(pairs, conditions)
+        if quiet is not None:
+            undecided &= ~quiet.reshape(pairs, conditions)
+        quadratic_rows = undecided & quadratic_condition
+        for rows, quartic in ((undecided & ~quadratic_condition, test.shape[1] == 5),
+                              (quadratic_rows, False)):
+            row = np.nonzero(rows.ravel())[0]
+            if not row.size:
+                continue
+            columns = test[row].T
+            roots = (polynomial_roots(columns) if quartic else
+                     quadratic_roots(columns[0], columns[1], columns[2]))
+            inside = (roots > 0.0) & (roots < 1.0)
+            cut_values.append(roots[inside])
+            cut_slots.append(np.broadcast_to(pair_slot[row // conditions, None],
+                                             roots.shape)[inside])
+    cut_values = np.concatenate(cut_values)
+    cut_slots = np.concatenate(cut_slots)
+    order = np.lexsort((cut_values, cut_slots))
+    cut_values, cut_slots = cut_values[order], cut_slots[order]
+    piece = cut_slots[1:] == cut_slots[:-1]
+    piece_start, piece_end = cut_values[:-1][piece], cut_values[1:][piece]
+    piece_pair = open_index[cut_slots[:-1][piece]]
+    midpoints = (0.5 * (piece_start + piece_end))[:, None]
     accepted = True
-    for test in tests:
-        # (Q, L, C): each piece's pair's coefficients; Horner's rule over the coefficient axis.
-        coefficients = test[pair_neighbour, :, pair_direction][piece_pair]
-        value = coefficients[:, -1]
-        for power in range(coefficients.shape[1] - 2, -1, -1):
-            value = value * midpoints + coefficients[:, power]
+    for test, _ in tests:
+        # (pieces, C, L): each piece's pair's coefficients; Horner's rule at its midpoint.
+        coefficients = test.reshape(pairs, conditions, -1)[piece_pair]
+        value = coefficients[..., -1]
+        for power in range(coefficients.shape[-1] - 2, -1, -1):
+            value = value * midpoints + coefficients[..., power]
         accepted = accepted & (value >= 0.0)
-    accepted = combine_conditions(accepted, layout,
-                                  layout.receding_enabled[pair_neighbour[piece_pair]])
+    accepted = combine_conditions(accepted, layout, enabled[piece_pair])
     # Sweep the rejected pieces of each open direction, shifted by 4 per direction so that one
     # sort handles every direction; sentinels reject t < 0 and t > 1 and end where the next
     # direction's first sentinel starts, so no gap spans two directions.
     rejected = ~accepted
-    piece_direction = pair_direction[piece_pair[rejected]]
     sentinel_direction = np.nonzero(open_directions)[0]
-    starts = np.concatenate([piece_start[rejected], np.full(sentinel_direction.size, -1.0),
-                             np.full(sentinel_direction.size, 1.0)])
-    ends = np.concatenate([piece_end[rejected], np.zeros(sentinel_direction.size),
-                           np.full(sentinel_direction.size, 3.0)])
-    direction = np.concatenate([piece_direction, sentinel_direction, sentinel_direction])
-    starts = starts + 4.0 * direction
+    direction = np.concatenate([piece_pair[rejected] % directions, sentinel_direction,
+                                sentinel_direction])
+    shift = 4.0 * direction
+    sentinels = sentinel_direction.size
+    starts = np.concatenate([piece_start[rejected], np.full(sentinels, -1.0),
+                             np.ones(sentinels)]) + shift
+    ends = np.concatenate([piece_end[rejected], np.zeros(sentinels),
+                           np.full(sentinels, 3.0)]) + shift
     order = np.argsort(starts, kind='stable')
     starts, direction = starts[order], direction[order]
-    reach = np.maximum.accumulate((ends + 4.0 * np.concatenate(
-        [piece_direction, sentinel_direction, sentinel_direction]))[order])
+    reach = np.maximum.accumulate(ends[order])
     valid = (starts[1:] > reach[:-1]) & (direction[1:] == direction[:-1])
     direction = direction[1:][valid]
     return direction, reach[:-1][valid] - 4.0 * direction, starts[1:][valid] - 4.0 * direction
@@ -571,13 +573,8 @@ def plan_velocity(ego, neighbours, v_pref, config):
                           candidates_feasible=directions.shape[0])
     layout = condition_layout(encounter, config)
     preferred = directions @ v_pref / config.max_speed
-    # Candidate speeds for sampling-based choices: the preferred one, then a grid.
-    speeds = np.concatenate([np.clip(preferred, 0.0, 1.0)[:, None],
-                             np.broadcast_to(_SPEED_GRID, (directions.shape[0],
-                                                           _SPEED_GRID.size))], axis=1)
-    grid_costs = np.linalg.norm(config.max_speed * speeds[..., None] * directions[:, None, :]
-                                - v_pref, axis=-1)
     if config.model == 'mc':
+        speeds, grid_costs = _speed_grid(directions, preferred, v_pref, config.max_speed)
         probabilities = _monte_carlo_probabilities(encounter, layout, directions, speeds,
                                                    config, np.random.default_rng(config.seed))
         feasible_points = np.all(probabilities >= encounter.eta, axis=0)
@@ -596,7 +593,8 @@ def plan_velocity(ego, neighbours, v_pref, config):
                                            layout.has_receding)
         gap_direction, lower, upper = ray_gaps(means, variances, layout.margins(encounter),
                                                layout, config.method, deterministic, preferred)
-        candidates_feasible = int(np.unique(gap_direction).size)
+        candidates_feasible = int(np.count_nonzero(
+            np.bincount(gap_direction, minlength=directions.shape[0])))
         if candidates_feasible:
             # The best speed on a ray within one interval is the preferred one, projected.
             inset = np.minimum(_INTERIOR, 0.5 * (upper - lower))
@@ -605,6 +603,7 @@ def plan_velocity(ego, neighbours, v_pref, config):
             best = int(np.argmin(np.linalg.norm(candidates - v_pref, axis=1)))
             direction_index, chosen_t = gap_direction[best], best_t[best]
         else:
+            speeds, grid_costs = _speed_grid(directions, preferred, v_pref, config.max_speed)
             score = _grid_scores(means, variances, speeds, layout)
             direction_index, speed_index = np.unravel_index(_best_ranked(score, grid_costs),
                                                             speeds.shape)
@@ -624,6 +623,26 @@ def plan_velocity(ego, neighbours, v_pref, config):
                       feasible=bool(candidates_feasible) and not np.any(encounter.overlapping),
                       achieved_k=achieved, eta_bound=_cantelli(achieved),
                       num_constraints=count, candidates_feasible=candidates_feasible)
+
+
+def _speed_grid(directions, preferred, v_pref, max_speed):
+    """
+    Candidate speeds for sampling-based choices and their distance to ``v_pref``.
+
+    Returns
+    -------
+    speeds : numpy.ndarray
+        ``t`` per direction, shape (M, T): the preferred one (clipped), then a fixed grid.
+    costs : numpy.ndarray
+        ``|t v_max e - v_pref|``, shape (M, T).
+
+    """
+    speeds = np.concatenate([np.clip(preferred, 0.0, 1.0)[:, None],
+                             np.broadcast_to(_SPEED_GRID, (directions.shape[0],
+                                                           _SPEED_GRID.size))], axis=1)
+    costs = np.linalg.norm(max_speed * speeds[..., None] * directions[:, None, :] - v_pref,
+                           axis=-1)
+    return speeds, costs
 
 
 def _grid_scores(means, variances, speeds, layout):

@@ -79,43 +79,52 @@ def _monic_cubic_roots(b, c, d):
     return roots + shift[..., None]
 
 
-def _largest_cubic_root(b, c, d):
-    """Largest real root of ``t^3 + b t^2 + c t + d``.
-
-    The first of `_monic_cubic_roots`: Cardano's single root, or the trigonometric root with
-    the smallest angle, which is the largest of three.
-    """
-    return _monic_cubic_roots(b, c, d)[..., 0]
-
-
-def _monic_quadratic_roots(linear, constant):
-    """Real roots of ``t^2 + linear t + constant``, shape (..., 2), NaN for complex ones."""
+def _stable_quadratic_roots(linear, constant):
+    """Real roots of ``t^2 + linear t + constant`` without cancellation, shape (2, ...)."""
     with np.errstate(invalid='ignore', divide='ignore'):
         half = -0.5 * (linear + np.copysign(np.sqrt(linear * linear - 4.0 * constant), linear))
-        return np.stack([half, np.where(half != 0.0, constant / half, 0.0)], axis=-1)
+        return np.stack([half, np.where(half != 0.0, constant / half, 0.0)])
 
 
 def _monic_quartic_roots(b, c, d, e):
-    """Real roots of ``t^4 + b t^3 + c t^2 + d t + e`` (Ferrari), shape (..., 4)."""
-    shift = -b / 4.0
+    """
+    Real roots of ``t^4 + b t^3 + c t^2 + d t + e`` (Ferrari), shape (4, K), NaN for complex.
+
+    The depressed quartic ``y^4 + p y^2 + q y + r`` (``t = y - b / 4``) factors as
+    ``(y^2 + s y + m + p/2 - q/(2 s)) (y^2 - s y + m + p/2 + q/(2 s))`` with ``s = sqrt(2 m)``
+    and ``m`` the largest root of the resolvent ``m^3 + p m^2 + (p^2/4 - r) m - q^2/8``,
+    which is ``>= 0``. Where ``m`` vanishes (``q = 0``) the quartic is biquadratic instead.
+    """
+    shift = -0.25 * b
     b2 = b * b
-    p = c - 3.0 * b2 / 8.0
-    q = d - b * c / 2.0 + b2 * b / 8.0
-    r = e - b * d / 4.0 + b2 * c / 16.0 - 3.0 * b2 * b2 / 256.0
-    # Largest root of the resolvent m^3 + p m^2 + (p^2/4 - r) m - q^2/8; it is >= 0.
-    m = np.maximum(_largest_cubic_root(p, p * p / 4.0 - r, -q * q / 8.0), 0.0)
-    root_2m = np.sqrt(2.0 * m)
-    with np.errstate(divide='ignore', invalid='ignore'):
-        offset = np.where(root_2m > 0.0, q / (2.0 * root_2m), 0.0)
-        # q ~ 0 gives m ~ 0: the quartic is biquadratic in y, y^2 = w.
-        squares = np.sqrt(_monic_quadratic_roots(p, r))
+    p = c - 0.375 * b2
+    q = d - 0.5 * b * c + 0.125 * b2 * b
+    r = e - 0.25 * b * d + 0.0625 * b2 * c - 0.01171875 * b2 * b2
+    # The resolvent depressed by m = x - p/3: x^3 + P x + Q.
+    p2 = p * p
+    cubic_p = -p2 / 12.0 - r
+    cubic_q = p * (r / 3.0 - p2 / 108.0) - 0.125 * q * q
+    discriminant = 0.25 * cubic_q * cubic_q + cubic_p * cubic_p * cubic_p / 27.0
+    with np.errstate(invalid='ignore', divide='ignore'):
+        # One real root (Cardano) or three (the largest is the trigonometric one of angle 0).
+        big = np.cbrt(-0.5 * cubic_q - np.copysign(np.sqrt(np.abs(discriminant)), cubic_q))
+        single = np.where(big != 0.0, big - cubic_p / (3.0 * big), 0.0)
+        rho = np.sqrt(np.maximum(-cubic_p / 3.0, 0.0))
+        angle = np.arccos(np.clip(-0.5 * cubic_q / (rho * rho * rho), -1.0, 1.0))
+        largest = np.where(discriminant > 0.0, single, 2.0 * rho * np.cos(angle / 3.0))
+        m = np.maximum(largest - p / 3.0, 0.0)
+        s = np.sqrt(2.0 * m)
+        offset = np.where(s > 0.0, 0.5 * q / s, 0.0)
+        base = 0.5 * p + m
+        roots = _stable_quadratic_roots(np.stack([s, -s]), np.stack([base - offset,
+                                                                     base + offset]))
+    roots = roots.reshape(4, -1)
     small_m = m <= 1e-12 * np.maximum(1.0, np.abs(p) + np.sqrt(np.abs(r)))
-    roots = np.where(small_m[..., None],
-                     np.concatenate([squares, -squares], axis=-1),
-                     np.concatenate([_monic_quadratic_roots(-root_2m, 0.5 * p + m + offset),
-                                     _monic_quadratic_roots(root_2m, 0.5 * p + m - offset)],
-                                    axis=-1))
-    return roots + shift[..., None]
+    if np.any(small_m):
+        with np.errstate(invalid='ignore'):
+            squares = np.sqrt(_stable_quadratic_roots(p[small_m], r[small_m]))
+        roots[:, small_m] = np.concatenate([squares, -squares])
+    return roots + shift
 
 
 def _polish(columns, roots):
@@ -156,6 +165,25 @@ def _bernstein_matrix(degree):
 _BERNSTEIN = {degree: _bernstein_matrix(degree) for degree in (2, 4)}
 
 
+def bernstein_minimum(coefficients):
+    """
+    Smallest Bernstein coefficient on [0, 1]: a lower bound of the polynomial there.
+
+    Parameters
+    ----------
+    coefficients : numpy.ndarray
+        Ascending coefficients, shape (K, L) with L = 3 or 5.
+
+    Returns
+    -------
+    numpy.ndarray
+        Shape (K,).
+
+    """
+    # Coefficient-major product and reduction: reducing along a short last axis is slow.
+    return np.min(_BERNSTEIN[coefficients.shape[1] - 1].T @ coefficients.T, axis=0)
+
+
 def sign_certificates(coefficients):
     """
     Certify a constant sign on [0, 1] from the Bernstein coefficients.
@@ -166,17 +194,16 @@ def sign_certificates(coefficients):
     Parameters
     ----------
     coefficients : numpy.ndarray
-        Ascending coefficients, coefficient-major: shape (B, L, K) with L = 3 or 5.
+        Ascending coefficients, shape (K, L) with L = 3 or 5.
 
     Returns
     -------
     nonnegative, negative : numpy.ndarray
-        Booleans, shape (B, K).
+        Booleans, shape (K,).
 
     """
-    # One small product per batch: a single large one would wake BLAS threads for nothing.
-    bernstein = _BERNSTEIN[coefficients.shape[1] - 1].T @ coefficients
-    return np.min(bernstein, axis=1) >= 0.0, np.max(bernstein, axis=1) < 0.0
+    bernstein = _BERNSTEIN[coefficients.shape[1] - 1].T @ coefficients.T
+    return np.min(bernstein, axis=0) >= 0.0, np.max(bernstein, axis=0) < 0.0
 
 
 def polynomial_roots(columns):
@@ -201,13 +228,13 @@ def polynomial_roots(columns):
     quartic = np.abs(columns[4]) > _DEGREE_TOLERANCE
     if np.all(quartic):
         monic = columns[:4] / columns[4]
-        found = _monic_quartic_roots(monic[3], monic[2], monic[1], monic[0])
+        found = _monic_quartic_roots(monic[3], monic[2], monic[1], monic[0]).T
     else:
         found = np.full((columns.shape[1], 4), np.nan)
         cubic = ~quartic & (np.abs(columns[3]) > _DEGREE_TOLERANCE)
         lower = ~quartic & ~cubic
         monic = columns[:4, quartic] / columns[4, quartic]
-        found[quartic] = _monic_quartic_roots(monic[3], monic[2], monic[1], monic[0])
+        found[quartic] = _monic_quartic_roots(monic[3], monic[2], monic[1], monic[0]).T
         monic = columns[:3, cubic] / columns[3, cubic]
         found[cubic, :3] = _monic_cubic_roots(monic[2], monic[1], monic[0])
         found[lower, :2] = quadratic_roots(columns[0, lower], columns[1, lower],
