@@ -11,6 +11,7 @@ import numpy as np
 _NS_PER_S = 1_000_000_000
 # Row-major indices of the x/y block inside a 6x6 ROS covariance.
 _XY_INDICES = np.array([0, 1, 6, 7])
+_XY_FLAT_INDICES = (0, 1, 6, 7)
 # Eigenvalues this far below zero, relative to the largest, are rounding, not a fault.
 _PSD_RELATIVE_TOLERANCE = 1e-12
 # A quaternion shorter than this has no direction to normalise to.
@@ -59,8 +60,9 @@ def _rotate_covariance(rotation, covariance):
 
 
 def _require_finite(values, field):
-    if not np.all(np.isfinite(values)):
-        raise MessageFault(f'{field} contains NaN or inf ({np.asarray(values).tolist()})')
+    """Raise MessageFault unless every float of the sequence VALUES is finite."""
+    if not all(math.isfinite(value) for value in values):
+        raise MessageFault(f'{field} contains NaN or inf ({[float(value) for value in values]})')
 
 
 def _check_frame(frame_id, expected_frame, field):
@@ -70,31 +72,36 @@ def _check_frame(frame_id, expected_frame, field):
 
 def _xy_covariance(covariance, field):
     """Return the checked 2x2 x/y block of a 36-element row-major covariance."""
-    block = np.asarray(covariance, dtype=float)[_XY_INDICES].reshape(2, 2)
-    _require_finite(block, field)
-    tolerance = _PSD_RELATIVE_TOLERANCE * float(np.max(np.abs(block)))
-    if abs(block[0, 1] - block[1, 0]) > tolerance:
-        raise MessageFault(f'{field} xy block is not symmetric ({block.tolist()})')
-    for axis, variance in zip('xy', np.diag(block), strict=True):
+    # Plain floats: a 2x2 block is cheaper to check by hand than through numpy, and every
+    # odometry message of every robot passes here.
+    xx, xy, yx, yy = (float(covariance[index]) for index in _XY_FLAT_INDICES)
+    _require_finite((xx, xy, yx, yy), field)
+    tolerance = _PSD_RELATIVE_TOLERANCE * max(abs(xx), abs(xy), abs(yx), abs(yy))
+    if abs(xy - yx) > tolerance:
+        raise MessageFault(f'{field} xy block is not symmetric ({[[xx, xy], [yx, yy]]})')
+    for axis, variance in (('x', xx), ('y', yy)):
         if variance < -tolerance:
             raise MessageFault(f'{field} has a negative {axis} variance ({variance})')
-    block = 0.5 * (block + block.T)
-    eigenvalues, eigenvectors = np.linalg.eigh(block)
-    if eigenvalues[0] < -tolerance:
+    xy = 0.5 * (xy + yx)
+    # The smaller eigenvalue of a symmetric 2x2 matrix, in closed form.
+    smallest = 0.5 * (xx + yy) - math.hypot(0.5 * (xx - yy), xy)
+    if smallest < -tolerance:
         raise MessageFault(
-            f'{field} xy block is not positive semi-definite (eigenvalue {eigenvalues[0]:g})')
-    if eigenvalues[0] < 0.0:
+            f'{field} xy block is not positive semi-definite (eigenvalue {smallest:g})')
+    block = np.array([[xx, xy], [xy, yy]])
+    if smallest < 0.0:
+        eigenvalues, eigenvectors = np.linalg.eigh(block)
         block = eigenvectors @ np.diag(np.maximum(eigenvalues, 0.0)) @ eigenvectors.T
     return block
 
 
 def _yaw_from_quaternion(orientation):
-    quaternion = np.array([orientation.x, orientation.y, orientation.z, orientation.w])
+    quaternion = (orientation.x, orientation.y, orientation.z, orientation.w)
     _require_finite(quaternion, 'pose.orientation')
-    norm = float(np.linalg.norm(quaternion))
+    norm = math.hypot(*quaternion)
     if norm < _MIN_QUATERNION_NORM:
         raise MessageFault(f'pose.orientation has norm {norm:g}, cannot be normalised')
-    x, y, z, w = quaternion / norm
+    x, y, z, w = (value / norm for value in quaternion)
     return math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
 
 
@@ -106,9 +113,9 @@ def odometry_to_measurement(msg, expected_frame='map'):
     Raises MessageFault on NaN/inf, a bad covariance, a degenerate quaternion or a wrong frame.
     """
     _check_frame(msg.header.frame_id, expected_frame, 'header.frame_id')
-    position = np.array([msg.pose.pose.position.x, msg.pose.pose.position.y])
+    position = (msg.pose.pose.position.x, msg.pose.pose.position.y)
     _require_finite(position, 'pose.position')
-    body_velocity = np.array([msg.twist.twist.linear.x, msg.twist.twist.linear.y])
+    body_velocity = (msg.twist.twist.linear.x, msg.twist.twist.linear.y)
     _require_finite(body_velocity, 'twist.linear')
     yaw = _yaw_from_quaternion(msg.pose.pose.orientation)
     position_cov = _xy_covariance(msg.pose.covariance, 'pose.covariance')
@@ -119,8 +126,8 @@ def odometry_to_measurement(msg, expected_frame='map'):
     covariance[2:, 2:] = _rotate_covariance(rotation, body_velocity_cov)
     return OdometryMeasurement(
         stamp=stamp_to_seconds(msg.header.stamp), frame_id=msg.header.frame_id,
-        child_frame_id=msg.child_frame_id, position=position, velocity=rotation @ body_velocity,
-        covariance=covariance, yaw=yaw)
+        child_frame_id=msg.child_frame_id, position=np.array(position),
+        velocity=rotation @ np.array(body_velocity), covariance=covariance, yaw=yaw)
 
 
 def _covariance_6x6(xy_block):

@@ -5,6 +5,7 @@ prvo_msgs_util and asks it for beliefs predicted to the planning time.
 """
 
 from dataclasses import dataclass
+import functools
 
 from filterpy.common import Q_discrete_white_noise
 from filterpy.kalman import KalmanFilter, predict
@@ -15,17 +16,24 @@ import numpy as np
 _MEASUREMENT_VARIANCE_FLOOR = 1e-8
 
 
+# Both models are cached by `dt`: odometry arrives at a fixed period, so a few values recur on
+# every message of every robot. The cached arrays are read-only.
+@functools.lru_cache(maxsize=64)
 def _transition(dt):
     """Return F (4, 4) of the constant-velocity model over `dt` seconds, state [x, y, vx, vy]."""
     transition = np.eye(4)
     transition[0, 2] = transition[1, 3] = dt
+    transition.flags.writeable = False
     return transition
 
 
+@functools.lru_cache(maxsize=64)
 def _process_noise(dt, acceleration_std):
     """Return Q (4, 4): white-noise acceleration of std `acceleration_std` over `dt` seconds."""
-    return Q_discrete_white_noise(
+    noise = Q_discrete_white_noise(
         dim=2, dt=dt, var=acceleration_std ** 2, block_size=2, order_by_dim=False)
+    noise.flags.writeable = False
+    return noise
 
 
 @dataclass(frozen=True)
@@ -91,6 +99,8 @@ class ConstantVelocityTracker:
         if not dt > 0.0:
             raise ValueError(
                 f'stamp {stamp:.3f} s is not after the last measurement {self._stamp:.3f} s')
+        # ROS stamps have nanosecond resolution: rounding there makes recurring periods equal.
+        dt = round(dt, 9)
         self._filter.predict(F=_transition(dt), Q=_process_noise(dt, self.acceleration_std))
         self._filter.update(measurement, R=noise)
         self._stamp = float(stamp)
@@ -105,6 +115,7 @@ class ConstantVelocityTracker:
         dt = float(stamp) - self._stamp
         if dt <= 0.0:
             return StateBelief(self._stamp, self._filter.x.copy(), self._filter.P.copy())
+        dt = round(dt, 9)
         mean, covariance = predict(self._filter.x, self._filter.P, F=_transition(dt),
                                    Q=_process_noise(dt, self.acceleration_std))
         return StateBelief(float(stamp), mean, 0.5 * (covariance + covariance.T))

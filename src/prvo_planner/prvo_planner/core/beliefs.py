@@ -40,7 +40,9 @@ def as_finite_array(value, shape, field):
     if array.shape != tuple(shape):
         raise ValueError(f'{field} must have shape {tuple(shape)}, got shape {array.shape}: '
                          f'{value!r}')
-    if not np.all(np.isfinite(array)):
+    # Array methods, not np.all / np.max: beliefs are built on every planning cycle, and the
+    # module functions' dispatch costs more than the work on arrays this small.
+    if not np.isfinite(array).all():
         raise ValueError(f'{field} must be finite, got {array.tolist()!r}')
     array.setflags(write=False)
     return array
@@ -74,8 +76,8 @@ def as_covariance(value, size, field):
 
     """
     matrix = np.array(as_finite_array(value, (size, size), field))
-    scale = max(1.0, float(np.max(np.abs(matrix))))
-    if np.max(np.abs(matrix - matrix.T)) > _PSD_TOLERANCE * scale:
+    scale = max(1.0, float(np.abs(matrix).max()))
+    if np.abs(matrix - matrix.T).max() > _PSD_TOLERANCE * scale:
         raise ValueError(f'{field} must be symmetric, got {matrix.tolist()!r}')
     matrix = 0.5 * (matrix + matrix.T)
     eigenvalues, eigenvectors = np.linalg.eigh(matrix)
