@@ -24,6 +24,8 @@ polynomials in ``t`` by one matrix product with the direction monomials. This co
 hundred closed-form evaluations per plan, independent of the number of directions.
 """
 
+import math
+
 import numpy as np
 
 # q = r x u = z'Az, p = |u|^2 = z'Bz, g = r . u = z'Gz.
@@ -64,46 +66,69 @@ def poly_eval(poly, t):
     return value
 
 
-def _symmetric(matrix):
-    return 0.5 * (matrix + np.swapaxes(matrix, -1, -2))
-
-
-def _trace(matrix):
-    return np.trace(matrix, axis1=-2, axis2=-1)
-
-
-def rvo_form_matrices(cov):
+def form_matrices(cov, time_horizon=math.inf):
     """
-    Quadratic-form matrices and traces that the moments of ``f`` need.
+    Quadratic-form matrices and traces that the moments of every condition need.
+
+    Only quadratic forms ``mu'X mu`` are taken of the matrices, so they are not symmetrised.
 
     Parameters
     ----------
     cov : numpy.ndarray
-        Covariance of ``z``, shape (..., 4, 4).
+        Covariance ``S`` of ``z``, shape (..., 4, 4).
+    time_horizon : float
+        ``tau``; ``h1`` and ``h2`` are included only when it is finite.
 
     Returns
     -------
     matrices : numpy.ndarray
-        Shape (..., 9, 4, 4): ``A, ASA, (AS)^2 A, (AS)^3 A, sym(ASB), sym((AS)^2 B), ASBSA, B,
-        BSB``.
+        Shape (..., F, 4, 4): the nine of ``f``, ``A, ASA, (AS)^2 A, (AS)^3 A, ASB, (AS)^2 B,
+        ASBSA, B, BSB``, then ``X, XSX`` for ``X`` = ``G`` (of ``g``) and, with a finite
+        horizon, ``H1`` and ``H2``.
     traces : numpy.ndarray
-        Shape (..., 8): ``tr AS, tr (AS)^2, tr (AS)^3, tr (AS)^4, tr ASBS, tr (AS)^2 BS, tr BS,
-        tr (BS)^2``.
+        Shape (..., T): the eight of ``f``, ``tr AS, tr (AS)^2, tr (AS)^3, tr (AS)^4,
+        tr ASBS, tr (AS)^2 BS, tr BS, tr (BS)^2``, then ``tr XS, tr XSXS`` per ``X`` as above.
 
     """
-    cross_cov = _CROSS @ cov
-    speed_cov = _SPEED @ cov
+    left = [_CROSS, _SPEED, _DOT]
+    if math.isfinite(time_horizon):
+        tau = time_horizon
+        left += [-_DOT - tau * _SPEED, _POSITION + 2.0 * tau * _DOT + tau ** 2 * _SPEED]
+    left = np.stack(left)
+    # X S and X S X for every X at once: (..., K, 4, 4).
+    form_cov = left @ cov[..., None, :, :]
+    sandwich = form_cov @ left
+    cross_cov, speed_cov = form_cov[..., 0, :, :], form_cov[..., 1, :, :]
     cross_cov_2 = cross_cov @ cross_cov
-    cross_cov_3 = cross_cov_2 @ cross_cov
-    matrices = np.stack(np.broadcast_arrays(
-        _CROSS, cross_cov @ _CROSS, cross_cov_2 @ _CROSS, cross_cov_3 @ _CROSS,
-        _symmetric(cross_cov @ _SPEED), _symmetric(cross_cov_2 @ _SPEED),
-        cross_cov @ speed_cov @ _CROSS, _SPEED, speed_cov @ _SPEED), axis=-3)
-    traces = np.stack([
-        _trace(cross_cov), _trace(cross_cov_2), _trace(cross_cov_3),
-        _trace(cross_cov_2 @ cross_cov_2), _trace(cross_cov @ speed_cov),
-        _trace(cross_cov_2 @ speed_cov), _trace(speed_cov), _trace(speed_cov @ speed_cov)],
-        axis=-1)
+    cross_speed = cross_cov @ speed_cov
+    extras = left.shape[0] - 2
+    matrices = np.empty(cov.shape[:-2] + (NUM_RVO_FORMS + 2 * extras, 4, 4))
+    matrices[..., 0, :, :] = _CROSS
+    matrices[..., 1, :, :] = sandwich[..., 0, :, :]
+    matrices[..., 2, :, :] = cross_cov_2 @ _CROSS
+    matrices[..., 3, :, :] = cross_cov_2 @ sandwich[..., 0, :, :]
+    matrices[..., 4, :, :] = cross_cov @ _SPEED
+    matrices[..., 5, :, :] = cross_cov_2 @ _SPEED
+    matrices[..., 6, :, :] = cross_speed @ _CROSS
+    matrices[..., 7, :, :] = _SPEED
+    matrices[..., 8, :, :] = sandwich[..., 1, :, :]
+    matrices[..., NUM_RVO_FORMS::2, :, :] = left[2:]
+    matrices[..., NUM_RVO_FORMS + 1::2, :, :] = sandwich[..., 2:, :, :]
+    # tr XY = sum_ij X_ij Y_ji.
+    form_traces = np.einsum('...kii->...k', form_cov)
+    squared_traces = np.einsum('...kij,...kji->...k', form_cov, form_cov)
+    rvo_traces = np.einsum('...kij,...kji->...k', cross_cov_2[..., None, :, :],
+                           np.stack([cross_cov, cross_cov_2, speed_cov], axis=-3))
+    traces = np.empty(cov.shape[:-2] + (8 + 2 * extras,))
+    traces[..., 0] = form_traces[..., 0]
+    traces[..., 1] = squared_traces[..., 0]
+    traces[..., 2:4] = rvo_traces[..., :2]
+    traces[..., 4] = np.einsum('...ii->...', cross_speed)
+    traces[..., 5] = rvo_traces[..., 2]
+    traces[..., 6] = form_traces[..., 1]
+    traces[..., 7] = squared_traces[..., 1]
+    traces[..., 8::2] = form_traces[..., 2:]
+    traces[..., 9::2] = squared_traces[..., 2:]
     return matrices, traces
 
 
@@ -168,41 +193,9 @@ def rvo_moments(mean, cov, radius):
     if mean.shape[-1:] != (4,) or cov.shape[-2:] != (4, 4):
         raise ValueError(f'mean must have shape (..., 4) and cov (..., 4, 4), got '
                          f'{mean.shape} and {cov.shape}')
-    matrices, traces = rvo_form_matrices(cov)
-    forms = np.einsum('...i,...kij,...j->...k', mean, matrices, mean)
-    return rvo_moments_from_forms(forms, traces, radius)
-
-
-def condition_matrices(cov, time_horizon):
-    """
-    Matrices and traces of the quadratic-form conditions ``g``, ``h1``, ``h2``.
-
-    Parameters
-    ----------
-    cov : numpy.ndarray
-        Covariance of ``z``, shape (N, 4, 4).
-    time_horizon : float
-        ``tau``; only used when finite.
-
-    Returns
-    -------
-    matrices : numpy.ndarray
-        Shape (N, 2 C, 4, 4): for each condition ``X`` then ``XSX``.
-    traces : numpy.ndarray
-        Shape (N, 2 C): for each condition ``tr XS`` then ``tr XSXS``.
-
-    """
-    forms = [_DOT]
-    if np.isfinite(time_horizon):
-        tau = time_horizon
-        forms.append(-_DOT - tau * _SPEED)
-        forms.append(_POSITION + 2.0 * tau * _DOT + tau ** 2 * _SPEED)
-    matrices, traces = [], []
-    for form in forms:
-        form_cov = form @ cov
-        matrices.extend(np.broadcast_arrays(form, form_cov @ form))
-        traces.extend([_trace(form_cov), _trace(form_cov @ form_cov)])
-    return np.stack(matrices, axis=-3), np.stack(traces, axis=-1)
+    matrices, traces = form_matrices(cov)
+    forms = np.einsum('...i,...kij,...j->...k', mean, matrices[..., :NUM_RVO_FORMS, :, :], mean)
+    return rvo_moments_from_forms(forms, traces[..., :8], radius)
 
 
 def condition_moments(origin, cov, combined_radius, velocities, time_horizon, receding_gate):
@@ -233,13 +226,15 @@ def condition_moments(origin, cov, combined_radius, velocities, time_horizon, re
         Shape (N, P, C) each.
 
     """
-    rvo_matrices, rvo_traces = rvo_form_matrices(cov)
-    extra_matrices, extra_traces = condition_matrices(cov, time_horizon)
-    matrices = np.concatenate([rvo_matrices, extra_matrices], axis=1)
-    mean = np.concatenate(np.broadcast_arrays(
-        origin[:, None, :2], origin[:, None, 2:] + 2.0 * velocities), axis=-1)
+    matrices, traces = form_matrices(cov, time_horizon)
+    rvo_traces, extra_traces = traces[:, :8], traces[:, 8:]
+    # The mean of z at every point, points last: (N, 4, P).
+    velocities = np.asarray(velocities, dtype=float)
+    mean_t = np.empty((origin.shape[0], 4, velocities.shape[-2]))
+    mean_t[:, :2] = origin[:, :2, None]
+    mean_t[:, 2:] = origin[:, 2:, None] + 2.0 * np.swapaxes(velocities, -1, -2)
+    mean_t = mean_t[:, None]
     # mu'X mu as (X mu) . mu with the points last: small products, contiguous reductions.
-    mean_t = np.swapaxes(mean, -1, -2)[:, None]
     forms = np.sum(np.matmul(matrices, mean_t) * mean_t, axis=-2).swapaxes(-1, -2)
     f_mean, f_variance = rvo_moments_from_forms(forms[..., :NUM_RVO_FORMS],
                                                 rvo_traces[:, None, :], combined_radius[:, None])
@@ -270,6 +265,8 @@ _FIT = np.linalg.pinv(np.prod(_NODES[:, None, :] ** _EXPONENTS[None, :, :], axis
 # Total degree of each monomial of _EXPONENTS; the first six have degree <= 2.
 _DEGREES = _EXPONENTS.sum(axis=1)
 _QUADRATIC_TERMS = 6
+# _DEGREE_MASK[k, l]: monomial k contributes to the ray coefficient of t^l, shape (15, 5).
+_DEGREE_MASK = (_DEGREES[:, None] == np.arange(5)).astype(float)
 
 
 def ray_polynomials(origin, cov, combined_radius, directions, scale, time_horizon,
@@ -298,12 +295,20 @@ def ray_polynomials(origin, cov, combined_radius, directions, scale, time_horizo
     """
     means, variances = condition_moments(origin, cov, combined_radius, scale * _NODES,
                                          time_horizon, receding_gate)
-    # Bivariate coefficient k multiplies t^(i+j) e_x^i e_y^j along the ray: per direction a
-    # (15, 5) map from bivariate to ray coefficients. Products of shape (N, 1, C, 15) by
-    # (M, 15, L) give (N, M, C, L) rows directly, in the order the ray solver reads them.
-    direction_monomials = np.prod(directions[:, None, :] ** _EXPONENTS[None, :, :], axis=-1)
-    to_ray = np.where(_DEGREES[:, None] == np.arange(5), direction_monomials[:, :, None], 0.0)
-    mean_coefficients = np.swapaxes(_FIT[:_QUADRATIC_TERMS] @ means, -1, -2)[:, None]
-    variance_coefficients = np.swapaxes(_FIT @ variances, -1, -2)[:, None]
-    return (mean_coefficients @ to_ray[:, :_QUADRATIC_TERMS, :3],
-            variance_coefficients @ to_ray)
+    # Bivariate coefficient k multiplies t^(i+j) e_x^i e_y^j along the ray: a (15, 5 M) map
+    # from bivariate to ray coefficients, applied in one product to every (neighbour,
+    # condition), then laid out as (N, M, C, L) rows, the order the ray solver reads them in.
+    count, conditions = origin.shape[0], means.shape[-1]
+    powers = directions[:, :, None] ** np.arange(5)
+    direction_monomials = powers[:, 0, _EXPONENTS[:, 0]] * powers[:, 1, _EXPONENTS[:, 1]]
+    to_ray = (direction_monomials.T[:, :, None] * _DEGREE_MASK[:, None, :]).reshape(
+        _EXPONENTS.shape[0], -1)
+    mean_rows = np.swapaxes(_FIT[:_QUADRATIC_TERMS] @ means, -1, -2).reshape(
+        -1, _QUADRATIC_TERMS) @ to_ray.reshape(-1, directions.shape[0], 5)[
+            :_QUADRATIC_TERMS, :, :3].reshape(_QUADRATIC_TERMS, -1)
+    variance_rows = np.swapaxes(_FIT @ variances, -1, -2).reshape(
+        -1, _EXPONENTS.shape[0]) @ to_ray
+    return (np.ascontiguousarray(
+                mean_rows.reshape(count, conditions, -1, 3).transpose(0, 2, 1, 3)),
+            np.ascontiguousarray(
+                variance_rows.reshape(count, conditions, -1, 5).transpose(0, 2, 1, 3)))
