@@ -288,16 +288,16 @@ def ray_polynomials(origin, cov, combined_radius, directions, scale, time_horizo
     Returns
     -------
     means : numpy.ndarray
-        Shape (N, M, C, 3), contiguous.
+        Shape (N, M, C, 3), laid out coefficient-major in memory.
     variances : numpy.ndarray
-        Shape (N, M, C, 5), contiguous.
+        Shape (N, M, C, 5), laid out coefficient-major in memory.
 
     """
     means, variances = condition_moments(origin, cov, combined_radius, scale * _NODES,
                                          time_horizon, receding_gate)
     # Bivariate coefficient k multiplies t^(i+j) e_x^i e_y^j along the ray: a (15, 5 M) map
     # from bivariate to ray coefficients, applied in one product to every (neighbour,
-    # condition), then laid out as (N, M, C, L) rows, the order the ray solver reads them in.
+    # condition), then laid out coefficient-major for the ray solver.
     count, conditions = origin.shape[0], means.shape[-1]
     powers = directions[:, :, None] ** np.arange(5)
     direction_monomials = powers[:, 0, _EXPONENTS[:, 0]] * powers[:, 1, _EXPONENTS[:, 1]]
@@ -308,7 +308,17 @@ def ray_polynomials(origin, cov, combined_radius, directions, scale, time_horizo
             :_QUADRATIC_TERMS, :, :3].reshape(_QUADRATIC_TERMS, -1)
     variance_rows = np.swapaxes(_FIT @ variances, -1, -2).reshape(
         -1, _EXPONENTS.shape[0]) @ to_ray
-    return (np.ascontiguousarray(
-                mean_rows.reshape(count, conditions, -1, 3).transpose(0, 2, 1, 3)),
-            np.ascontiguousarray(
-                variance_rows.reshape(count, conditions, -1, 5).transpose(0, 2, 1, 3)))
+    return tuple(_coefficient_major(rows.reshape(count, conditions, -1, length))
+                 for rows, length in ((mean_rows, 3), (variance_rows, 5)))
+
+
+def _coefficient_major(polynomials):
+    """
+    Lay polynomials of shape (N, C, M, L) out as (L, N, M, C) in memory, viewed as (N, M, C, L).
+
+    Coefficient-major memory suits the ray solver: one coefficient of every row is contiguous.
+    """
+    layout = np.empty((polynomials.shape[3], polynomials.shape[0], polynomials.shape[2],
+                       polynomials.shape[1]))
+    layout[...] = polynomials.transpose(3, 0, 2, 1)
+    return np.moveaxis(layout, 0, -1)

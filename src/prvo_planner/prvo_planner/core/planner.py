@@ -275,7 +275,7 @@ def achieved_margins(means, variances, layout, receding_enabled, rank=False):
 
 def _row_tests(means, variances, margins, method, deterministic, preferred):
     """
-    Build the acceptance tests of every (neighbour, direction, condition) row, row-major.
+    Build the acceptance tests of every (neighbour, direction, condition) row.
 
     For the exact method ``mean - k sigma >= 0`` iff ``mean >= 0`` and ``mean^2 - k^2 var >= 0``
     (the quartic). Where the variance is certified positive on the ray, the surrogate changes
@@ -291,27 +291,28 @@ def _row_tests(means, variances, margins, method, deterministic, preferred):
     Returns
     -------
     list of (numpy.ndarray, numpy.ndarray or None)
-        Each test's coefficients, shape (K, L) over the K = N M C rows in (neighbour,
-        direction, condition) order (acceptance needs every test ``>= 0``), with the rows where
-        its roots need not bound pieces (shape (K,), or ``None`` for none).
+        Each test's coefficients, coefficient-major: shape (L, K) over the K = N M C rows in
+        (neighbour, direction, condition) order (acceptance needs every test ``>= 0``), with
+        the rows where its roots need not bound pieces (shape (K,), or ``None`` for none).
 
     """
     rows = means.shape[0] * means.shape[1] * means.shape[2]
-    mean_rows = means.reshape(rows, 3)
+    # Free reshapes when the polynomials are laid out coefficient-major (ray_polynomials).
+    mean_rows = np.moveaxis(means, -1, 0).reshape(3, rows)
     if deterministic:
         return [(mean_rows, None)]
     if method == 'taylor':
         quadratic = taylor_quadratics(means, variances, margins, preferred[None, :, None])
-        return [(quadratic.reshape(rows, 3), None)]
-    variance_rows = variances.reshape(rows, 5)
-    constant, linear, square = mean_rows.T
-    quartic = np.empty((rows, 5))
-    quartic[:, 0] = constant * constant
-    quartic[:, 1] = 2.0 * constant * linear
-    quartic[:, 2] = linear * linear + 2.0 * constant * square
-    quartic[:, 3] = 2.0 * linear * square
-    quartic[:, 4] = square * square
-    quartic -= np.tile(margins ** 2, rows // margins.size)[:, None] * variance_rows
+        return [(np.moveaxis(quadratic, -1, 0).reshape(3, rows), None)]
+    variance_rows = np.moveaxis(variances, -1, 0).reshape(5, rows)
+    constant, linear, square = mean_rows
+    quartic = np.empty((5, rows))
+    quartic[0] = constant * constant
+    quartic[1] = 2.0 * constant * linear
+    quartic[2] = linear * linear + 2.0 * constant * square
+    quartic[3] = 2.0 * linear * square
+    quartic[4] = square * square
+    quartic -= np.tile(margins ** 2, rows // margins.size) * variance_rows
     return [(quartic, None), (mean_rows, bernstein_minimum(variance_rows) > 0.0)]
 
 
@@ -409,12 +410,12 @@ def ray_gaps(means, variances, margins, layout, method, deterministic, preferred
         if quiet is not None:
             undecided &= ~quiet.reshape(pairs, conditions)
         quadratic_rows = undecided & quadratic_condition
-        for rows, quartic in ((undecided & ~quadratic_condition, test.shape[1] == 5),
+        for rows, quartic in ((undecided & ~quadratic_condition, test.shape[0] == 5),
                               (quadratic_rows, False)):
             row = np.nonzero(rows.ravel())[0]
             if not row.size:
                 continue
-            columns = test[row].T
+            columns = np.take(test, row, axis=1)
             roots = (polynomial_roots(columns) if quartic else
                      quadratic_roots(columns[0], columns[1], columns[2]))
             inside = (roots > 0.0) & (roots < 1.0)
@@ -431,11 +432,12 @@ def ray_gaps(means, variances, margins, layout, method, deterministic, preferred
     midpoints = (0.5 * (piece_start + piece_end))[:, None]
     accepted = True
     for test, _ in tests:
-        # (pieces, C, L): each piece's pair's coefficients; Horner's rule at its midpoint.
-        coefficients = test.reshape(pairs, conditions, -1)[piece_pair]
-        value = coefficients[..., -1]
-        for power in range(coefficients.shape[-1] - 2, -1, -1):
-            value = value * midpoints + coefficients[..., power]
+        # (L, pieces, C): each piece's pair's coefficients; Horner's rule at its midpoint.
+        coefficients = np.take(test.reshape(test.shape[0], pairs, conditions), piece_pair,
+                               axis=1)
+        value = coefficients[-1]
+        for power in range(coefficients.shape[0] - 2, -1, -1):
+            value = value * midpoints + coefficients[power]
         accepted = accepted & (value >= 0.0)
     accepted = combine_conditions(accepted, layout, enabled[piece_pair])
     # Sweep the rejected pieces of each open direction, shifted by 4 per direction so that one
@@ -600,7 +602,8 @@ def plan_velocity(ego, neighbours, v_pref, config):
             inset = np.minimum(_INTERIOR, 0.5 * (upper - lower))
             best_t = np.clip(preferred[gap_direction], lower + inset, upper - inset)
             candidates = config.max_speed * best_t[:, None] * directions[gap_direction]
-            best = int(np.argmin(np.linalg.norm(candidates - v_pref, axis=1)))
+            offset = candidates - v_pref
+            best = int(np.argmin(offset[:, 0] * offset[:, 0] + offset[:, 1] * offset[:, 1]))
             direction_index, chosen_t = gap_direction[best], best_t[best]
         else:
             speeds, grid_costs = _speed_grid(directions, preferred, v_pref, config.max_speed)

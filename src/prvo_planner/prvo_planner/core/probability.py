@@ -1,5 +1,7 @@
 """Cantelli's bound and Monte Carlo estimates of the RVO condition."""
 
+import math
+
 import numpy as np
 
 from .beliefs import as_covariance, as_finite_array
@@ -20,6 +22,11 @@ def eta_from_k(k):
         ``k^2 / (1 + k^2)``.
 
     """
+    if isinstance(k, float):
+        # Scalars without numpy: the planner converts a margin on every call.
+        if not k >= 0.0:
+            raise ValueError(f'k must be >= 0, got {k!r}')
+        return 1.0 if math.isinf(k) else k * k / (1.0 + k * k)
     k = np.asarray(k, dtype=float)
     if np.any(np.isnan(k)) or np.any(k < 0.0):
         raise ValueError(f'k must be >= 0, got {k.tolist()!r}')
@@ -43,6 +50,10 @@ def k_from_eta(eta):
         ``sqrt(eta / (1 - eta))``.
 
     """
+    if isinstance(eta, float):
+        if not 0.0 <= eta < 1.0:
+            raise ValueError(f'eta must be in [0, 1), got {eta!r}')
+        return math.sqrt(eta / (1.0 - eta))
     eta = np.asarray(eta, dtype=float)
     if np.any(np.isnan(eta)) or np.any(eta < 0.0) or np.any(eta >= 1.0):
         raise ValueError(f'eta must be in [0, 1), got {eta.tolist()!r}')

@@ -172,7 +172,7 @@ def bernstein_minimum(coefficients):
     Parameters
     ----------
     coefficients : numpy.ndarray
-        Ascending coefficients, shape (K, L) with L = 3 or 5.
+        Ascending coefficients, coefficient-major: shape (L, K) with L = 3 or 5.
 
     Returns
     -------
@@ -180,8 +180,7 @@ def bernstein_minimum(coefficients):
         Shape (K,).
 
     """
-    # Coefficient-major product and reduction: reducing along a short last axis is slow.
-    return np.min(_BERNSTEIN[coefficients.shape[1] - 1].T @ coefficients.T, axis=0)
+    return np.min(_BERNSTEIN[coefficients.shape[0] - 1].T @ coefficients, axis=0)
 
 
 def sign_certificates(coefficients):
@@ -194,7 +193,7 @@ def sign_certificates(coefficients):
     Parameters
     ----------
     coefficients : numpy.ndarray
-        Ascending coefficients, shape (K, L) with L = 3 or 5.
+        Ascending coefficients, coefficient-major: shape (L, K) with L = 3 or 5.
 
     Returns
     -------
@@ -202,7 +201,8 @@ def sign_certificates(coefficients):
         Booleans, shape (K,).
 
     """
-    bernstein = _BERNSTEIN[coefficients.shape[1] - 1].T @ coefficients.T
+    # Coefficient-major product and reduction: reducing along a short last axis is slow.
+    bernstein = _BERNSTEIN[coefficients.shape[0] - 1].T @ coefficients
     return np.min(bernstein, axis=0) >= 0.0, np.max(bernstein, axis=0) < 0.0
 
 
