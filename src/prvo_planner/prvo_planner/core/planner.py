@@ -29,6 +29,7 @@ from .ray_solver import (
 # Speeds, as fractions of v_max, tried on every direction when no direction is feasible (and by
 # the Monte Carlo baseline), besides the preferred speed on the direction.
 _SPEED_GRID = np.linspace(0.0, 1.0, 9)
+_SPEED_GRID_POWERS = _SPEED_GRID[:, None] ** np.arange(5)
 # Chosen speeds stay this far (in t) inside a feasible interval so that rounding in the roots
 # cannot put them on the rejected side.
 _INTERIOR = 1e-9
@@ -223,7 +224,7 @@ def combine_conditions(per_condition, layout, receding_enabled, any_of=np.logica
     return result
 
 
-def achieved_margins(means, variances, layout, receding_enabled, rank=False):
+def achieved_margins(means, variances, layout, receding_enabled, rank=False, scratch=False):
     """
     Achieved ``k`` at given points (prvo-math.md section 7, no feasible velocity).
 
@@ -243,6 +244,8 @@ def achieved_margins(means, variances, layout, receding_enabled, rank=False):
     rank : bool
         Floor ``sigma`` relative to the mean's size, so that noise-free candidates are ranked
         by their normalised margin instead of tying at ``-inf``.
+    scratch : bool
+        ``variances`` is a temporary that may be overwritten (saves a copy of a large grid).
 
     Returns
     -------
@@ -250,7 +253,7 @@ def achieved_margins(means, variances, layout, receding_enabled, rank=False):
         Shape (...).
 
     """
-    sigma = np.maximum(variances, 0.0)
+    sigma = np.maximum(variances, 0.0, out=variances if scratch else None)
     if rank:
         # sqrt of a sum, not np.hypot: the same floor at a fraction of the cost; in place, as
         # the grid of candidates can be large.
@@ -267,8 +270,12 @@ def achieved_margins(means, variances, layout, receding_enabled, rank=False):
         result = np.maximum(result, np.where(receding_enabled, margins[..., 1], -np.inf))
     if layout.has_horizon:
         joint = np.minimum(margins[..., -2], margins[..., -1])
-        pairwise = np.where(joint >= 1.0, np.sqrt(np.maximum(joint * joint - 1.0, 0.0) / 2.0),
-                            joint - 1.0)
+        # sqrt((k'^2 - 1) / 2) for k' >= 1, else k' - 1; in place, as the grid can be large.
+        pairwise = np.multiply(joint, joint)
+        pairwise -= 1.0
+        pairwise *= 0.5
+        np.sqrt(pairwise, out=pairwise, where=joint >= 1.0)
+        np.subtract(joint, 1.0, out=pairwise, where=joint < 1.0)
         result = np.maximum(result, pairwise)
     return result
 
@@ -464,7 +471,8 @@ def ray_gaps(means, variances, margins, layout, method, deterministic, preferred
 def _model_moments(encounter, config):
     """Covariance and radius the model plans with, and whether it is noise-free."""
     if config.model in ('prvo', 'mc'):
-        return encounter.cov, encounter.combined_radius, False
+        # Exactly known beliefs make every variance zero: the means alone decide.
+        return encounter.cov, encounter.combined_radius, not encounter.cov.any()
     radius = encounter.combined_radius
     if config.model == 'inflate':
         position_spread = np.linalg.eigvalsh(encounter.cov[:, :2, :2])[:, -1]
@@ -607,7 +615,7 @@ def plan_velocity(ego, neighbours, v_pref, config):
             direction_index, chosen_t = gap_direction[best], best_t[best]
         else:
             speeds, grid_costs = _speed_grid(directions, preferred, v_pref, config.max_speed)
-            score = _grid_scores(means, variances, speeds, layout)
+            score = _grid_scores(means, variances, speeds, layout, deterministic)
             direction_index, speed_index = np.unravel_index(_best_ranked(score, grid_costs),
                                                             speeds.shape)
             chosen_t = speeds[direction_index, speed_index]
@@ -648,7 +656,7 @@ def _speed_grid(directions, preferred, v_pref, max_speed):
     return speeds, costs
 
 
-def _grid_scores(means, variances, speeds, layout):
+def _grid_scores(means, variances, speeds, layout, deterministic):
     """
     Ranked achieved ``k`` at candidate speeds, minimised over neighbours.
 
@@ -660,6 +668,8 @@ def _grid_scores(means, variances, speeds, layout):
         ``t`` per direction, shape (M, T).
     layout : ConditionLayout
         Column meaning.
+    deterministic : bool
+        All variances are zero: rank by the normalised margin (``achieved_margins``' ``rank``).
 
     Returns
     -------
@@ -668,15 +678,24 @@ def _grid_scores(means, variances, speeds, layout):
 
     """
     count, directions, conditions = means.shape[:3]
-    powers = speeds[..., None] ** np.arange(variances.shape[-1])
-    # Per direction, speed powers (T, L) times coefficients (L, N C): one small product each.
-    grid_means, grid_variances = (
-        (powers[..., :polynomial.shape[-1]] @ polynomial.transpose(1, 3, 0, 2).reshape(
-            directions, polynomial.shape[-1], -1)).reshape(
-                directions, speeds.shape[1], count, conditions)
-        for polynomial in (means, variances))
-    return np.min(achieved_margins(grid_means, grid_variances, layout,
-                                   layout.receding_enabled, rank=True), axis=-1)
+    # Speed 0 is each direction's own (Horner's rule, per direction); the others are the same
+    # grid on every direction: one product with the coefficient-major rows of every
+    # (neighbour, direction, condition). Grid values are laid out (T, N, M, C).
+    grid = []
+    for polynomial in (means, variances):
+        rows = np.moveaxis(polynomial, -1, 0).reshape(polynomial.shape[-1], -1)
+        values = np.empty((speeds.shape[1], rows.shape[1]))
+        values[1:] = _SPEED_GRID_POWERS[:, :rows.shape[0]] @ rows
+        own = np.broadcast_to(speeds[None, :, :1], (count, directions, 1)).reshape(-1)
+        own = np.repeat(own, conditions)
+        value = rows[-1]
+        for power in range(rows.shape[0] - 2, -1, -1):
+            value = value * own + rows[power]
+        values[0] = value
+        grid.append(values.reshape(speeds.shape[1], count, directions, conditions))
+    scores = np.min(achieved_margins(grid[0], grid[1], layout, layout.receding_enabled[:, None],
+                                     rank=deterministic, scratch=True), axis=1)
+    return scores.T
 
 
 def _cantelli(margin):
