@@ -80,6 +80,15 @@ def as_covariance(value, size, field):
     if np.abs(matrix - matrix.T).max() > _PSD_TOLERANCE * scale:
         raise ValueError(f'{field} must be symmetric, got {matrix.tolist()!r}')
     matrix = 0.5 * (matrix + matrix.T)
+    try:
+        # Positive definite (the usual case): nothing to clip, and a Cholesky factorisation
+        # costs less than an eigendecomposition.
+        np.linalg.cholesky(matrix)
+    except np.linalg.LinAlgError:
+        pass
+    else:
+        matrix.setflags(write=False)
+        return matrix
     eigenvalues, eigenvectors = np.linalg.eigh(matrix)
     if eigenvalues[0] < -_PSD_TOLERANCE * scale:
         raise ValueError(f'{field} must be positive semi-definite (smallest eigenvalue '
