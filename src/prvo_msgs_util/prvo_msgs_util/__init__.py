@@ -18,6 +18,7 @@ from prvo_msgs_util.diagnostics import (
     make_diagnostic_array,
     make_diagnostic_status,
 )
+from prvo_msgs_util.interrupts import SigintRecorder
 from prvo_msgs_util.markers import make_belief_markers
 from prvo_msgs_util.qos import (
     CLOCK_QOS,
@@ -47,6 +48,7 @@ __all__ = [
     'CLOCK', 'CLOCK_QOS', 'CMD_VEL', 'CMD_VEL_QOS', 'CONTACTS', 'CONTACT_QOS', 'DIAGNOSTICS',
     'DIAGNOSTICS_QOS', 'GOAL_POSE', 'GOAL_QOS', 'GROUND_TRUTH', 'MARKERS', 'MARKER_QOS',
     'MessageFault', 'ODOM', 'ODOM_LATEST_QOS', 'ODOM_QOS', 'OdometryMeasurement',
+    'SigintRecorder',
     'diagnostic_values',
     'make_belief_markers', 'make_diagnostic_array', 'make_diagnostic_status', 'make_odometry',
     'make_pose_stamped', 'make_twist', 'make_twist_stamped', 'odometry_to_measurement',

@@ -43,6 +43,7 @@ from prvo_msgs_util import (
     ODOM,
     ODOM_LATEST_QOS,
     MessageFault,
+    SigintRecorder,
     make_belief_markers,
     make_diagnostic_array,
     make_diagnostic_status,
@@ -502,6 +503,7 @@ class PlannerNode(Node):
 
 def main(args=None):
     """Run one planner until Ctrl-C; exit 2 with a clear message on an invalid parameter."""
+    sigint = SigintRecorder().install()
     rclpy.init(args=args)
     node = None
     try:
@@ -510,9 +512,9 @@ def main(args=None):
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     except RuntimeError:
-        # Ctrl-C shuts the context down from rclpy's signal handler; a message take in flight
-        # can then fail with a RuntimeError. That is the shutdown asked for; anything else is not.
-        if rclpy.ok():
+        # A message take in flight when Ctrl-C lands can fail with a RuntimeError. That is the
+        # shutdown asked for; anything else is not.
+        if rclpy.ok() and not sigint.received:
             raise
     except (ParameterError, InvalidParameterTypeException,
             InvalidParameterValueException) as error:

@@ -25,7 +25,9 @@ import signal
 import subprocess
 import sys
 import tempfile
+import threading
 import time
+import types
 
 import numpy as np
 
@@ -44,6 +46,7 @@ DOMAIN_IDS = range(1, 102)
 DOMAIN_LOCK_DIR = pathlib.Path(tempfile.gettempdir()) / 'prvo-ros-domains'
 STEP_TIMEOUT = 2.0  # wall seconds the sim waits for a late planner before reusing its command
 SHUTDOWN_GRACE = 10.0  # wall seconds children get to exit after SIGINT before SIGKILL
+RECORDER_CLOSE_TIMEOUT = 5.0  # wall seconds the recorder's DDS teardown may take
 STARTUP_LIMIT = 60.0  # wall seconds to the first ground truth before the run counts as failed
 SETTLE_TIME = 1.0  # sim seconds every robot must stay at its goal before the run ends
 PROGRESS_PERIOD = 0.5
@@ -203,6 +206,8 @@ class _InterruptGate:
 
 
 INTERRUPTS = _InterruptGate()
+# Set once a recorder's DDS teardown hung in this process (see Recorder.close).
+DDS_HANG = types.SimpleNamespace(noticed=False)
 
 
 def package_command(package, executable, module):
@@ -434,11 +439,23 @@ class Recorder:
         """Handle at most one pending message, waiting up to TIMEOUT s for it."""
         self._executor.spin_once(timeout_sec=timeout)
 
-    def close(self):
-        """Destroy the node and shut its context down."""
+    def close(self, timeout=RECORDER_CLOSE_TIMEOUT):
+        """Destroy the node and shut its context down; return False if that hung.
+
+        Fast DDS can deadlock while deleting a DataWriter (ResourceEvent::unregister_timer,
+        eProsima/Fast-DDS#6193, #6502), seen here after a child stopped answering. The
+        destruction runs on a daemon thread so that a hang costs TIMEOUT s, not the run.
+        """
         self._executor.shutdown()
-        self.node.destroy_node()
-        self.context.try_shutdown()
+
+        def destroy():
+            self.node.destroy_node()
+            self.context.try_shutdown()
+
+        closer = threading.Thread(target=destroy, name='recorder-close', daemon=True)
+        closer.start()
+        closer.join(timeout)
+        return not closer.is_alive()
 
     def arrays(self):
         """Return times [s], states (T, N, 4) and commands (T, N, 2) at the common stamps.
@@ -576,8 +593,11 @@ def run_once(spec, domain_id, monitor=None):
                              for signum in (signal.SIGINT, signal.SIGTERM)}
         try:
             children.stop()
-            if recorder is not None:
-                recorder.close()
+            if recorder is not None and not recorder.close():
+                DDS_HANG.noticed = True
+                print('run_scenario: warning: the DDS layer hung while closing the recorder '
+                      '(a known Fast DDS deadlock); the results are still written, and the '
+                      'runner exits without DDS cleanup', file=sys.stderr)
         finally:
             for signum, handler in previous_handlers.items():
                 signal.signal(signum, handler)
@@ -780,13 +800,19 @@ def run_interruptibly(program, job):
     previous_handlers = {signum: signal.signal(signum, INTERRUPTS.handle)
                          for signum in (signal.SIGINT, signal.SIGTERM)}
     try:
-        return job()
+        code = job()
     except RunInterruptedError as interruption:
         print(f'{program}: interrupted by {interruption}', file=sys.stderr)
-        return 128 + interruption.signum
+        code = 128 + interruption.signum
     finally:
         for signum, handler in previous_handlers.items():
             signal.signal(signum, handler)
+    if DDS_HANG.noticed:
+        # A thread is stuck inside Fast DDS: interpreter shutdown would wait on it forever.
+        sys.stdout.flush()
+        sys.stderr.flush()
+        os._exit(code)
+    return code
 
 
 def main(argv=None):

@@ -39,6 +39,7 @@ from prvo_msgs_util import (
     ODOM,
     ODOM_QOS,
     MessageFault,
+    SigintRecorder,
     make_diagnostic_array,
     make_diagnostic_status,
     make_odometry,
@@ -397,6 +398,7 @@ class SimNode(Node):
 
 def main(args=None):
     """Run the simulator until SIGINT; exit 2 if the scenario or a parameter is invalid."""
+    sigint = SigintRecorder().install()
     rclpy.init(args=args)
     try:
         node = SimNode()
@@ -409,9 +411,9 @@ def main(args=None):
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     except RuntimeError:
-        # Ctrl-C shuts the context down from rclpy's signal handler; a message take in flight
-        # can then fail with a RuntimeError. That is the shutdown asked for; anything else is not.
-        if rclpy.ok():
+        # A message take in flight when Ctrl-C lands can fail with a RuntimeError. That is the
+        # shutdown asked for; anything else is not.
+        if rclpy.ok() and not sigint.received:
             raise
     finally:
         node.destroy_node()
