@@ -206,3 +206,64 @@ def test_sampler_matches_the_relative_gaussian_of_section_2():
     expected_mean = encounter.origin[0] + np.r_[0.0, 0.0, 0.8, 0.4]
     np.testing.assert_allclose(z.mean(axis=0), expected_mean, atol=0.01)
     np.testing.assert_allclose(np.cov(z.T), encounter.cov[0], atol=0.02)
+
+
+def head_on(heading):
+    """Ego at the origin and a neighbour 4 m ahead along HEADING (+1 or -1), closing at 2 m/s."""
+    ego = AgentBelief([0.0, 0.0], [heading, 0.0], np.zeros((4, 4)), 0.3)
+    neighbour = AgentBelief([4.0 * heading, 0.0], [-heading, 0.0], np.zeros((4, 4)), 0.3)
+    return ego, [neighbour], np.array([heading, 0.0])
+
+
+@pytest.mark.parametrize('heading', (1.0, -1.0))
+def test_passing_bias_passes_a_head_on_neighbour_on_the_right(heading):
+    ego, neighbours, v_pref = head_on(heading)
+    result = plan_velocity(ego, neighbours, v_pref, PlannerConfig(model='rvo', passing_bias=0.1))
+    assert result.feasible
+    # Right of the preferred direction: -y heading +x, +y heading -x.
+    assert heading * result.velocity[1] < -0.05
+
+
+@pytest.mark.parametrize('side', (1.0, -1.0))
+def test_inertia_keeps_the_side_of_the_previous_command(side):
+    ego, neighbours, v_pref = head_on(1.0)
+    config = PlannerConfig(model='rvo', inertia=0.5, passing_bias=0.1)
+    result = plan_velocity(ego, neighbours, v_pref, config, previous=[0.9, 0.35 * side])
+    assert result.feasible and side * result.velocity[1] > 0.05
+    # Without a previous command the term is off.
+    plain = plan_velocity(ego, neighbours, v_pref, PlannerConfig(model='rvo'), previous=None)
+    np.testing.assert_allclose(
+        plan_velocity(ego, neighbours, v_pref, PlannerConfig(model='rvo', inertia=0.5)).velocity,
+        plain.velocity)
+
+
+@pytest.mark.parametrize('model', ('prvo', 'rvo', 'inflate'))
+def test_inertia_and_passing_bias_only_rank_velocities_that_meet_the_constraints(model):
+    rng = np.random.default_rng(5)
+    for _ in range(30):
+        ego, neighbours = crowd(rng, 4, 0.05 if model == 'prvo' else 0.0)
+        v_pref, previous = rng.uniform(-1.0, 1.0, 2), rng.uniform(-1.0, 1.0, 2)
+        plain = plan_velocity(ego, neighbours, v_pref, PlannerConfig(model=model, k=1.0))
+        ranked = plan_velocity(ego, neighbours, v_pref, PlannerConfig(
+            model=model, k=1.0, inertia=0.6, passing_bias=0.2), previous=previous)
+        assert ranked.candidates_feasible == plain.candidates_feasible
+        if plain.feasible:
+            assert ranked.feasible and ranked.achieved_k >= 1.0 - 1e-6
+        assert np.hypot(*ranked.velocity) <= 1.0 + 1e-12
+        # The ranked choice is no worse under its own cost than the plain one.
+        cost = (np.linalg.norm(ranked.velocity - v_pref)
+                + 0.6 * np.linalg.norm(ranked.velocity - previous))
+        plain_cost = (np.linalg.norm(plain.velocity - v_pref)
+                      + 0.6 * np.linalg.norm(plain.velocity - previous))
+        left = (v_pref[0] * np.array([ranked.velocity[1], plain.velocity[1]])
+                - v_pref[1] * np.array([ranked.velocity[0], plain.velocity[0]]))
+        left = 0.2 * np.maximum(left / np.hypot(*v_pref), 0.0)
+        if plain.feasible:
+            assert cost + left[0] <= plain_cost + left[1] + 1e-9
+
+
+@pytest.mark.parametrize('field, value', [('inertia', 1.0), ('inertia', -0.1),
+                                          ('passing_bias', -0.1)])
+def test_choice_cost_weights_are_validated(field, value):
+    with pytest.raises(ValueError, match=field):
+        PlannerConfig(**{field: value})

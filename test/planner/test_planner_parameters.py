@@ -29,6 +29,7 @@ def test_defaults_give_a_valid_configuration():
     ('eta', 1.5, 'eta'), ('eta', 0.0, 'eta'), ('k', -0.5, 'k'), ('time_horizon', 0.0,
                                                                 'time_horizon'),
     ('model', 'magic', 'model'), ('method', 'newton', 'method'), ('risk', 'yolo', 'risk'),
+    ('inertia', 1.0, 'inertia'), ('passing_bias', -1.0, 'passing_bias'),
 ])
 def test_invalid_values_are_rejected_by_name(name, value, named):
     values = dict(DEFAULTS, **{name: value})

@@ -82,6 +82,17 @@ class PlannerConfig:
         Samples per neighbour for ``model='mc'``, >= 1.
     seed : int or None
         Seeds the heading offset and the ``mc`` samples; ``None`` means no offset.
+    inertia : float
+        Weight ``w`` in [0, 1) of ``|v - v_prev|`` in the choice cost
+        ``|v - v_pref| + w |v - v_prev| + b max(0, left(v))``, where ``v_prev`` is the
+        previous command passed to :func:`plan_velocity` (no term without one). It only ranks
+        velocities that meet the constraints: it damps the step-to-step side flips of the
+        closest-to-``v_pref`` rule (RVO's reciprocal dance). Below 1, so that in free space the
+        robot still speeds up to ``v_pref``.
+    passing_bias : float
+        ``b >= 0``: cost per m/s of velocity to the left of ``v_pref``'s direction. A common
+        convention (pass on the right) that breaks the tie between the two mirror-equal ways
+        around a symmetric encounter the same way for every robot.
 
     """
 
@@ -99,6 +110,8 @@ class PlannerConfig:
     risk: str = 'pairwise'
     mc_samples: int = 1000
     seed: int | None = None
+    inertia: float = 0.0
+    passing_bias: float = 0.0
 
     def __post_init__(self):
         eta = _real(self.eta, 'PlannerConfig.eta')
@@ -136,6 +149,15 @@ class PlannerConfig:
                            _integer(self.mc_samples, 'PlannerConfig.mc_samples', 1))
         if self.seed is not None:
             object.__setattr__(self, 'seed', _integer(self.seed, 'PlannerConfig.seed', 0))
+        inertia = _real(self.inertia, 'PlannerConfig.inertia')
+        if not 0.0 <= inertia < 1.0:
+            raise ValueError(f'PlannerConfig.inertia must be in [0, 1), got {self.inertia!r}')
+        object.__setattr__(self, 'inertia', inertia)
+        bias = _real(self.passing_bias, 'PlannerConfig.passing_bias')
+        if bias < 0.0:
+            raise ValueError(f'PlannerConfig.passing_bias must be >= 0, '
+                             f'got {self.passing_bias!r}')
+        object.__setattr__(self, 'passing_bias', bias)
 
     @property
     def effective_k(self):

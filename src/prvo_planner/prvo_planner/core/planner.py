@@ -30,6 +30,11 @@ from .ray_solver import (
 # the Monte Carlo baseline), besides the preferred speed on the direction.
 _SPEED_GRID = np.linspace(0.0, 1.0, 9)
 _SPEED_GRID_POWERS = _SPEED_GRID[:, None] ** np.arange(5)
+# The best speed on a ray under the inertia / passing-bias cost: a grid of 17 points over the
+# interval, zoomed 5 times onto the best point's two cells (1/8 of the span each time): to
+# 8^-5 (3e-5) of the interval.
+_ZOOM_GRID = np.linspace(0.0, 1.0, 17)
+_ZOOM_LEVELS = 5
 # Chosen speeds stay this far (in t) inside a feasible interval so that rounding in the roots
 # cannot put them on the rejected side.
 _INTERIOR = 1e-9
@@ -530,7 +535,7 @@ def _monte_carlo_probabilities(encounter, layout, directions, speeds, config, rn
     return np.array(probabilities)
 
 
-def _validated_inputs(ego, neighbours, v_pref, config):
+def _validated_inputs(ego, neighbours, v_pref, config, previous):
     if not isinstance(ego, AgentBelief):
         raise ValueError(f'ego must be an AgentBelief, got {ego!r}')
     neighbours = list(neighbours)
@@ -539,7 +544,59 @@ def _validated_inputs(ego, neighbours, v_pref, config):
             raise ValueError(f'neighbours[{index}] must be an AgentBelief, got {neighbour!r}')
     if not isinstance(config, PlannerConfig):
         raise ValueError(f'config must be a PlannerConfig, got {config!r}')
-    return neighbours, as_finite_array(v_pref, (2,), 'v_pref')
+    if previous is not None:
+        previous = as_finite_array(previous, (2,), 'previous')
+    return neighbours, as_finite_array(v_pref, (2,), 'v_pref'), previous
+
+
+def _choice_costs(velocities, v_pref, previous, config):
+    """
+    Cost of commanded velocities, shape (..., 2) -> (...): smaller is better.
+
+    ``|v - v_pref|`` (prvo-math.md section 7), plus ``inertia |v - previous|`` when a previous
+    command is given and ``passing_bias max(0, left(v))`` with ``left`` the component of ``v``
+    to the left of ``v_pref``'s direction. Both extra terms are convex in ``v`` and only rank
+    velocities; which ones are acceptable is decided by the constraints alone.
+    """
+    offset = velocities - v_pref
+    costs = np.sqrt(offset[..., 0] * offset[..., 0] + offset[..., 1] * offset[..., 1])
+    if previous is not None and config.inertia > 0.0:
+        offset = velocities - previous
+        costs += config.inertia * np.sqrt(offset[..., 0] * offset[..., 0]
+                                          + offset[..., 1] * offset[..., 1])
+    norm = math.hypot(v_pref[0], v_pref[1])
+    if config.passing_bias > 0.0 and norm > 1e-9:
+        left = (v_pref[0] * velocities[..., 1] - v_pref[1] * velocities[..., 0]) / norm
+        costs += config.passing_bias * np.maximum(left, 0.0)
+    return costs
+
+
+def _best_speeds(directions, lower, upper, preferred, v_pref, previous, config):
+    """
+    Best ``t`` in ``[lower, upper]`` on each ray ``t v_max e``, shape (G,).
+
+    Under the plain cost it is the preferred ``t`` projected onto the interval. The extra terms
+    of :func:`_choice_costs` keep the cost convex along the ray, so its minimum lies within a
+    cell of the best point of a grid; zooming a grid onto those two cells a few times finds it
+    (the interval ends and the plain optimum are candidates too: a flat or kinked minimum).
+    """
+    projected = np.clip(preferred, lower, upper)
+    if not ((previous is not None and config.inertia > 0.0) or config.passing_bias > 0.0):
+        return projected
+    velocity_directions = config.max_speed * directions[:, None, :]
+    low, high = lower, upper
+    for _ in range(_ZOOM_LEVELS):
+        grid = low[:, None] + (high - low)[:, None] * _ZOOM_GRID
+        best = np.argmin(_choice_costs(grid[..., None] * velocity_directions, v_pref, previous,
+                                       config), axis=1)
+        rows = np.arange(grid.shape[0])
+        # The minimum of a convex function lies within one cell of the best grid point.
+        low = grid[rows, np.maximum(best - 1, 0)]
+        high = grid[rows, np.minimum(best + 1, _ZOOM_GRID.size - 1)]
+    options = np.stack([0.5 * (low + high), projected, lower, upper], axis=1)
+    option_costs = _choice_costs(options[..., None] * velocity_directions, v_pref, previous,
+                                 config)
+    return options[np.arange(options.shape[0]), np.argmin(option_costs, axis=1)]
 
 
 def _clip_speed(velocity, max_speed):
@@ -547,9 +604,12 @@ def _clip_speed(velocity, max_speed):
     return velocity * (max_speed / speed) if speed > max_speed else np.array(velocity)
 
 
-def plan_velocity(ego, neighbours, v_pref, config):
+def plan_velocity(ego, neighbours, v_pref, config, previous=None):
     """
     Choose the commanded velocity closest to ``v_pref`` that meets the chance constraints.
+
+    "Closest" is the cost of :func:`_choice_costs`: the distance to ``v_pref`` unless
+    ``config.inertia`` or ``config.passing_bias`` add their terms.
 
     Parameters
     ----------
@@ -561,6 +621,8 @@ def plan_velocity(ego, neighbours, v_pref, config):
         Preferred velocity, shape (2,).
     config : PlannerConfig
         Planner parameters.
+    previous : array_like or None
+        The previous command, shape (2,), for ``config.inertia``; None for none.
 
     Returns
     -------
@@ -573,7 +635,7 @@ def plan_velocity(ego, neighbours, v_pref, config):
         On invalid inputs.
 
     """
-    neighbours, v_pref = _validated_inputs(ego, neighbours, v_pref, config)
+    neighbours, v_pref, previous = _validated_inputs(ego, neighbours, v_pref, config, previous)
     encounter = build_encounter(ego, neighbours, config)
     count = encounter.origin.shape[0]
     directions = candidate_directions(ego, v_pref, config)
@@ -584,7 +646,7 @@ def plan_velocity(ego, neighbours, v_pref, config):
     layout = condition_layout(encounter, config)
     preferred = directions @ v_pref / config.max_speed
     if config.model == 'mc':
-        speeds, grid_costs = _speed_grid(directions, preferred, v_pref, config.max_speed)
+        speeds, grid_costs = _speed_grid(directions, preferred, v_pref, previous, config)
         probabilities = _monte_carlo_probabilities(encounter, layout, directions, speeds,
                                                    config, np.random.default_rng(config.seed))
         feasible_points = np.all(probabilities >= encounter.eta, axis=0)
@@ -606,15 +668,16 @@ def plan_velocity(ego, neighbours, v_pref, config):
         candidates_feasible = int(np.count_nonzero(
             np.bincount(gap_direction, minlength=directions.shape[0])))
         if candidates_feasible:
-            # The best speed on a ray within one interval is the preferred one, projected.
+            # The best speed on a ray within one interval (the preferred one, projected, under
+            # the plain cost).
             inset = np.minimum(_INTERIOR, 0.5 * (upper - lower))
-            best_t = np.clip(preferred[gap_direction], lower + inset, upper - inset)
+            best_t = _best_speeds(directions[gap_direction], lower + inset, upper - inset,
+                                  preferred[gap_direction], v_pref, previous, config)
             candidates = config.max_speed * best_t[:, None] * directions[gap_direction]
-            offset = candidates - v_pref
-            best = int(np.argmin(offset[:, 0] * offset[:, 0] + offset[:, 1] * offset[:, 1]))
+            best = int(np.argmin(_choice_costs(candidates, v_pref, previous, config)))
             direction_index, chosen_t = gap_direction[best], best_t[best]
         else:
-            speeds, grid_costs = _speed_grid(directions, preferred, v_pref, config.max_speed)
+            speeds, grid_costs = _speed_grid(directions, preferred, v_pref, previous, config)
             score = _grid_scores(means, variances, speeds, layout, deterministic)
             direction_index, speed_index = np.unravel_index(_best_ranked(score, grid_costs),
                                                             speeds.shape)
@@ -636,23 +699,23 @@ def plan_velocity(ego, neighbours, v_pref, config):
                       num_constraints=count, candidates_feasible=candidates_feasible)
 
 
-def _speed_grid(directions, preferred, v_pref, max_speed):
+def _speed_grid(directions, preferred, v_pref, previous, config):
     """
-    Candidate speeds for sampling-based choices and their distance to ``v_pref``.
+    Candidate speeds for sampling-based choices and their choice costs.
 
     Returns
     -------
     speeds : numpy.ndarray
         ``t`` per direction, shape (M, T): the preferred one (clipped), then a fixed grid.
     costs : numpy.ndarray
-        ``|t v_max e - v_pref|``, shape (M, T).
+        :func:`_choice_costs` of ``t v_max e``, shape (M, T).
 
     """
     speeds = np.concatenate([np.clip(preferred, 0.0, 1.0)[:, None],
                              np.broadcast_to(_SPEED_GRID, (directions.shape[0],
                                                            _SPEED_GRID.size))], axis=1)
-    costs = np.linalg.norm(max_speed * speeds[..., None] * directions[:, None, :] - v_pref,
-                           axis=-1)
+    costs = _choice_costs(config.max_speed * speeds[..., None] * directions[:, None, :], v_pref,
+                          previous, config)
     return speeds, costs
 
 
