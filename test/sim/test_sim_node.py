@@ -222,9 +222,14 @@ def test_realtime_steps_on_the_wall_clock(probe, children, ros2_executable):
     assert statuses['prvo_sim']['mode'] == 'realtime'
     # robot_0 never answers: every tick is a deadline miss for it, not for robot_1.
     assert statuses['prvo_sim/robot_0']['deadline_misses'] == str(step)
-    assert int(statuses['prvo_sim/robot_1']['deadline_misses']) < step
-    assert float(statuses['prvo_sim/robot_1']['x']) == pytest.approx(
-        4.0 - step * HEADON2.dt, abs=5 * 0.05 * HEADON2.dt * np.sqrt(step))
+    misses = int(statuses['prvo_sim/robot_1']['deadline_misses'])
+    assert misses < step
+    # robot_1 moves at 1 m/s on every step it answered in time, and on a late one too once it
+    # has a command to reuse; only the steps before its first command leave it standing (a
+    # loaded host can delay the probe's first answers).
+    travelled = 4.0 - float(statuses['prvo_sim/robot_1']['x'])
+    tolerance = 5 * 0.05 * HEADON2.dt * np.sqrt(step)
+    assert (step - misses) * HEADON2.dt - tolerance <= travelled <= step * HEADON2.dt + tolerance
     with planners.lock:
         arrivals = sorted(planners.arrival_times['robot_1'].values())
     # 20 Hz wall rate: ticks 50 ms apart on average (not lockstep's as-fast-as-answered).
