@@ -285,6 +285,14 @@ def achieved_margins(means, variances, layout, receding_enabled, rank=False, scr
     return result
 
 
+def _horner_coefficient_major(coefficients, t):
+    """Evaluate polynomials with ascending coefficients along axis 0, shape (L, ...), at t."""
+    value = coefficients[-1]
+    for power in range(coefficients.shape[0] - 2, -1, -1):
+        value = value * t + coefficients[power]
+    return value
+
+
 def _row_tests(means, variances, margins, method, deterministic, preferred):
     """
     Build the acceptance tests of every (neighbour, direction, condition) row.
@@ -445,11 +453,9 @@ def ray_gaps(means, variances, margins, layout, method, deterministic, preferred
     accepted = True
     for test, _ in tests:
         # (L, pieces, C): each piece's pair's coefficients; Horner's rule at its midpoint.
-        coefficients = np.take(test.reshape(test.shape[0], pairs, conditions), piece_pair,
-                               axis=1)
-        value = coefficients[-1]
-        for power in range(coefficients.shape[0] - 2, -1, -1):
-            value = value * midpoints + coefficients[power]
+        value = _horner_coefficient_major(
+            np.take(test.reshape(test.shape[0], pairs, conditions), piece_pair, axis=1),
+            midpoints)
         accepted = accepted & (value >= 0.0)
     accepted = combine_conditions(accepted, layout, enabled[piece_pair])
     # Sweep the rejected pieces of each open direction, shifted by 4 per direction so that one
@@ -744,17 +750,13 @@ def _grid_scores(means, variances, speeds, layout, deterministic):
     # Speed 0 is each direction's own (Horner's rule, per direction); the others are the same
     # grid on every direction: one product with the coefficient-major rows of every
     # (neighbour, direction, condition). Grid values are laid out (T, N, M, C).
+    own = np.tile(np.repeat(speeds[:, 0], conditions), count)
     grid = []
     for polynomial in (means, variances):
         rows = np.moveaxis(polynomial, -1, 0).reshape(polynomial.shape[-1], -1)
         values = np.empty((speeds.shape[1], rows.shape[1]))
         values[1:] = _SPEED_GRID_POWERS[:, :rows.shape[0]] @ rows
-        own = np.broadcast_to(speeds[None, :, :1], (count, directions, 1)).reshape(-1)
-        own = np.repeat(own, conditions)
-        value = rows[-1]
-        for power in range(rows.shape[0] - 2, -1, -1):
-            value = value * own + rows[power]
-        values[0] = value
+        values[0] = _horner_coefficient_major(rows, own)
         grid.append(values.reshape(speeds.shape[1], count, directions, conditions))
     scores = np.min(achieved_margins(grid[0], grid[1], layout, layout.receding_enabled[:, None],
                                      rank=deterministic, scratch=True), axis=1)

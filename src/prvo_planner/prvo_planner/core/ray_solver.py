@@ -104,11 +104,9 @@ def _monic_quartic_roots(b, c, d, e):
     p2 = p * p
     cubic_p = -p2 / 12.0 - r
     cubic_q = p * (r / 3.0 - p2 / 108.0) - 0.125 * q * q
-    discriminant = 0.25 * cubic_q * cubic_q + cubic_p * cubic_p * cubic_p / 27.0
+    # One real root (Cardano) or three (the largest is the trigonometric one of angle 0).
+    single, discriminant = _cardano_root(cubic_p, cubic_q)
     with np.errstate(invalid='ignore', divide='ignore'):
-        # One real root (Cardano) or three (the largest is the trigonometric one of angle 0).
-        big = np.cbrt(-0.5 * cubic_q - np.copysign(np.sqrt(np.abs(discriminant)), cubic_q))
-        single = np.where(big != 0.0, big - cubic_p / (3.0 * big), 0.0)
         rho = np.sqrt(np.maximum(-cubic_p / 3.0, 0.0))
         angle = np.arccos(np.clip(-0.5 * cubic_q / (rho * rho * rho), -1.0, 1.0))
         largest = np.where(discriminant > 0.0, single, 2.0 * rho * np.cos(angle / 3.0))
@@ -165,22 +163,15 @@ def _bernstein_matrix(degree):
 _BERNSTEIN = {degree: _bernstein_matrix(degree) for degree in (2, 4)}
 
 
+def _bernstein(coefficients):
+    """Bernstein coefficients on [0, 1] of coefficient-major (L, K) polynomials, (L, K)."""
+    # Coefficient-major product and reduction: reducing along a short last axis is slow.
+    return _BERNSTEIN[coefficients.shape[0] - 1].T @ coefficients
+
+
 def bernstein_minimum(coefficients):
-    """
-    Smallest Bernstein coefficient on [0, 1]: a lower bound of the polynomial there.
-
-    Parameters
-    ----------
-    coefficients : numpy.ndarray
-        Ascending coefficients, coefficient-major: shape (L, K) with L = 3 or 5.
-
-    Returns
-    -------
-    numpy.ndarray
-        Shape (K,).
-
-    """
-    return np.min(_BERNSTEIN[coefficients.shape[0] - 1].T @ coefficients, axis=0)
+    """Smallest Bernstein coefficient (K,) of (L, K) polynomials: a lower bound on [0, 1]."""
+    return np.min(_bernstein(coefficients), axis=0)
 
 
 def sign_certificates(coefficients):
@@ -201,8 +192,7 @@ def sign_certificates(coefficients):
         Booleans, shape (K,).
 
     """
-    # Coefficient-major product and reduction: reducing along a short last axis is slow.
-    bernstein = _BERNSTEIN[coefficients.shape[0] - 1].T @ coefficients
+    bernstein = _bernstein(coefficients)
     return np.min(bernstein, axis=0) >= 0.0, np.max(bernstein, axis=0) < 0.0
 
 
