@@ -135,3 +135,49 @@ def test_sigint_recorder_remembers_the_signal_and_keeps_keyboard_interrupt():
         assert sigint.received is True
     finally:
         signal.signal(signal.SIGINT, previous)
+
+
+def test_qos_watch_reports_each_incompatible_remote_endpoint_once(probe):
+    from geometry_msgs.msg import TwistStamped
+    from nav_msgs.msg import Odometry
+    import rclpy
+    from rclpy.qos import DurabilityPolicy, QoSProfile, qos_profile_sensor_data
+
+    from prvo_msgs_util import (
+        CMD_VEL_QOS,
+        ODOM_LATEST_QOS,
+        QosWatch,
+        quiet_publisher_events,
+        quiet_subscription_events,
+    )
+
+    watcher = rclpy.create_node('qos_watcher', namespace='/watched', context=probe.context)
+    try:
+        watch = QosWatch(watcher)
+        watch.watch(watcher.create_subscription(
+            Odometry, 'odom', lambda msg: None, ODOM_LATEST_QOS,
+            event_callbacks=quiet_subscription_events()))
+        watch.watch(watcher.create_publisher(
+            TwistStamped, 'cmd_vel', CMD_VEL_QOS, event_callbacks=quiet_publisher_events()))
+        # A best-effort odometry publisher cannot feed a reliable subscription, a reliable one
+        # can; a transient-local subscription cannot be served by a volatile publisher, one
+        # with the same profile can.
+        probe.node.create_publisher(Odometry, '/watched/odom', qos_profile_sensor_data)
+        probe.node.create_publisher(Odometry, '/watched/odom', ODOM_LATEST_QOS)
+        probe.node.create_subscription(
+            TwistStamped, '/watched/cmd_vel', lambda msg: None,
+            QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL))
+        probe.node.create_subscription(TwistStamped, '/watched/cmd_vel', lambda msg: None,
+                                       CMD_VEL_QOS)
+        reported = []
+        probe.wait_until(lambda: reported.extend(watch.check()) or len(reported) >= 2,
+                         timeout=10.0, what='both incompatible endpoints reported')
+        assert len(reported) == 2
+        odometry, = [text for text in reported if '/watched/odom' in text]
+        command, = [text for text in reported if '/watched/cmd_vel' in text]
+        assert odometry.startswith('publisher of /prvo_test_probe') and 'effort' in odometry
+        assert command.startswith('subscription of /prvo_test_probe')
+        assert 'transient local' in command
+        assert watch.check() == []
+    finally:
+        watcher.destroy_node()

@@ -29,7 +29,11 @@ from prvo_msgs_util.qos import (
     MARKER_QOS,
     ODOM_LATEST_QOS,
     ODOM_QOS,
+    QosWatch,
+    quiet_publisher_events,
+    quiet_subscription_events,
 )
+from prvo_msgs_util.runtime import freeze_startup_objects
 from prvo_msgs_util.topics import (
     CLOCK,
     CMD_VEL,
@@ -48,8 +52,9 @@ __all__ = [
     'CLOCK', 'CLOCK_QOS', 'CMD_VEL', 'CMD_VEL_QOS', 'CONTACTS', 'CONTACT_QOS', 'DIAGNOSTICS',
     'DIAGNOSTICS_QOS', 'GOAL_POSE', 'GOAL_QOS', 'GROUND_TRUTH', 'MARKERS', 'MARKER_QOS',
     'MessageFault', 'ODOM', 'ODOM_LATEST_QOS', 'ODOM_QOS', 'OdometryMeasurement',
+    'QosWatch', 'quiet_publisher_events', 'quiet_subscription_events',
     'SigintRecorder',
-    'diagnostic_values',
+    'diagnostic_values', 'freeze_startup_objects',
     'make_belief_markers', 'make_diagnostic_array', 'make_diagnostic_status', 'make_odometry',
     'make_pose_stamped', 'make_twist', 'make_twist_stamped', 'odometry_to_measurement',
     'pose_stamped_to_goal', 'robot_from_topic', 'robot_topic', 'seconds_to_stamp',

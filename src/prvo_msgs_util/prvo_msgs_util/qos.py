@@ -1,6 +1,17 @@
-"""QoS profiles of every prvo topic (see docs/interfaces.md)."""
+"""QoS profiles of every prvo topic (see docs/interfaces.md), and a graph check of QoS."""
 
-from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.duration import Infinite
+from rclpy.event_handler import PublisherEventCallbacks, SubscriptionEventCallbacks
+from rclpy.qos import (
+    DurabilityPolicy,
+    HistoryPolicy,
+    LivelinessPolicy,
+    QoSCompatibility,
+    QoSProfile,
+    ReliabilityPolicy,
+    qos_check_compatible,
+)
+from rclpy.subscription import Subscription
 
 
 def _reliable(depth, durability=DurabilityPolicy.VOLATILE):
@@ -21,3 +32,95 @@ MARKER_QOS = _reliable(1)
 # Transient local so a runner that subscribes late still receives every contact event.
 CONTACT_QOS = _reliable(100, DurabilityPolicy.TRANSIENT_LOCAL)
 GOAL_QOS = _reliable(1)
+
+
+def quiet_subscription_events():
+    """Event callbacks for a control-loop subscription: no rclpy QoS event handlers.
+
+    rclpy gives every endpoint two default event handlers (incompatible QoS, incompatible
+    type). Each is a waitable that the executor adds to every wait set and polls after every
+    wake-up, which costs a planner about a millisecond per control step; ``QosWatch`` reports
+    incompatible QoS from the ROS graph instead.
+    """
+    return SubscriptionEventCallbacks(use_default_callbacks=False)
+
+
+def quiet_publisher_events():
+    """Event callbacks for a control-loop publisher (see ``quiet_subscription_events``)."""
+    return PublisherEventCallbacks(use_default_callbacks=False)
+
+
+def _as_in_graph(profile):
+    """
+    Return PROFILE with its defaults resolved as the middleware reports endpoints in the graph.
+
+    The graph gives remote endpoints infinite durations and automatic liveliness where a profile
+    says "default"; compared with the unresolved profile, they would look incompatible.
+    """
+    def resolved(duration):
+        return duration if duration.nanoseconds else Infinite
+
+    liveliness = profile.liveliness
+    if liveliness == LivelinessPolicy.SYSTEM_DEFAULT:
+        liveliness = LivelinessPolicy.AUTOMATIC
+    return QoSProfile(
+        history=profile.history, depth=profile.depth, reliability=profile.reliability,
+        durability=profile.durability, deadline=resolved(profile.deadline),
+        lifespan=resolved(profile.lifespan), liveliness=liveliness,
+        liveliness_lease_duration=resolved(profile.liveliness_lease_duration))
+
+
+class QosWatch:
+    """
+    Warn, once per remote endpoint, when its QoS cannot match one of a node's endpoints.
+
+    What rclpy's default incompatible-QoS event handlers report, found in the ROS graph by a
+    periodic ``check()`` instead of by an event handler per endpoint (see
+    ``quiet_subscription_events``).
+    """
+
+    def __init__(self, node):
+        self._node = node
+        # Fully qualified topic -> (our QoS, whether we subscribe to it).
+        self._watched = {}
+        self._reported = set()
+
+    def watch(self, endpoint):
+        """Watch a Subscription or Publisher of the node."""
+        self._watched[endpoint.topic_name] = (
+            _as_in_graph(endpoint.qos_profile), isinstance(endpoint, Subscription))
+
+    def forget(self, endpoint):
+        """Stop watching an endpoint (before it is destroyed)."""
+        self._watched.pop(endpoint.topic_name, None)
+
+    def check(self):
+        """
+        Warn about every new remote endpoint whose QoS is incompatible with ours.
+
+        Returns
+        -------
+        list of str
+            The warnings logged by this call (each remote endpoint is reported once).
+
+        """
+        warnings = []
+        for topic, (ours, subscribing) in self._watched.items():
+            if subscribing:
+                remotes, role = self._node.get_publishers_info_by_topic(topic), 'publisher'
+            else:
+                remotes, role = self._node.get_subscriptions_info_by_topic(topic), 'subscription'
+            for remote in remotes:
+                offered, requested = (
+                    (remote.qos_profile, ours) if subscribing else (ours, remote.qos_profile))
+                compatibility, reason = qos_check_compatible(offered, requested)
+                key = (topic, bytes(remote.endpoint_gid))
+                if compatibility != QoSCompatibility.ERROR or key in self._reported:
+                    continue
+                self._reported.add(key)
+                name = f'{remote.node_namespace.rstrip("/")}/{remote.node_name}'
+                warnings.append(
+                    f'{role} of {name} on {topic} has incompatible QoS, no messages will pass: '
+                    f'{reason.strip()}')
+                self._node.get_logger().warning(warnings[-1])
+        return warnings

@@ -43,7 +43,9 @@ from prvo_msgs_util import (
     ODOM,
     ODOM_LATEST_QOS,
     MessageFault,
+    QosWatch,
     SigintRecorder,
+    freeze_startup_objects,
     make_belief_markers,
     make_diagnostic_array,
     make_diagnostic_status,
@@ -51,6 +53,8 @@ from prvo_msgs_util import (
     make_twist_stamped,
     odometry_to_measurement,
     pose_stamped_to_goal,
+    quiet_publisher_events,
+    quiet_subscription_events,
     robot_from_topic,
     robot_topic,
 )
@@ -262,14 +266,27 @@ class PlannerNode(Node):
         self._first_odometry_at = None
 
         self._stamped = self._values['stamped_cmd_vel']
+        # Endpoints without rclpy's QoS event handlers (each would cost every executor wake-up);
+        # the watch reports incompatible QoS from the graph instead.
+        self._qos_watch = QosWatch(self)
         self._cmd_vel_publisher = self.create_publisher(
-            TwistStamped if self._stamped else Twist, CMD_VEL, CMD_VEL_QOS)
+            TwistStamped if self._stamped else Twist, CMD_VEL, CMD_VEL_QOS,
+            event_callbacks=quiet_publisher_events())
         self._diagnostics_publisher = self.create_publisher(
-            DiagnosticArray, DIAGNOSTICS, DIAGNOSTICS_QOS)
-        self._marker_publisher = self.create_publisher(MarkerArray, MARKERS, MARKER_QOS)
+            DiagnosticArray, DIAGNOSTICS, DIAGNOSTICS_QOS,
+            event_callbacks=quiet_publisher_events())
+        self._marker_publisher = self.create_publisher(
+            MarkerArray, MARKERS, MARKER_QOS, event_callbacks=quiet_publisher_events())
         self._own_odom_topic = robot_topic(self._robot, ODOM)
-        self.create_subscription(Odometry, ODOM, self._on_own_odometry, ODOM_LATEST_QOS)
-        self.create_subscription(PoseStamped, GOAL_POSE, self._on_goal_pose, GOAL_QOS)
+        own_odometry = self.create_subscription(
+            Odometry, ODOM, self._on_own_odometry, ODOM_LATEST_QOS,
+            event_callbacks=quiet_subscription_events())
+        goal = self.create_subscription(
+            PoseStamped, GOAL_POSE, self._on_goal_pose, GOAL_QOS,
+            event_callbacks=quiet_subscription_events())
+        for endpoint in (self._cmd_vel_publisher, self._diagnostics_publisher,
+                         self._marker_publisher, own_odometry, goal):
+            self._qos_watch.watch(endpoint)
 
         # Wall-clock timers: under use_sim_time the simulator waits for us, so sim time would
         # never advance to fire them.
@@ -427,10 +444,14 @@ class PlannerNode(Node):
                 Odometry, topic,
                 lambda msg, robot=robot, topic=topic: self._on_neighbour_odometry(
                     msg, robot, topic),
-                ODOM_LATEST_QOS)
+                ODOM_LATEST_QOS, event_callbacks=quiet_subscription_events())
+            self._qos_watch.watch(self._neighbour_subscriptions[robot])
             self.get_logger().info(f'tracking neighbour {robot}')
         for robot in set(self._neighbour_subscriptions) - wanted:
-            self.destroy_subscription(self._neighbour_subscriptions.pop(robot))
+            subscription = self._neighbour_subscriptions.pop(robot)
+            self._qos_watch.forget(subscription)
+            self.destroy_subscription(subscription)
+        self._qos_watch.check()
         now = time.monotonic()
         for robot, track in list(self._neighbour_tracks.items()):
             silent = now - track.last_heard
@@ -494,6 +515,9 @@ class PlannerNode(Node):
             return
         self._status_published_at = now
         self._publish_diagnostics(stamp, result, len(neighbour_beliefs), plan_time_ms)
+        if self._marker_publisher.get_subscription_count() == 0:
+            # Markers take about 0.6 ms to build: only for a listener (RViz).
+            return
         self._marker_publisher.publish(make_belief_markers(
             stamp, self._values['frame_id'], self._robot, own.mean[:2], velocity,
             np.array([belief.mean[:2] for belief in neighbour_beliefs]).reshape(-1, 2),
@@ -524,6 +548,7 @@ def main(args=None):
     node = None
     try:
         node = PlannerNode()
+        freeze_startup_objects()
         rclpy.spin(node)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass

@@ -39,10 +39,14 @@ from prvo_msgs_util import (
     ODOM,
     ODOM_QOS,
     MessageFault,
+    QosWatch,
     SigintRecorder,
+    freeze_startup_objects,
     make_diagnostic_array,
     make_diagnostic_status,
     make_odometry,
+    quiet_publisher_events,
+    quiet_subscription_events,
     robot_topic,
     seconds_to_stamp,
     stamp_to_seconds,
@@ -64,6 +68,8 @@ _YAW_HISTORY = 32
 # How often the t_0 odometry is re-sent while waiting for planners, and the status while idle.
 _REPUBLISH_PERIOD = 0.5
 _IDLE_STATUS_PERIOD = 1.0
+# How often the graph is checked for endpoints with incompatible QoS (prvo_msgs_util.QosWatch).
+_QOS_CHECK_PERIOD = 1.0
 # Below this executed speed [m/s] the heading is noise, so the last heading is kept.
 _HEADING_MIN_SPEED = 1e-3
 _WARNING_THROTTLE = 2.0
@@ -153,26 +159,39 @@ class SimNode(Node):
         self._published_at = time.monotonic()
         self._last_odometry = []
 
-        self._clock_publisher = self.create_publisher(ClockMsg, CLOCK, CLOCK_QOS)
+        # Endpoints without rclpy's QoS event handlers (each would cost every executor wake-up);
+        # the watch reports incompatible QoS from the graph instead.
+        self._qos_watch = QosWatch(self)
+        quiet = quiet_publisher_events
+        self._clock_publisher = self.create_publisher(
+            ClockMsg, CLOCK, CLOCK_QOS, event_callbacks=quiet())
         self._diagnostics_publisher = self.create_publisher(
-            DiagnosticArray, DIAGNOSTICS, DIAGNOSTICS_QOS)
-        self._contacts_publisher = self.create_publisher(DiagnosticArray, CONTACTS, CONTACT_QOS)
+            DiagnosticArray, DIAGNOSTICS, DIAGNOSTICS_QOS, event_callbacks=quiet())
+        self._contacts_publisher = self.create_publisher(
+            DiagnosticArray, CONTACTS, CONTACT_QOS, event_callbacks=quiet())
+        endpoints = [self._clock_publisher, self._diagnostics_publisher, self._contacts_publisher]
         command_type = TwistStamped if stamped else Twist
         for index, robot in enumerate(self._robots):
             robot.odom_publisher = self.create_publisher(
-                Odometry, robot_topic(robot.spec.name, ODOM), ODOM_QOS)
+                Odometry, robot_topic(robot.spec.name, ODOM), ODOM_QOS, event_callbacks=quiet())
             robot.ground_truth_publisher = self.create_publisher(
-                Odometry, robot_topic(robot.spec.name, GROUND_TRUTH), ODOM_QOS)
+                Odometry, robot_topic(robot.spec.name, GROUND_TRUTH), ODOM_QOS,
+                event_callbacks=quiet())
             robot.logger = self.get_logger().get_child(robot.spec.name)
-            self.create_subscription(
+            command_subscription = self.create_subscription(
                 command_type, robot.cmd_vel_topic,
-                lambda msg, index=index: self._on_cmd_vel(index, msg), CMD_VEL_QOS)
+                lambda msg, index=index: self._on_cmd_vel(index, msg), CMD_VEL_QOS,
+                event_callbacks=quiet_subscription_events())
+            endpoints += [robot.odom_publisher, robot.ground_truth_publisher, command_subscription]
+        for endpoint in endpoints:
+            self._qos_watch.watch(endpoint)
 
         # Wall timers on a steady clock: they must run even when this node uses sim time.
         steady = Clock(clock_type=ClockType.STEADY_TIME)
         self._poll_timer = self.create_timer(_POLL_PERIOD, self._poll, clock=steady)
         self._idle_timer = self.create_timer(
             _IDLE_STATUS_PERIOD, self._publish_idle_status, clock=steady)
+        self.create_timer(_QOS_CHECK_PERIOD, self._qos_watch.check, clock=steady)
         self._realtime_timer = None
         if self._mode == 'realtime':
             self._realtime_timer = self.create_timer(
@@ -406,6 +425,7 @@ def main(args=None):
         rclpy.logging.get_logger('prvo_sim').error(f'cannot start: {error}')
         rclpy.try_shutdown()
         return EXIT_BAD_INPUT
+    freeze_startup_objects()
     try:
         rclpy.spin(node)
     except (KeyboardInterrupt, ExternalShutdownException):

@@ -24,6 +24,7 @@ polynomials in ``t`` by one matrix product with the direction monomials. This co
 hundred closed-form evaluations per plan, independent of the number of directions.
 """
 
+import functools
 import math
 
 import numpy as np
@@ -66,6 +67,19 @@ def poly_eval(poly, t):
     return value
 
 
+@functools.lru_cache(maxsize=8)
+def _form_lefts(time_horizon):
+    """Return ``A, B, G`` and, with a finite horizon, ``H1, H2``: shape (3 or 5, 4, 4)."""
+    left = [_CROSS, _SPEED, _DOT]
+    if math.isfinite(time_horizon):
+        tau = time_horizon
+        left += [-_DOT - tau * _SPEED, _POSITION + 2.0 * tau * _DOT + tau ** 2 * _SPEED]
+    left = np.stack(left)
+    # Shared between calls: read-only so that no caller can alter the cached value.
+    left.flags.writeable = False
+    return left
+
+
 def form_matrices(cov, time_horizon=math.inf):
     """
     Quadratic-form matrices and traces that the moments of every condition need.
@@ -90,11 +104,7 @@ def form_matrices(cov, time_horizon=math.inf):
         tr ASBS, tr (AS)^2 BS, tr BS, tr (BS)^2``, then ``tr XS, tr XSXS`` per ``X`` as above.
 
     """
-    left = [_CROSS, _SPEED, _DOT]
-    if math.isfinite(time_horizon):
-        tau = time_horizon
-        left += [-_DOT - tau * _SPEED, _POSITION + 2.0 * tau * _DOT + tau ** 2 * _SPEED]
-    left = np.stack(left)
+    left = _form_lefts(time_horizon)
     # X S and X S X for every X at once: (..., K, 4, 4).
     form_cov = left @ cov[..., None, :, :]
     sandwich = form_cov @ left
@@ -232,24 +242,31 @@ def condition_moments(origin, cov, combined_radius, velocities, time_horizon, re
     velocities = np.asarray(velocities, dtype=float)
     mean_t = np.empty((origin.shape[0], 4, velocities.shape[-2]))
     mean_t[:, :2] = origin[:, :2, None]
-    mean_t[:, 2:] = origin[:, 2:, None] + 2.0 * np.swapaxes(velocities, -1, -2)
-    mean_t = mean_t[:, None]
-    # mu'X mu as (X mu) . mu with the points last: small products, contiguous reductions.
-    forms = np.sum(np.matmul(matrices, mean_t) * mean_t, axis=-2).swapaxes(-1, -2)
+    mean_t[:, 2:] = origin[:, 2:, None] + 2.0 * velocities.swapaxes(-1, -2)
+    # mu'X mu as (X mu) . mu with the points last: one (F 4, 4) x (4, P) product per neighbour,
+    # contiguous reductions.
+    count, forms_count = matrices.shape[:2]
+    products = np.matmul(matrices.reshape(count, forms_count * 4, 4), mean_t)
+    forms = (products.reshape(count, forms_count, 4, -1) * mean_t[:, None]).sum(axis=-2)
+    forms = forms.swapaxes(-1, -2)
     f_mean, f_variance = rvo_moments_from_forms(forms[..., :NUM_RVO_FORMS],
                                                 rvo_traces[:, None, :], combined_radius[:, None])
-    means, variances = [f_mean], [f_variance]
-    extra_forms = forms[..., NUM_RVO_FORMS:]
-    constants = [0.0]
+    # The quadratic-form conditions (g, h1, h2) from their (mu'X mu, mu'XSX mu) pairs, with g's
+    # pair skipped when it is not a condition.
+    first = 0 if receding_gate else 2
+    extra_forms = forms[..., NUM_RVO_FORMS + first:]
+    extra_traces = extra_traces[:, None, first:]
+    conditions = 1 + extra_forms.shape[-1] // 2
+    means = np.empty(f_mean.shape + (conditions,))
+    variances = np.empty(f_mean.shape + (conditions,))
+    means[..., 0], variances[..., 0] = f_mean, f_variance
+    np.add(extra_traces[..., 0::2], extra_forms[..., 0::2], out=means[..., 1:])
     if np.isfinite(time_horizon):
-        constants += [0.0, -combined_radius[:, None] ** 2]
-    for index, constant in enumerate(constants):
-        if index == 0 and not receding_gate:
-            continue
-        means.append(extra_traces[:, None, 2 * index] + extra_forms[..., 2 * index] + constant)
-        variances.append(2.0 * extra_traces[:, None, 2 * index + 1]
-                         + 4.0 * extra_forms[..., 2 * index + 1])
-    return np.stack(means, axis=-1), np.stack(variances, axis=-1)
+        # h2 = |r + tau u|^2 - R^2.
+        means[..., -1] -= combined_radius[:, None] ** 2
+    np.multiply(extra_forms[..., 1::2], 4.0, out=variances[..., 1:])
+    variances[..., 1:] += 2.0 * extra_traces[..., 1::2]
+    return means, variances
 
 
 def _monomial_exponents():
@@ -303,10 +320,10 @@ def ray_polynomials(origin, cov, combined_radius, directions, scale, time_horizo
     direction_monomials = powers[:, 0, _EXPONENTS[:, 0]] * powers[:, 1, _EXPONENTS[:, 1]]
     to_ray = (direction_monomials.T[:, :, None] * _DEGREE_MASK[:, None, :]).reshape(
         _EXPONENTS.shape[0], -1)
-    mean_rows = np.swapaxes(_FIT[:_QUADRATIC_TERMS] @ means, -1, -2).reshape(
+    mean_rows = (_FIT[:_QUADRATIC_TERMS] @ means).swapaxes(-1, -2).reshape(
         -1, _QUADRATIC_TERMS) @ to_ray.reshape(-1, directions.shape[0], 5)[
             :_QUADRATIC_TERMS, :, :3].reshape(_QUADRATIC_TERMS, -1)
-    variance_rows = np.swapaxes(_FIT @ variances, -1, -2).reshape(
+    variance_rows = (_FIT @ variances).swapaxes(-1, -2).reshape(
         -1, _EXPONENTS.shape[0]) @ to_ray
     return tuple(_coefficient_major(rows.reshape(count, conditions, -1, length))
                  for rows, length in ((mean_rows, 3), (variance_rows, 5)))
@@ -321,4 +338,4 @@ def _coefficient_major(polynomials):
     layout = np.empty((polynomials.shape[3], polynomials.shape[0], polynomials.shape[2],
                        polynomials.shape[1]))
     layout[...] = polynomials.transpose(3, 0, 2, 1)
-    return np.moveaxis(layout, 0, -1)
+    return layout.transpose(1, 2, 3, 0)

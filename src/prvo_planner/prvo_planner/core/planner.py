@@ -19,10 +19,11 @@ from .config import PlannerConfig, PlanResult
 from .moments import condition_moments, poly_eval, ray_polynomials
 from .probability import eta_from_k
 from .ray_solver import (
+    SEGMENTS,
     bernstein_minimum,
     polynomial_roots,
     quadratic_roots,
-    sign_certificates,
+    segment_certificates,
     taylor_quadratics,
 )
 
@@ -103,7 +104,7 @@ def build_encounter(ego, neighbours, config):
     relative_position = ego.position - positions
     distance = np.hypot(relative_position[:, 0], relative_position[:, 1])
     near = distance - ego.radius - radii <= config.neighbor_distance
-    count = int(np.count_nonzero(near))
+    count = int(near.sum())
     margin = config.effective_k
     if config.risk == 'joint' and count > 0:
         # 1 - eta_j = (1 - eta) / n with 1 - eta = 1 / (1 + k^2), written in k to stay finite.
@@ -114,7 +115,7 @@ def build_encounter(ego, neighbours, config):
                       + covariances[near, 2:, 2:])
     cross = -ego.covariance[:2, 2:] + covariances[near, :2, 2:]
     cov[:, :2, 2:] = cross
-    cov[:, 2:, :2] = np.swapaxes(cross, -1, -2)
+    cov[:, 2:, :2] = cross.swapaxes(-1, -2)
     combined_radius = ego.radius + radii[near] + config.safety_margin
     return Encounter(
         origin=np.concatenate([relative_position[near], -ego.velocity - velocities[near]], axis=1),
@@ -193,7 +194,7 @@ class ConditionLayout:
 def condition_layout(encounter, config):
     """Conditions for an encounter: ``g`` is always on for overlapping neighbours (f < 0)."""
     enabled = np.full(encounter.overlapping.shape, config.receding_gate) | encounter.overlapping
-    return ConditionLayout(has_receding=bool(np.any(enabled)),
+    return ConditionLayout(has_receding=bool(enabled.any()),
                            has_horizon=math.isfinite(config.time_horizon),
                            receding_enabled=enabled)
 
@@ -313,40 +314,47 @@ def _row_tests(means, variances, margins, method, deterministic, preferred):
     list of (numpy.ndarray, numpy.ndarray or None)
         Each test's coefficients, coefficient-major: shape (L, K) over the K = N M C rows in
         (neighbour, direction, condition) order (acceptance needs every test ``>= 0``), with
-        the rows where its roots need not bound pieces (shape (K,), or ``None`` for none).
+        ``None``, or the variance polynomials (5, K) where a row's roots need not bound pieces
+        if its variance is certified positive.
 
     """
     rows = means.shape[0] * means.shape[1] * means.shape[2]
     # Free reshapes when the polynomials are laid out coefficient-major (ray_polynomials).
-    mean_rows = np.moveaxis(means, -1, 0).reshape(3, rows)
+    mean_rows = means.transpose(3, 0, 1, 2).reshape(3, rows)
     if deterministic:
         return [(mean_rows, None)]
     if method == 'taylor':
         quadratic = taylor_quadratics(means, variances, margins, preferred[None, :, None])
         return [(np.moveaxis(quadratic, -1, 0).reshape(3, rows), None)]
-    variance_rows = np.moveaxis(variances, -1, 0).reshape(5, rows)
+    variance_rows = variances.transpose(3, 0, 1, 2).reshape(5, rows)
     constant, linear, square = mean_rows
     quartic = np.empty((5, rows))
-    quartic[0] = constant * constant
-    quartic[1] = 2.0 * constant * linear
-    quartic[2] = linear * linear + 2.0 * constant * square
-    quartic[3] = 2.0 * linear * square
-    quartic[4] = square * square
-    quartic -= np.tile(margins ** 2, rows // margins.size) * variance_rows
-    return [(quartic, None), (mean_rows, bernstein_minimum(variance_rows) > 0.0)]
+    np.multiply(constant, constant, out=quartic[0])
+    np.multiply(constant, linear, out=quartic[1])
+    quartic[1] *= 2.0
+    np.multiply(constant, square, out=quartic[2])
+    quartic[2] *= 2.0
+    quartic[2] += linear * linear
+    np.multiply(linear, square, out=quartic[3])
+    quartic[3] *= 2.0
+    np.multiply(square, square, out=quartic[4])
+    # Rows cycle through the conditions fastest: k^2 broadcasts over (5, rows / C, C).
+    quartic.reshape(5, -1, margins.size)[...] -= (
+        margins ** 2 * variances.transpose(3, 0, 1, 2).reshape(5, -1, margins.size))
+    return [(quartic, None), (mean_rows, variance_rows)]
 
 
 def _relevant_conditions(reject_all, layout, receding_enabled):
     """
-    Mark the conditions whose acceptance can change their pair's.
+    Mark the conditions whose acceptance can change their pair's on a segment.
 
     A disabled ``g`` cannot, nor can ``h1`` (``h2``) when ``h2`` (``h1``) is rejected on the
-    whole ray; their roots need not bound pieces.
+    whole segment; their roots need not bound pieces.
 
     Parameters
     ----------
     reject_all : numpy.ndarray
-        Per condition, rejected on the whole ray, shape (P, C).
+        Per condition, rejected on the whole segment, shape (..., P, C).
     layout : ConditionLayout
         Column meaning.
     receding_enabled : numpy.ndarray
@@ -355,15 +363,15 @@ def _relevant_conditions(reject_all, layout, receding_enabled):
     Returns
     -------
     numpy.ndarray
-        Booleans, shape (P, C).
+        Booleans, shape (..., P, C).
 
     """
     relevant = np.ones(reject_all.shape, dtype=bool)
     if layout.has_receding:
-        relevant[:, 1] = receding_enabled
+        relevant[..., 1] = receding_enabled
     if layout.has_horizon:
-        relevant[:, -2] = ~reject_all[:, -1]
-        relevant[:, -1] = ~reject_all[:, -2]
+        relevant[..., -2] = ~reject_all[..., -1]
+        relevant[..., -1] = ~reject_all[..., -2]
     return relevant
 
 
@@ -371,9 +379,11 @@ def ray_gaps(means, variances, margins, layout, method, deterministic, preferred
     """
     Feasible speed intervals on every ray: the intersection over neighbours of accepted sets.
 
-    Every (neighbour, direction) pair whose acceptance is not certified on the whole ray by
-    Bernstein bounds is cut at the roots of its tests in (0, 1); each piece is accepted or not
-    by its midpoint, and the rejected pieces of each direction are swept in one sort.
+    Rays are split into ``SEGMENTS`` equal segments of ``t``. A segment that some neighbour
+    rejects entirely (a Bernstein certificate) is closed; on every other segment, each
+    (neighbour, direction) pair whose acceptance is not certified there is cut at the roots of
+    its tests that fall in the segment; each piece is accepted or not by its midpoint, and the
+    rejected pieces and closed segments of each direction are swept in one sort.
 
     Parameters
     ----------
@@ -401,54 +411,65 @@ def ray_gaps(means, variances, margins, layout, method, deterministic, preferred
     count, directions, conditions = means.shape[:3]
     pairs = count * directions
     tests = _row_tests(means, variances, margins, method, deterministic, preferred)
-    certificates = [sign_certificates(test) for test, _ in tests]
+    # Per (segment, row): (S, K), viewed as (S, P, C).
+    certificates = [segment_certificates(test) for test, _ in tests]
     accept, reject = certificates[0]
     for nonnegative, negative in certificates[1:]:
         accept, reject = accept & nonnegative, reject | negative
     enabled = np.repeat(layout.receding_enabled, directions)
-    accept = accept.reshape(pairs, conditions)
-    reject = reject.reshape(pairs, conditions)
+    accept = accept.reshape(SEGMENTS, pairs, conditions)
+    reject = reject.reshape(SEGMENTS, pairs, conditions)
     accept_pair = combine_conditions(accept, layout, enabled)
     reject_pair = ~combine_conditions(~reject, layout, enabled)
-    open_directions = ~np.any(reject_pair.reshape(count, directions), axis=0)
-    open_pair = ~accept_pair & np.tile(open_directions, count)
-    open_index = np.nonzero(open_pair)[0]
-    pair_slot = np.zeros(pairs, dtype=int)
-    pair_slot[open_index] = np.arange(open_index.size)
-    # Only a condition undecided on the whole ray can split it, and only where its own test is.
+    # A segment of a direction is open unless some neighbour rejects all of it: (S, M).
+    open_segments = ~reject_pair.reshape(SEGMENTS, count, directions).any(axis=1)
+    open_directions = open_segments.any(axis=0)
+    # Units: (segment, pair) on an open segment, not certified accepted there; flat s P + p.
+    open_unit = (~accept_pair & np.tile(open_segments, count)).ravel()
+    open_index = open_unit.nonzero()[0]
+    unit_slot = np.zeros(open_unit.size, dtype=int)
+    unit_slot[open_index] = np.arange(open_index.size)
+    # Only a condition undecided on a segment can split it, and only where its own test is.
     splitting = (~(accept | reject) & _relevant_conditions(reject, layout, enabled)
-                 & open_pair[:, None])
+                 & open_unit.reshape(SEGMENTS, pairs, 1))
     # g's quartic is a quadratic: its mean is linear and its variance quadratic in t.
     quadratic_condition = np.zeros(conditions, dtype=bool)
     quadratic_condition[1:2] = layout.has_receding
-    # Every open pair's cuts in (0, 1), flat, with 0 and 1 as the ends of its first and last
-    # pieces: cut values and the open pair (slot) each belongs to.
-    cut_values = [np.zeros(open_index.size), np.ones(open_index.size)]
+    # Every open unit's cuts, flat, with its segment's ends as the ends of its first and last
+    # pieces: cut values and the open unit (slot) each belongs to.
+    unit_segment = open_index // pairs
+    cut_values = [unit_segment / SEGMENTS, (unit_segment + 1) / SEGMENTS]
     cut_slots = [np.arange(open_index.size)] * 2
-    for (test, quiet), (nonnegative, negative) in zip(tests, certificates, strict=True):
-        undecided = splitting & ~(nonnegative | negative).reshape(pairs, conditions)
-        if quiet is not None:
-            undecided &= ~quiet.reshape(pairs, conditions)
-        quadratic_rows = undecided & quadratic_condition
-        for rows, quartic in ((undecided & ~quadratic_condition, test.shape[0] == 5),
+    for (test, variance_rows), (nonnegative, negative) in zip(tests, certificates, strict=True):
+        undecided = splitting & ~(nonnegative | negative).reshape(SEGMENTS, pairs, conditions)
+        needed = undecided.any(axis=0)
+        quadratic_rows = needed & quadratic_condition
+        for rows, quartic in ((needed & ~quadratic_condition, test.shape[0] == 5),
                               (quadratic_rows, False)):
-            row = np.nonzero(rows.ravel())[0]
+            row = rows.ravel().nonzero()[0]
+            if variance_rows is not None and row.size:
+                # Quiet rows: a variance certified positive needs no cuts at this test's roots.
+                row = row[bernstein_minimum(np.take(variance_rows, row, axis=1)) <= 0.0]
             if not row.size:
                 continue
             columns = np.take(test, row, axis=1)
             roots = (polynomial_roots(columns) if quartic else
                      quadratic_roots(columns[0], columns[1], columns[2]))
+            # A root cuts the unit of the segment it falls in, if the row splits that one.
             inside = (roots > 0.0) & (roots < 1.0)
-            cut_values.append(roots[inside])
-            cut_slots.append(np.broadcast_to(pair_slot[row // conditions, None],
-                                             roots.shape)[inside])
+            values = roots[inside]
+            segment = np.minimum((values * SEGMENTS).astype(int), SEGMENTS - 1)
+            root_row = np.broadcast_to(row[:, None], roots.shape)[inside]
+            cuts = undecided.reshape(SEGMENTS, -1)[segment, root_row]
+            cut_values.append(values[cuts])
+            cut_slots.append(unit_slot[segment[cuts] * pairs + root_row[cuts] // conditions])
     cut_values = np.concatenate(cut_values)
     cut_slots = np.concatenate(cut_slots)
     order = np.lexsort((cut_values, cut_slots))
     cut_values, cut_slots = cut_values[order], cut_slots[order]
     piece = cut_slots[1:] == cut_slots[:-1]
     piece_start, piece_end = cut_values[:-1][piece], cut_values[1:][piece]
-    piece_pair = open_index[cut_slots[:-1][piece]]
+    piece_pair = open_index[cut_slots[:-1][piece]] % pairs
     midpoints = (0.5 * (piece_start + piece_end))[:, None]
     accepted = True
     for test, _ in tests:
@@ -458,19 +479,20 @@ def ray_gaps(means, variances, margins, layout, method, deterministic, preferred
             midpoints)
         accepted = accepted & (value >= 0.0)
     accepted = combine_conditions(accepted, layout, enabled[piece_pair])
-    # Sweep the rejected pieces of each open direction, shifted by 4 per direction so that one
-    # sort handles every direction; sentinels reject t < 0 and t > 1 and end where the next
-    # direction's first sentinel starts, so no gap spans two directions.
+    # Sweep the rejected pieces and closed segments of each open direction, shifted by 4 per
+    # direction so that one sort handles every direction; sentinels reject t < 0 and t > 1 and
+    # end where the next direction's first sentinel starts, so no gap spans two directions.
     rejected = ~accepted
-    sentinel_direction = np.nonzero(open_directions)[0]
-    direction = np.concatenate([piece_pair[rejected] % directions, sentinel_direction,
-                                sentinel_direction])
+    closed_segment, closed_direction = (~open_segments & open_directions).nonzero()
+    sentinel_direction = open_directions.nonzero()[0]
+    direction = np.concatenate([piece_pair[rejected] % directions, closed_direction,
+                                sentinel_direction, sentinel_direction])
     shift = 4.0 * direction
     sentinels = sentinel_direction.size
-    starts = np.concatenate([piece_start[rejected], np.full(sentinels, -1.0),
-                             np.ones(sentinels)]) + shift
-    ends = np.concatenate([piece_end[rejected], np.zeros(sentinels),
-                           np.full(sentinels, 3.0)]) + shift
+    starts = np.concatenate([piece_start[rejected], closed_segment / SEGMENTS,
+                             np.full(sentinels, -1.0), np.ones(sentinels)]) + shift
+    ends = np.concatenate([piece_end[rejected], (closed_segment + 1) / SEGMENTS,
+                           np.zeros(sentinels), np.full(sentinels, 3.0)]) + shift
     order = np.argsort(starts, kind='stable')
     starts, direction = starts[order], direction[order]
     reach = np.maximum.accumulate(ends[order])
@@ -697,10 +719,10 @@ def plan_velocity(ego, neighbours, v_pref, config, previous=None):
         at_velocity = [moment[:, 0] for moment in condition_moments(
             encounter.origin, encounter.cov, encounter.combined_radius, velocity[None, :],
             config.time_horizon, layout.has_receding)]
-    achieved = float(np.min(achieved_margins(*at_velocity, layout, layout.receding_enabled)))
+    achieved = float(achieved_margins(*at_velocity, layout, layout.receding_enabled).min())
     velocity = _clip_speed(velocity, config.max_speed)
     return PlanResult(velocity=velocity,
-                      feasible=bool(candidates_feasible) and not np.any(encounter.overlapping),
+                      feasible=bool(candidates_feasible) and not encounter.overlapping.any(),
                       achieved_k=achieved, eta_bound=_cantelli(achieved),
                       num_constraints=count, candidates_feasible=candidates_feasible)
 
@@ -753,7 +775,7 @@ def _grid_scores(means, variances, speeds, layout, deterministic):
     own = np.tile(np.repeat(speeds[:, 0], conditions), count)
     grid = []
     for polynomial in (means, variances):
-        rows = np.moveaxis(polynomial, -1, 0).reshape(polynomial.shape[-1], -1)
+        rows = polynomial.transpose(3, 0, 1, 2).reshape(polynomial.shape[-1], -1)
         values = np.empty((speeds.shape[1], rows.shape[1]))
         values[1:] = _SPEED_GRID_POWERS[:, :rows.shape[0]] @ rows
         values[0] = _horner_coefficient_major(rows, own)

@@ -21,6 +21,8 @@ from .moments import poly_eval
 # the full polynomial removes the resulting root error.
 _DEGREE_TOLERANCE = 1e-7
 _NEWTON_STEPS = 2
+# The derivative of coefficient-major quartics: their rows 1 to 4 times these, shape (4, 1).
+_QUARTIC_DERIVATIVE_FACTORS = np.arange(1.0, 5.0)[:, None]
 
 
 def quadratic_roots(constant, linear, quadratic):
@@ -81,9 +83,13 @@ def _monic_cubic_roots(b, c, d):
 
 def _stable_quadratic_roots(linear, constant):
     """Real roots of ``t^2 + linear t + constant`` without cancellation, shape (2, ...)."""
+    roots = np.empty((2,) + linear.shape)
     with np.errstate(invalid='ignore', divide='ignore'):
         half = -0.5 * (linear + np.copysign(np.sqrt(linear * linear - 4.0 * constant), linear))
-        return np.stack([half, np.where(half != 0.0, constant / half, 0.0)])
+        roots[0] = half
+        np.divide(constant, half, out=roots[1])
+    roots[1][half == 0.0] = 0.0
+    return roots
 
 
 def _monic_quartic_roots(b, c, d, e):
@@ -114,11 +120,16 @@ def _monic_quartic_roots(b, c, d, e):
         s = np.sqrt(2.0 * m)
         offset = np.where(s > 0.0, 0.5 * q / s, 0.0)
         base = 0.5 * p + m
-        roots = _stable_quadratic_roots(np.stack([s, -s]), np.stack([base - offset,
-                                                                     base + offset]))
+        # Both factors at once: linear terms (s, -s), constants (base - offset, base + offset).
+        linear, constant = np.empty((2, 2) + s.shape)
+        linear[0] = s
+        np.negative(s, out=linear[1])
+        np.subtract(base, offset, out=constant[0])
+        np.add(base, offset, out=constant[1])
+        roots = _stable_quadratic_roots(linear, constant)
     roots = roots.reshape(4, -1)
     small_m = m <= 1e-12 * np.maximum(1.0, np.abs(p) + np.sqrt(np.abs(r)))
-    if np.any(small_m):
+    if small_m.any():
         with np.errstate(invalid='ignore'):
             squares = np.sqrt(_stable_quadratic_roots(p[small_m], r[small_m]))
         roots[:, small_m] = np.concatenate([squares, -squares])
@@ -133,9 +144,9 @@ def _polish(columns, roots):
     so no other root can enter (0, 1), where breakpoints matter.
     """
     near = np.abs(roots - 0.5) <= 0.5 + 2e-3
-    row, column = np.nonzero(near)
+    row, column = near.nonzero()
     coefficients = columns[:, row]
-    derivative = coefficients[1:] * np.arange(1, coefficients.shape[0])[:, None]
+    derivative = coefficients[1:] * _QUARTIC_DERIVATIVE_FACTORS
     points = roots[row, column]
     with np.errstate(divide='ignore', invalid='ignore'):
         for _ in range(_NEWTON_STEPS):
@@ -171,15 +182,41 @@ def _bernstein(coefficients):
 
 def bernstein_minimum(coefficients):
     """Smallest Bernstein coefficient (K,) of (L, K) polynomials: a lower bound on [0, 1]."""
-    return np.min(_bernstein(coefficients), axis=0)
+    return _bernstein(coefficients).min(axis=0)
 
 
-def sign_certificates(coefficients):
+def _segment_bernstein_matrix(degree, segments):
     """
-    Certify a constant sign on [0, 1] from the Bernstein coefficients.
+    Map ascending power coefficients to Bernstein coefficients on each of equal segments.
 
-    A polynomial is a convex combination of its Bernstein coefficients on [0, 1], so all of them
-    ``>= 0`` proves ``p >= 0`` there and all ``< 0`` proves ``p < 0``.
+    On segment ``j``, ``[a, b] = [j, j + 1] / segments``, substituting ``t = a + (b - a) s``
+    gives power coefficients in ``s`` on [0, 1], whose Bernstein coefficients bound the
+    polynomial there. Returns shape (segments (degree + 1), degree + 1).
+    """
+    blocks = []
+    for segment in range(segments):
+        start, width = segment / segments, 1.0 / segments
+        substitution = np.zeros((degree + 1, degree + 1))
+        for power in range(degree + 1):
+            for order in range(power + 1):
+                substitution[order, power] = (math.comb(power, order) * start ** (power - order)
+                                              * width ** order)
+        blocks.append(_BERNSTEIN[degree].T @ substitution)
+    return np.concatenate(blocks)
+
+
+# Certificates are per segment of [0, 1]: a neighbour that rejects a whole segment of a ray
+# closes it for every other neighbour, whose roots there need not be found.
+SEGMENTS = 4
+_SEGMENT_BERNSTEIN = {degree: _segment_bernstein_matrix(degree, SEGMENTS) for degree in (2, 4)}
+
+
+def segment_certificates(coefficients):
+    """
+    Certify a constant sign on each of the ``SEGMENTS`` equal segments of [0, 1].
+
+    A polynomial is a convex combination of its Bernstein coefficients on a segment, so all of
+    them ``>= 0`` proves ``p >= 0`` there and all ``< 0`` proves ``p < 0``.
 
     Parameters
     ----------
@@ -189,11 +226,12 @@ def sign_certificates(coefficients):
     Returns
     -------
     nonnegative, negative : numpy.ndarray
-        Booleans, shape (K,).
+        Booleans, shape (SEGMENTS, K).
 
     """
-    bernstein = _bernstein(coefficients)
-    return np.min(bernstein, axis=0) >= 0.0, np.max(bernstein, axis=0) < 0.0
+    length = coefficients.shape[0]
+    bernstein = (_SEGMENT_BERNSTEIN[length - 1] @ coefficients).reshape(SEGMENTS, length, -1)
+    return bernstein.min(axis=1) >= 0.0, bernstein.max(axis=1) < 0.0
 
 
 def polynomial_roots(columns):
@@ -211,12 +249,9 @@ def polynomial_roots(columns):
         Real roots, shape (K, 4), NaN-padded.
 
     """
-    scale = np.abs(columns[0])
-    for column in columns[1:]:
-        scale = np.maximum(scale, np.abs(column))
-    columns = columns / scale
+    columns = columns / np.abs(columns).max(axis=0)
     quartic = np.abs(columns[4]) > _DEGREE_TOLERANCE
-    if np.all(quartic):
+    if quartic.all():
         monic = columns[:4] / columns[4]
         found = _monic_quartic_roots(monic[3], monic[2], monic[1], monic[0]).T
     else:
