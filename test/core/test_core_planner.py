@@ -13,7 +13,7 @@ from prvo_planner.core import (
     rvo_moments,
     rvo_satisfaction_probability,
 )
-from prvo_planner.core.moments import ray_polynomials
+from prvo_planner.core.moments import condition_moments, ray_polynomials
 from prvo_planner.core.planner import (
     build_encounter,
     candidate_directions,
@@ -119,6 +119,49 @@ def test_exact_ray_intervals_match_dense_evaluation_of_the_surrogate():
             expectation, variance = rvo_moments(mean, encounter.cov[index],
                                                 encounter.combined_radius[index])
             accepted &= expectation - config.k * np.sqrt(np.maximum(variance, 0.0)) >= 0.0
+        inside = np.zeros_like(accepted)
+        near_boundary = np.zeros_like(accepted)
+        for direction, low, high in zip(gap_direction, lower, upper, strict=True):
+            inside[direction] |= (t >= low) & (t <= high)
+            near_boundary[direction] |= (np.abs(t - low) < 1e-6) | (np.abs(t - high) < 1e-6)
+        assert np.all((inside == accepted) | near_boundary)
+
+
+@pytest.mark.parametrize('receding_gate, time_horizon',
+                         [(True, 3.0), (False, 5.0), (True, math.inf)])
+def test_ray_intervals_of_every_condition_match_dense_evaluation(receding_gate, time_horizon):
+    # Crowds large enough that neighbours close parts of rays for each other.
+    rng = np.random.default_rng(23)
+    t = np.linspace(0.0, 1.0, 2001)
+    for _ in range(10):
+        ego, neighbours = crowd(rng, int(rng.integers(2, 9)), 0.15)
+        k = float(rng.uniform(0.5, 3.0))
+        config = PlannerConfig(receding_gate=receding_gate, time_horizon=time_horizon,
+                               num_directions=24, k=k, actuation_cov=0.01 * np.eye(2))
+        encounter = build_encounter(ego, neighbours, config)
+        layout = condition_layout(encounter, config)
+        directions = candidate_directions(ego, np.array([1.0, 0.0]), config)
+        means, variances = ray_polynomials(encounter.origin, encounter.cov,
+                                           encounter.combined_radius, directions,
+                                           config.max_speed, time_horizon, layout.has_receding)
+        gap_direction, lower, upper = ray_gaps(means, variances, layout.margins(encounter),
+                                               layout, 'exact', False, directions[:, 0])
+        # Independent: each condition's closed-form moments at every grid velocity, accepted
+        # by section 7's rule: f, or g, or (h1 and h2) at k' for eta = k^2 / (1 + k^2).
+        velocities = (config.max_speed * t[None, :, None] * directions[:, None, :]).reshape(-1, 2)
+        grid_means, grid_variances = condition_moments(
+            encounter.origin, encounter.cov, encounter.combined_radius, velocities,
+            time_horizon, receding_gate)
+        eta = k * k / (1.0 + k * k)
+        margins = [k] + [k] * receding_gate + [math.sqrt((1.0 + eta) / (1.0 - eta))] * (
+            2 * math.isfinite(time_horizon))
+        meets = grid_means - np.array(margins) * np.sqrt(np.maximum(grid_variances, 0.0)) >= 0.0
+        pair_accepted = meets[..., 0]
+        if receding_gate:
+            pair_accepted = pair_accepted | meets[..., 1]
+        if math.isfinite(time_horizon):
+            pair_accepted = pair_accepted | (meets[..., -2] & meets[..., -1])
+        accepted = np.all(pair_accepted, axis=0).reshape(directions.shape[0], t.size)
         inside = np.zeros_like(accepted)
         near_boundary = np.zeros_like(accepted)
         for direction, low, high in zip(gap_direction, lower, upper, strict=True):

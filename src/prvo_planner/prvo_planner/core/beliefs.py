@@ -1,6 +1,7 @@
 """Gaussian beliefs over disk robots and the validation shared by the core."""
 
 from dataclasses import dataclass
+import math
 
 import numpy as np
 
@@ -75,11 +76,12 @@ def as_covariance(value, size, field):
         If the matrix has the wrong shape, is not finite, not symmetric, or not PSD.
 
     """
-    matrix = np.array(as_finite_array(value, (size, size), field))
+    matrix = as_finite_array(value, (size, size), field)
     scale = max(1.0, float(np.abs(matrix).max()))
     if np.abs(matrix - matrix.T).max() > _PSD_TOLERANCE * scale:
         raise ValueError(f'{field} must be symmetric, got {matrix.tolist()!r}')
-    matrix = 0.5 * (matrix + matrix.T)
+    matrix = matrix + matrix.T
+    matrix *= 0.5
     try:
         # Positive definite (the usual case): nothing to clip, and a Cholesky factorisation
         # costs less than an eigendecomposition.
@@ -130,7 +132,11 @@ class AgentBelief:
                            as_finite_array(self.velocity, (2,), 'AgentBelief.velocity'))
         object.__setattr__(self, 'covariance',
                            as_covariance(self.covariance, 4, 'AgentBelief.covariance'))
-        radius = float(as_finite_array(self.radius, (), 'AgentBelief.radius'))
+        if isinstance(self.radius, (int, float)) and math.isfinite(self.radius):
+            # The usual case, without an array round trip.
+            radius = float(self.radius)
+        else:
+            radius = float(as_finite_array(self.radius, (), 'AgentBelief.radius'))
         if radius <= 0.0:
             raise ValueError(f'AgentBelief.radius must be > 0, got {radius!r}')
         object.__setattr__(self, 'radius', radius)
