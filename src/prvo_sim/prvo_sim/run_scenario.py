@@ -363,6 +363,7 @@ class Recorder:
             DIAGNOSTICS_QOS,
             GROUND_TRUTH,
             ODOM_QOS,
+            quiet_subscription_events,
             robot_topic,
         )
 
@@ -380,15 +381,19 @@ class Recorder:
         self.node = rclpy.create_node('prvo_run_recorder', context=self.context)
         self._executor = SingleThreadedExecutor(context=self.context)
         self._executor.add_node(self.node)
+        # The recorder shares the CPU with the team it measures: no per-endpoint QoS event
+        # handlers (prvo_msgs_util.quiet_subscription_events); it only listens to prvo nodes.
         for name in self.robot_names:
             self.node.create_subscription(
                 Odometry, robot_topic(name, GROUND_TRUTH),
-                lambda msg, robot=name: self._on_ground_truth(robot, msg), ODOM_QOS)
+                lambda msg, robot=name: self._on_ground_truth(robot, msg), ODOM_QOS,
+                event_callbacks=quiet_subscription_events())
             self.node.create_subscription(
                 TwistStamped, robot_topic(name, CMD_VEL),
-                lambda msg, robot=name: self._on_command(robot, msg), CMD_VEL_QOS)
+                lambda msg, robot=name: self._on_command(robot, msg), CMD_VEL_QOS,
+                event_callbacks=quiet_subscription_events())
         self.node.create_subscription(DiagnosticArray, DIAGNOSTICS, self._on_diagnostics,
-                                      DIAGNOSTICS_QOS)
+                                      DIAGNOSTICS_QOS, event_callbacks=quiet_subscription_events())
 
     def _on_ground_truth(self, robot, msg):
         from prvo_msgs_util import odometry_to_measurement

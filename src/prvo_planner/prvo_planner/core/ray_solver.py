@@ -6,7 +6,7 @@ mean polynomial (degree <= 2) and a variance polynomial (degree <= 4) in ``t``
 (:func:`prvo_planner.core.moments.ray_polynomials`). A solver returns breakpoints in
 (0, 1); between consecutive breakpoints the acceptance of every condition is constant, so it is
 decided by evaluating the conditions at the midpoint. Roots are found in closed form, vectorised
-over all pairs, and polished by Newton steps; a root missed by rounding can only shift a
+over all pairs, and polished by a Newton step; a root missed by rounding can only shift a
 boundary by rounding-level amounts because acceptance is always re-evaluated exactly.
 """
 
@@ -17,10 +17,9 @@ import numpy as np
 from .moments import poly_eval
 
 # Leading coefficients below this (relative to the largest one, on t in [0, 1]) are treated as
-# zero: dropping them moves the polynomial by at most this much there, and Newton polishing on
-# the full polynomial removes the resulting root error.
+# zero: dropping them moves the polynomial by at most this much there, and a Newton step on the
+# full polynomial (which squares a root's relative error) removes the resulting root error.
 _DEGREE_TOLERANCE = 1e-7
-_NEWTON_STEPS = 2
 # The derivative of coefficient-major quartics: their rows 1 to 4 times these, shape (4, 1).
 _QUARTIC_DERIVATIVE_FACTORS = np.arange(1.0, 5.0)[:, None]
 
@@ -140,24 +139,23 @@ def _polish(columns, roots):
     """
     Newton-polish the roots (K, R) of polynomials with coefficient-major ``columns`` (L, K).
 
-    Only roots within 2e-3 of [0, 1] are polished: each step moves a root by less than 1e-3,
-    so no other root can enter (0, 1), where breakpoints matter.
+    Only roots within 2e-3 of [0, 1] are polished: the step moves a root by less than 1e-3, so
+    no other root can enter (0, 1), where breakpoints matter.
     """
     near = np.abs(roots - 0.5) <= 0.5 + 2e-3
     row, column = near.nonzero()
     coefficients = columns[:, row]
     derivative = coefficients[1:] * _QUARTIC_DERIVATIVE_FACTORS
     points = roots[row, column]
+    value, slope = coefficients[-1], derivative[-1]
+    for power in range(coefficients.shape[0] - 2, -1, -1):
+        value = value * points + coefficients[power]
+        if power > 0:
+            slope = slope * points + derivative[power - 1]
     with np.errstate(divide='ignore', invalid='ignore'):
-        for _ in range(_NEWTON_STEPS):
-            value, slope = coefficients[-1], derivative[-1]
-            for power in range(coefficients.shape[0] - 2, -1, -1):
-                value = value * points + coefficients[power]
-                if power > 0:
-                    slope = slope * points + derivative[power - 1]
-            step = value / slope
-            # A large step means a flat spot (near-double root): keep the closed-form value.
-            points = np.where(np.abs(step) < 1e-3, points - step, points)
+        step = value / slope
+    # A large step means a flat spot (near-double root): keep the closed-form value.
+    points = np.where(np.abs(step) < 1e-3, points - step, points)
     roots[row, column] = points
     return roots
 
