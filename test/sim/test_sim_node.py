@@ -210,7 +210,9 @@ def test_realtime_steps_on_the_wall_clock(probe, children, ros2_executable):
     diagnostics = probe.record(DiagnosticArray, '/diagnostics', DIAGNOSTICS_QOS)
     # robot_1 starts facing its goal at -x: "forward" in its base_link is -x in the world.
     planners = Planners(probe, {'robot_1': (1.0, 0.0)}, frames={'robot_1': 'robot_1/base_link'})
-    sim = start_sim(children, ros2_executable, 'sim', mode='realtime', rate=20.0)
+    # robot_0 never answers: the first step waits startup_timeout for it, then the timer runs.
+    sim = start_sim(children, ros2_executable, 'sim', mode='realtime', rate=20.0,
+                    startup_timeout=1.0)
 
     def stepped(count):
         return int(latest_statuses(diagnostics).get('prvo_sim', {}).get('step', 0)) >= count

@@ -83,6 +83,9 @@ class QosWatch:
         self._node = node
         # Fully qualified topic -> (our QoS, whether we subscribe to it).
         self._watched = {}
+        # Topic -> remote endpoint count at the last check: the graph's endpoint details cost
+        # 10-30 times what a count does, so a topic is examined again only when its count moves.
+        self._counts = {}
         self._reported = set()
 
     def watch(self, endpoint):
@@ -93,10 +96,14 @@ class QosWatch:
     def forget(self, endpoint):
         """Stop watching an endpoint (before it is destroyed)."""
         self._watched.pop(endpoint.topic_name, None)
+        self._counts.pop(endpoint.topic_name, None)
 
     def check(self):
         """
         Warn about every new remote endpoint whose QoS is incompatible with ours.
+
+        A topic is examined when its number of remote endpoints changed since the last check (an
+        endpoint replaced by another between two checks goes unexamined).
 
         Returns
         -------
@@ -106,6 +113,11 @@ class QosWatch:
         """
         warnings = []
         for topic, (ours, subscribing) in self._watched.items():
+            count = (self._node.count_publishers(topic) if subscribing
+                     else self._node.count_subscribers(topic))
+            if self._counts.get(topic) == count:
+                continue
+            self._counts[topic] = count
             if subscribing:
                 remotes, role = self._node.get_publishers_info_by_topic(topic), 'publisher'
             else:

@@ -127,7 +127,7 @@ class SimNode(Node):
 
         self._startup_timeout = self.declare_parameter(
             'startup_timeout', 10.0, ParameterDescriptor(
-                description='Lockstep: wall time [s] the first step waits for every cmd_vel, '
+                description='Wall time [s] the first step waits for every cmd_vel (both modes), '
                             're-sending the t_0 odometry, so that late joiners are in from t_0',
                 floating_point_range=[FloatingPointRange(from_value=0.001, to_value=3600.0)],
                 read_only=True)).value
@@ -271,10 +271,6 @@ class SimNode(Node):
             self._republish_initial_odometry(now)
             self._published_at = now
             self.get_logger().info('every cmd_vel has a publisher: stepping')
-            if self._realtime_timer is not None:
-                self._poll_timer.cancel()
-                self._realtime_timer.reset()
-                return
         if self._finished:
             return
         if all(robot.answered for robot in self._robots):
@@ -288,6 +284,11 @@ class SimNode(Node):
                 self._republish_initial_odometry(now)
         elif now - self._published_at >= self._step_timeout:
             self._advance()
+        if self._realtime_timer is not None and self._step > 0:
+            # Realtime: the first step waited for every answer, as in lockstep (a planner's
+            # first plan includes its warm-up); from t_1 on a wall timer steps.
+            self._poll_timer.cancel()
+            self._realtime_timer.reset()
 
     def _republish_initial_odometry(self, now):
         """Send the t_0 messages again, unchanged, so a late subscriber gets the same draw."""

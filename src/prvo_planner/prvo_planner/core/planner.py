@@ -607,10 +607,26 @@ def _best_speeds(directions, lower, upper, preferred, v_pref, previous, config):
     of :func:`_choice_costs` keep the cost convex along the ray, so its minimum lies within a
     cell of the best point of a grid; zooming a grid onto those two cells a few times finds it
     (the interval ends and the plain optimum are candidates too: a flat or kinked minimum).
+    Only intervals that can hold the overall optimum are searched; the others keep the
+    projected ``t``, whose cost cannot be the smallest.
     """
     projected = np.clip(preferred, lower, upper)
     if not ((previous is not None and config.inertia > 0.0) or config.passing_bias > 0.0):
         return projected
+    # The plain term alone, smallest at the projected t, bounds an interval's cost from below
+    # (the extra terms are >= 0); the full cost at a projected t bounds the optimum from above.
+    at_projected = config.max_speed * projected[:, None] * directions
+    offset = at_projected - v_pref
+    plain = np.sqrt(offset[:, 0] * offset[:, 0] + offset[:, 1] * offset[:, 1])
+    searched = (plain <= _choice_costs(at_projected, v_pref, previous, config).min()).nonzero()[0]
+    best = projected.copy()
+    best[searched] = _zoomed_speeds(directions[searched], lower[searched], upper[searched],
+                                    projected[searched], v_pref, previous, config)
+    return best
+
+
+def _zoomed_speeds(directions, lower, upper, projected, v_pref, previous, config):
+    """Minimise :func:`_choice_costs` on each ray's interval by a zoomed grid, shape (G,)."""
     velocity_directions = config.max_speed * directions[:, None, :]
     low, high = lower, upper
     for _ in range(_ZOOM_LEVELS):
