@@ -94,6 +94,16 @@ def test_noise_free_rvo_satisfies_every_neighbour_when_a_candidate_does():
     assert checked >= 40
 
 
+def assert_gaps_match(gap_direction, lower, upper, t, accepted):
+    """Assert that the gaps cover exactly the ACCEPTED grid points (M, T), up to 1e-6 at ends."""
+    inside = np.zeros_like(accepted)
+    near_boundary = np.zeros_like(accepted)
+    for direction, low, high in zip(gap_direction, lower, upper, strict=True):
+        inside[direction] |= (t >= low) & (t <= high)
+        near_boundary[direction] |= (np.abs(t - low) < 1e-6) | (np.abs(t - high) < 1e-6)
+    assert np.all((inside == accepted) | near_boundary)
+
+
 def test_exact_ray_intervals_match_dense_evaluation_of_the_surrogate():
     rng = np.random.default_rng(22)
     t = np.linspace(0.0, 1.0, 2001)
@@ -119,12 +129,7 @@ def test_exact_ray_intervals_match_dense_evaluation_of_the_surrogate():
             expectation, variance = rvo_moments(mean, encounter.cov[index],
                                                 encounter.combined_radius[index])
             accepted &= expectation - config.k * np.sqrt(np.maximum(variance, 0.0)) >= 0.0
-        inside = np.zeros_like(accepted)
-        near_boundary = np.zeros_like(accepted)
-        for direction, low, high in zip(gap_direction, lower, upper, strict=True):
-            inside[direction] |= (t >= low) & (t <= high)
-            near_boundary[direction] |= (np.abs(t - low) < 1e-6) | (np.abs(t - high) < 1e-6)
-        assert np.all((inside == accepted) | near_boundary)
+        assert_gaps_match(gap_direction, lower, upper, t, accepted)
 
 
 @pytest.mark.parametrize('receding_gate, time_horizon',
@@ -162,12 +167,7 @@ def test_ray_intervals_of_every_condition_match_dense_evaluation(receding_gate, 
         if math.isfinite(time_horizon):
             pair_accepted = pair_accepted | (meets[..., -2] & meets[..., -1])
         accepted = np.all(pair_accepted, axis=0).reshape(directions.shape[0], t.size)
-        inside = np.zeros_like(accepted)
-        near_boundary = np.zeros_like(accepted)
-        for direction, low, high in zip(gap_direction, lower, upper, strict=True):
-            inside[direction] |= (t >= low) & (t <= high)
-            near_boundary[direction] |= (np.abs(t - low) < 1e-6) | (np.abs(t - high) < 1e-6)
-        assert np.all((inside == accepted) | near_boundary)
+        assert_gaps_match(gap_direction, lower, upper, t, accepted)
 
 
 def test_inflate_equals_rvo_without_noise_and_respects_the_enlarged_radius():
