@@ -340,7 +340,7 @@ def _row_tests(means, variances, margins, method, deterministic, preferred):
     np.multiply(square, square, out=quartic[4])
     # Rows cycle through the conditions fastest: k^2 broadcasts over (5, rows / C, C).
     quartic.reshape(5, -1, margins.size)[...] -= (
-        margins ** 2 * variances.transpose(3, 0, 1, 2).reshape(5, -1, margins.size))
+        margins ** 2 * variance_rows.reshape(5, -1, margins.size))
     return [(quartic, None), (mean_rows, variance_rows)]
 
 
@@ -577,6 +577,13 @@ def _validated_inputs(ego, neighbours, v_pref, config, previous):
     return neighbours, as_finite_array(v_pref, (2,), 'v_pref'), previous
 
 
+def _distances(points, point):
+    """Euclidean distances of POINTS (..., 2) from POINT (2,), shape (...)."""
+    offset = points - point
+    # sqrt of a sum, not np.linalg.norm: a fraction of the cost on the small arrays of a plan.
+    return np.sqrt(offset[..., 0] * offset[..., 0] + offset[..., 1] * offset[..., 1])
+
+
 def _choice_costs(velocities, v_pref, previous, config):
     """
     Cost of commanded velocities, shape (..., 2) -> (...): smaller is better.
@@ -586,12 +593,9 @@ def _choice_costs(velocities, v_pref, previous, config):
     to the left of ``v_pref``'s direction. Both extra terms are convex in ``v`` and only rank
     velocities; which ones are acceptable is decided by the constraints alone.
     """
-    offset = velocities - v_pref
-    costs = np.sqrt(offset[..., 0] * offset[..., 0] + offset[..., 1] * offset[..., 1])
+    costs = _distances(velocities, v_pref)
     if previous is not None and config.inertia > 0.0:
-        offset = velocities - previous
-        costs += config.inertia * np.sqrt(offset[..., 0] * offset[..., 0]
-                                          + offset[..., 1] * offset[..., 1])
+        costs += config.inertia * _distances(velocities, previous)
     norm = math.hypot(v_pref[0], v_pref[1])
     if config.passing_bias > 0.0 and norm > 1e-9:
         left = (v_pref[0] * velocities[..., 1] - v_pref[1] * velocities[..., 0]) / norm
@@ -616,8 +620,7 @@ def _best_speeds(directions, lower, upper, preferred, v_pref, previous, config):
     # The plain term alone, smallest at the projected t, bounds an interval's cost from below
     # (the extra terms are >= 0); the full cost at a projected t bounds the optimum from above.
     at_projected = config.max_speed * projected[:, None] * directions
-    offset = at_projected - v_pref
-    plain = np.sqrt(offset[:, 0] * offset[:, 0] + offset[:, 1] * offset[:, 1])
+    plain = _distances(at_projected, v_pref)
     searched = (plain <= _choice_costs(at_projected, v_pref, previous, config).min()).nonzero()[0]
     best = projected.copy()
     best[searched] = _zoomed_speeds(directions[searched], lower[searched], upper[searched],
