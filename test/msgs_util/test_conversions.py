@@ -1,11 +1,13 @@
 """Round trips and fault detection of the message <-> numpy conversions."""
 
 import math
+import struct
 
 from geometry_msgs.msg import PoseStamped, Twist
 from nav_msgs.msg import Odometry
 import numpy as np
 import pytest
+from rclpy.serialization import deserialize_message, serialize_message
 
 from prvo_msgs_util import (
     MessageFault,
@@ -16,6 +18,7 @@ from prvo_msgs_util import (
     odometry_to_measurement,
     pose_stamped_to_goal,
     seconds_to_stamp,
+    serialized_odometry_to_measurement,
     stamp_to_seconds,
     twist_to_velocity,
 )
@@ -118,9 +121,14 @@ def set_item(sequence, index, value):
     (lambda m: setattr(m.pose.pose.orientation, 'w', 0.0), 'pose.orientation has norm 0'),
     (lambda m: setattr(m.header, 'frame_id', 'odom'), "header.frame_id is 'odom'"),
 ])
-def test_odometry_faults_are_named(change, fault):
+@pytest.mark.parametrize('serialized', [False, True])
+def test_odometry_faults_are_named(change, fault, serialized):
+    msg = odometry_with(change)
     with pytest.raises(MessageFault, match=fault.replace('.', r'\.')):
-        odometry_to_measurement(odometry_with(change))
+        if serialized:
+            serialized_odometry_to_measurement(serialize_message(msg))
+        else:
+            odometry_to_measurement(msg)
 
 
 def test_non_psd_fault_reports_the_eigenvalue():
@@ -134,6 +142,78 @@ def test_non_psd_fault_reports_the_eigenvalue():
 def test_expected_frame_none_accepts_any_frame():
     msg = odometry_with(lambda m: setattr(m.header, 'frame_id', 'odom'))
     assert odometry_to_measurement(msg, expected_frame=None).frame_id == 'odom'
+
+
+def cdr_odometry(msg, byte_order):
+    """Encode MSG as CDR by hand, in BYTE_ORDER ('<' or '>'): a reference for the decoder."""
+    def align(buffer, size):
+        buffer += bytes(-len(buffer) % size)
+
+    def string(buffer, text):
+        align(buffer, 4)
+        encoded = text.encode() + b'\x00'
+        buffer += struct.pack(byte_order + 'I', len(encoded)) + encoded
+
+    body = bytearray(struct.pack(byte_order + 'iI', msg.header.stamp.sec,
+                                 msg.header.stamp.nanosec))
+    string(body, msg.header.frame_id)
+    string(body, msg.child_frame_id)
+    align(body, 8)
+    pose, twist = msg.pose.pose, msg.twist.twist
+    values = [pose.position.x, pose.position.y, pose.position.z, pose.orientation.x,
+              pose.orientation.y, pose.orientation.z, pose.orientation.w,
+              *msg.pose.covariance, twist.linear.x, twist.linear.y, twist.linear.z,
+              twist.angular.x, twist.angular.y, twist.angular.z, *msg.twist.covariance]
+    body += struct.pack(f'{byte_order}{len(values)}d', *values)
+    return (b'\x00\x01\x00\x00' if byte_order == '<' else b'\x00\x00\x00\x00') + bytes(body)
+
+
+def random_odometry(rng, frame_id, child_frame_id):
+    """Return an Odometry with random values in every field the decoder reads or skips."""
+    msg = make_odometry(rng.uniform(0.0, 1e5), rng.normal(size=2), rng.normal(size=2),
+                        random_covariance(rng), random_covariance(rng), frame_id=frame_id,
+                        child_frame_id=child_frame_id, yaw=rng.uniform(-math.pi, math.pi))
+    msg.pose.pose.position.z = rng.normal()
+    msg.twist.twist.linear.z, msg.twist.twist.angular.z = rng.normal(size=2)
+    return msg
+
+
+def test_serialized_odometry_gives_the_measurement_of_the_message():
+    rng = np.random.default_rng(3)
+    # Frame names of every length modulo 8 move the floats across every alignment case.
+    names = ['', 'm', 'map', 'odom', 'w\u00f6rld', 'robot_1/base_link', 'a' * 13, 'b' * 30]
+    for index in range(64):
+        frame_id, child_frame_id = names[index % 8], names[(index // 8) % 8]
+        msg = random_odometry(rng, frame_id, child_frame_id)
+        data = serialize_message(msg)
+        # rclpy reads the hand encoding back as MSG, so it can stand in for big-endian.
+        assert deserialize_message(cdr_odometry(msg, '<'), Odometry) == msg
+        expected = odometry_to_measurement(msg, expected_frame=None)
+        for encoded in (data, cdr_odometry(msg, '>')):
+            measurement = serialized_odometry_to_measurement(encoded, expected_frame=None)
+            assert measurement.stamp == expected.stamp
+            assert (measurement.frame_id, measurement.child_frame_id) == (
+                frame_id, child_frame_id)
+            assert measurement.yaw == expected.yaw
+            for field in ('position', 'velocity', 'covariance'):
+                np.testing.assert_array_equal(
+                    getattr(measurement, field), getattr(expected, field))
+
+
+@pytest.mark.parametrize(('corrupt', 'fault'), [
+    (lambda data: data[:40], 'truncated'),
+    (lambda data: data[:-8], 'truncated'),
+    (lambda data: b'\x00\x07' + data[2:], 'no CDR encapsulation header'),
+    (lambda data: b'', 'no CDR encapsulation header'),
+    # header.frame_id's length (after the stamp) claims more bytes than there are.
+    (lambda data: data[:12] + struct.pack('<I', 10_000) + data[16:], 'malformed header'),
+    # A zero length has no room for the terminating NUL.
+    (lambda data: data[:12] + struct.pack('<I', 0) + data[16:], 'malformed header'),
+])
+def test_malformed_serialized_odometry_is_a_named_fault(corrupt, fault):
+    data = serialize_message(odometry_with(lambda msg: None))
+    with pytest.raises(MessageFault, match=fault):
+        serialized_odometry_to_measurement(corrupt(data))
 
 
 def test_twist_conversions():

@@ -10,6 +10,7 @@ from prvo_msgs_util.conversions import (
     odometry_to_measurement,
     pose_stamped_to_goal,
     seconds_to_stamp,
+    serialized_odometry_to_measurement,
     stamp_to_seconds,
     twist_to_velocity,
 )
@@ -33,7 +34,7 @@ from prvo_msgs_util.qos import (
     quiet_publisher_events,
     quiet_subscription_events,
 )
-from prvo_msgs_util.runtime import freeze_startup_objects
+from prvo_msgs_util.runtime import freeze_startup_objects, spin_events
 from prvo_msgs_util.topics import (
     CLOCK,
     CMD_VEL,
@@ -54,9 +55,10 @@ __all__ = [
     'MessageFault', 'ODOM', 'ODOM_LATEST_QOS', 'ODOM_QOS', 'OdometryMeasurement',
     'QosWatch', 'quiet_publisher_events', 'quiet_subscription_events',
     'SigintRecorder',
-    'diagnostic_values', 'freeze_startup_objects',
+    'diagnostic_values', 'freeze_startup_objects', 'spin_events',
     'make_belief_markers', 'make_diagnostic_array', 'make_diagnostic_status', 'make_odometry',
     'make_pose_stamped', 'make_twist', 'make_twist_stamped', 'odometry_to_measurement',
     'pose_stamped_to_goal', 'robot_from_topic', 'robot_topic', 'seconds_to_stamp',
-    'stamp_to_seconds', 'twist_to_velocity', 'validate_robot_name',
+    'serialized_odometry_to_measurement', 'stamp_to_seconds', 'twist_to_velocity',
+    'validate_robot_name',
 ]

@@ -2,6 +2,7 @@
 
 from dataclasses import dataclass
 import math
+import struct
 
 from builtin_interfaces.msg import Time
 from geometry_msgs.msg import PoseStamped, Twist, TwistStamped
@@ -16,6 +17,16 @@ _XY_FLAT_INDICES = (0, 1, 6, 7)
 _PSD_RELATIVE_TOLERANCE = 1e-12
 # A quaternion shorter than this has no direction to normalise to.
 _MIN_QUATERNION_NORM = 1e-6
+# Serialized (CDR) nav_msgs/Odometry: a 4-byte encapsulation header (0, 1: little-endian;
+# 0, 0: big-endian), the header's stamp (int32 sec, uint32 nanosec) and frame_id, the
+# child_frame_id, then 85 float64 aligned to 8 bytes from the end of the encapsulation header:
+# pose (position 3, orientation 4), its covariance (36), twist (linear 3, angular 3) and its
+# covariance (36).
+_CDR_HEADER_BYTES = 4
+_CDR_BYTE_ORDERS = {b'\x00\x00': '>', b'\x00\x01': '<'}
+_ODOMETRY_FLOAT_COUNT = 85
+_POSITION, _ORIENTATION = slice(0, 2), slice(3, 7)
+_POSE_COVARIANCE, _LINEAR, _TWIST_COVARIANCE = slice(7, 43), slice(43, 45), slice(49, 85)
 
 
 class MessageFault(ValueError):  # noqa: N818 (the project's API name)
@@ -71,7 +82,7 @@ def _check_frame(frame_id, expected_frame, field):
 
 
 def _xy_covariance(covariance, field):
-    """Return the checked 2x2 x/y block of a 36-element row-major covariance."""
+    """Return the checked x/y block (xx, xy, yy) of a 36-element row-major covariance."""
     # Plain floats: a 2x2 block is cheaper to check by hand than through numpy, and every
     # odometry message of every robot passes here.
     xx, xy, yx, yy = (float(covariance[index]) for index in _XY_FLAT_INDICES)
@@ -88,15 +99,15 @@ def _xy_covariance(covariance, field):
     if smallest < -tolerance:
         raise MessageFault(
             f'{field} xy block is not positive semi-definite (eigenvalue {smallest:g})')
-    block = np.array([[xx, xy], [xy, yy]])
     if smallest < 0.0:
-        eigenvalues, eigenvectors = np.linalg.eigh(block)
+        eigenvalues, eigenvectors = np.linalg.eigh(np.array([[xx, xy], [xy, yy]]))
         block = eigenvectors @ np.diag(np.maximum(eigenvalues, 0.0)) @ eigenvectors.T
-    return block
+        xx, xy, yy = float(block[0, 0]), float(block[0, 1]), float(block[1, 1])
+    return xx, xy, yy
 
 
-def _yaw_from_quaternion(orientation):
-    quaternion = (orientation.x, orientation.y, orientation.z, orientation.w)
+def _yaw_from_quaternion(quaternion):
+    """Return the yaw of QUATERNION (x, y, z, w)."""
     _require_finite(quaternion, 'pose.orientation')
     norm = math.hypot(*quaternion)
     if norm < _MIN_QUATERNION_NORM:
@@ -112,22 +123,84 @@ def odometry_to_measurement(msg, expected_frame='map'):
     mean and covariance alike. Odometry carries no position-velocity cross terms, so they are 0.
     Raises MessageFault on NaN/inf, a bad covariance, a degenerate quaternion or a wrong frame.
     """
-    _check_frame(msg.header.frame_id, expected_frame, 'header.frame_id')
-    position = (msg.pose.pose.position.x, msg.pose.pose.position.y)
+    pose, twist = msg.pose.pose, msg.twist.twist
+    return _measurement(
+        stamp_to_seconds(msg.header.stamp), msg.header.frame_id, msg.child_frame_id,
+        (pose.position.x, pose.position.y),
+        (pose.orientation.x, pose.orientation.y, pose.orientation.z, pose.orientation.w),
+        msg.pose.covariance, (twist.linear.x, twist.linear.y), msg.twist.covariance,
+        expected_frame)
+
+
+def serialized_odometry_to_measurement(data, expected_frame='map'):
+    """Return the OdometryMeasurement of a serialized (CDR) nav_msgs/Odometry.
+
+    DATA is what a raw subscription (``create_subscription(..., raw=True)``) delivers. The
+    result and the faults are those of ``odometry_to_measurement`` on the deserialized message;
+    reading the few fields needed straight from the bytes costs a small fraction of
+    deserializing the whole message into Python objects. Raises MessageFault also when DATA is
+    not a complete CDR-encoded Odometry.
+    """
+    data = bytes(data)
+    byte_order = _CDR_BYTE_ORDERS.get(data[:2])
+    if byte_order is None:
+        raise MessageFault(
+            f'serialized odometry has no CDR encapsulation header ({data[:4].hex()})')
+    body = memoryview(data)[_CDR_HEADER_BYTES:]
+    try:
+        sec, nanosec = struct.unpack_from(byte_order + 'iI', body, 0)
+        frame_id, offset = _cdr_string(body, 8, byte_order, 'header.frame_id')
+        child_frame_id, offset = _cdr_string(body, offset, byte_order, 'child_frame_id')
+        values = struct.unpack_from(f'{byte_order}{_ODOMETRY_FLOAT_COUNT}d', body,
+                                    (offset + 7) & ~7)
+    except struct.error:
+        raise MessageFault(
+            f'serialized odometry is truncated ({len(data)} bytes)') from None
+    return _measurement(
+        sec + nanosec * 1e-9, frame_id, child_frame_id, values[_POSITION],
+        values[_ORIENTATION], values[_POSE_COVARIANCE], values[_LINEAR],
+        values[_TWIST_COVARIANCE], expected_frame)
+
+
+def _cdr_string(body, offset, byte_order, field):
+    """Return (the CDR string at OFFSET, aligned to 4, of BODY; the offset after it)."""
+    offset = (offset + 3) & ~3
+    (length,) = struct.unpack_from(byte_order + 'I', body, offset)
+    start, end = offset + 4, offset + 4 + length
+    # The length counts the terminating NUL.
+    if length == 0 or end > len(body) or body[end - 1] != 0:
+        raise MessageFault(f'serialized odometry has a malformed {field}')
+    try:
+        return bytes(body[start:end - 1]).decode(), end
+    except UnicodeDecodeError:
+        raise MessageFault(f'serialized odometry has a {field} that is not UTF-8') from None
+
+
+def _measurement(stamp, frame_id, child_frame_id, position, orientation, pose_covariance,
+                 body_velocity, twist_covariance, expected_frame):
+    """Return the checked OdometryMeasurement of odometry fields (plain floats and sequences)."""
+    _check_frame(frame_id, expected_frame, 'header.frame_id')
     _require_finite(position, 'pose.position')
-    body_velocity = (msg.twist.twist.linear.x, msg.twist.twist.linear.y)
     _require_finite(body_velocity, 'twist.linear')
-    yaw = _yaw_from_quaternion(msg.pose.pose.orientation)
-    position_cov = _xy_covariance(msg.pose.covariance, 'pose.covariance')
-    body_velocity_cov = _xy_covariance(msg.twist.covariance, 'twist.covariance')
-    rotation = _rotation(yaw)
-    covariance = np.zeros((4, 4))
-    covariance[:2, :2] = position_cov
-    covariance[2:, 2:] = _rotate_covariance(rotation, body_velocity_cov)
+    yaw = _yaw_from_quaternion(orientation)
+    pxx, pxy, pyy = _xy_covariance(pose_covariance, 'pose.covariance')
+    bxx, bxy, byy = _xy_covariance(twist_covariance, 'twist.covariance')
+    # The twist into the world frame, R v and R C R^T with R the rotation by yaw, in plain
+    # floats: every odometry message of every robot passes here.
+    cos_yaw, sin_yaw = math.cos(yaw), math.sin(yaw)
+    body_x, body_y = body_velocity
+    cross = cos_yaw * sin_yaw
+    vxx = cos_yaw * cos_yaw * bxx - 2.0 * cross * bxy + sin_yaw * sin_yaw * byy
+    vxy = cross * (bxx - byy) + (cos_yaw * cos_yaw - sin_yaw * sin_yaw) * bxy
+    vyy = sin_yaw * sin_yaw * bxx + 2.0 * cross * bxy + cos_yaw * cos_yaw * byy
     return OdometryMeasurement(
-        stamp=stamp_to_seconds(msg.header.stamp), frame_id=msg.header.frame_id,
-        child_frame_id=msg.child_frame_id, position=np.array(position),
-        velocity=rotation @ np.array(body_velocity), covariance=covariance, yaw=yaw)
+        stamp=stamp, frame_id=frame_id, child_frame_id=child_frame_id,
+        position=np.array(position, dtype=float),
+        velocity=np.array([cos_yaw * body_x - sin_yaw * body_y,
+                           sin_yaw * body_x + cos_yaw * body_y]),
+        covariance=np.array([[pxx, pxy, 0.0, 0.0], [pxy, pyy, 0.0, 0.0],
+                             [0.0, 0.0, vxx, vxy], [0.0, 0.0, vxy, vyy]]),
+        yaw=yaw)
 
 
 def _covariance_6x6(xy_block):

@@ -344,6 +344,11 @@ def _stamp_ns(stamp):
     return stamp.sec * 1_000_000_000 + stamp.nanosec
 
 
+def _seconds_ns(seconds):
+    """Return a stamp in float seconds (sec + nanosec * 1e-9) as integer nanoseconds again."""
+    return round(seconds * 1e9)
+
+
 class Recorder:
     """An rclpy node in a context of its own that records what the run needs to be measured."""
 
@@ -353,8 +358,9 @@ class Recorder:
         from nav_msgs.msg import Odometry
         import rclpy
         from rclpy.context import Context
-        from rclpy.executors import SingleThreadedExecutor
+        from rclpy.experimental import EventsExecutor
         from rclpy.signals import SignalHandlerOptions
+        from rclpy.task import Future
 
         from prvo_msgs_util import (
             CMD_VEL,
@@ -368,9 +374,14 @@ class Recorder:
         )
 
         self.robot_names = list(robot_names)
-        self.ground_truth = {name: {} for name in self.robot_names}
-        self.latest = {}
-        self.commands = {name: {} for name in self.robot_names}
+        # Ground truth and commands are kept serialized as they arrive and decoded when read:
+        # decoding costs the recorder most of its CPU, which the team it measures needs.
+        self._serialized = {kind: {name: [] for name in self.robot_names}
+                            for kind in ('ground_truth', 'commands')}
+        self._decoded = {kind: ({name: {} for name in self.robot_names},
+                                dict.fromkeys(self.robot_names, 0))
+                         for kind in ('ground_truth', 'commands')}
+        self._latest = {}
         self.plan_times_ms = []
         self.sim_status = {}
         self.context = Context()
@@ -379,36 +390,72 @@ class Recorder:
                    signal_handler_options=SignalHandlerOptions.NO)
         self.domain_id = domain_id
         self.node = rclpy.create_node('prvo_run_recorder', context=self.context)
-        self._executor = SingleThreadedExecutor(context=self.context)
+        # The recorder shares the CPU with the team it measures: the events executor (see
+        # prvo_msgs_util.spin_events) and bookkeeping a few times per second, not per message.
+        self._executor = EventsExecutor(context=self.context)
         self._executor.add_node(self.node)
-        # The recorder shares the CPU with the team it measures: no per-endpoint QoS event
-        # handlers (prvo_msgs_util.quiet_subscription_events); it only listens to prvo nodes.
+        self._never_done = Future()
+        # No per-endpoint QoS event handlers (prvo_msgs_util.quiet_subscription_events): it
+        # only listens to prvo nodes.
         for name in self.robot_names:
-            self.node.create_subscription(
-                Odometry, robot_topic(name, GROUND_TRUTH),
-                lambda msg, robot=name: self._on_ground_truth(robot, msg), ODOM_QOS,
-                event_callbacks=quiet_subscription_events())
-            self.node.create_subscription(
-                TwistStamped, robot_topic(name, CMD_VEL),
-                lambda msg, robot=name: self._on_command(robot, msg), CMD_VEL_QOS,
-                event_callbacks=quiet_subscription_events())
+            for kind, topic, message_type, qos in (
+                    ('ground_truth', GROUND_TRUTH, Odometry, ODOM_QOS),
+                    ('commands', CMD_VEL, TwistStamped, CMD_VEL_QOS)):
+                self.node.create_subscription(
+                    message_type, robot_topic(name, topic), self._serialized[kind][name].append,
+                    qos, event_callbacks=quiet_subscription_events(), raw=True)
         self.node.create_subscription(DiagnosticArray, DIAGNOSTICS, self._on_diagnostics,
                                       DIAGNOSTICS_QOS, event_callbacks=quiet_subscription_events())
 
-    def _on_ground_truth(self, robot, msg):
-        from prvo_msgs_util import odometry_to_measurement
+    @property
+    def latest(self):
+        """{robot: (stamp ns, position (2,))} of the newest ground truth of each robot heard."""
+        from prvo_msgs_util import serialized_odometry_to_measurement
 
-        measurement = odometry_to_measurement(msg, expected_frame=WORLD_FRAME)
-        stamp = _stamp_ns(msg.header.stamp)
-        self.ground_truth[robot][stamp] = (*measurement.position, *measurement.velocity,
-                                           measurement.yaw)
-        self.latest[robot] = (stamp, np.asarray(measurement.position, dtype=float))
+        for name, received in self._serialized['ground_truth'].items():
+            if received and self._latest.get(name, (None, None, 0))[2] != len(received):
+                measurement = serialized_odometry_to_measurement(
+                    received[-1], expected_frame=WORLD_FRAME)
+                self._latest[name] = (_seconds_ns(measurement.stamp), measurement.position,
+                                      len(received))
+        return {name: latest[:2] for name, latest in self._latest.items()}
 
-    def _on_command(self, robot, msg):
-        # Kept in the message's frame: a body-frame command is rotated once the ground truth
-        # (and so the robot's heading) at its stamp is known.
-        self.commands[robot][_stamp_ns(msg.header.stamp)] = (
-            msg.twist.linear.x, msg.twist.linear.y, msg.header.frame_id)
+    @property
+    def ground_truth(self):
+        """{robot: {stamp ns: (x, y, vx, vy, yaw)}} of every ground truth received."""
+        from prvo_msgs_util import serialized_odometry_to_measurement
+
+        def decode(data):
+            measurement = serialized_odometry_to_measurement(data, expected_frame=WORLD_FRAME)
+            return _seconds_ns(measurement.stamp), (
+                *measurement.position, *measurement.velocity, measurement.yaw)
+
+        return self._decode('ground_truth', decode)
+
+    @property
+    def commands(self):
+        """{robot: {stamp ns: (x, y, frame_id)}} of every command received, in its frame."""
+        from geometry_msgs.msg import TwistStamped
+        from rclpy.serialization import deserialize_message
+
+        def decode(data):
+            msg = deserialize_message(data, TwistStamped)
+            # Kept in the message's frame: a body-frame command is rotated once the ground
+            # truth (and so the robot's heading) at its stamp is known.
+            return _stamp_ns(msg.header.stamp), (
+                msg.twist.linear.x, msg.twist.linear.y, msg.header.frame_id)
+
+        return self._decode('commands', decode)
+
+    def _decode(self, kind, decode):
+        """Decode the KIND of messages received since the last call; return all decoded."""
+        decoded, counts = self._decoded[kind]
+        for name, received in self._serialized[kind].items():
+            for data in received[counts[name]:]:
+                stamp, value = decode(data)
+                decoded[name][stamp] = value
+            counts[name] = len(received)
+        return decoded
 
     def _on_diagnostics(self, msg):
         from prvo_msgs_util import diagnostic_values
@@ -432,7 +479,7 @@ class Recorder:
 
         deadline = time.monotonic() + duration
         while time.monotonic() < deadline:
-            self._executor.spin_once(timeout_sec=0.05)
+            self.spin_for(0.05)
             busy = [topic for topic in (CLOCK, DIAGNOSTICS) if self.node.count_publishers(topic)]
             if busy:
                 return (f'ROS_DOMAIN_ID {self.domain_id} is in use by processes this runner did '
@@ -440,9 +487,9 @@ class Recorder:
                         f'--domain-id')
         return None
 
-    def spin_once(self, timeout):
-        """Handle at most one pending message, waiting up to TIMEOUT s for it."""
-        self._executor.spin_once(timeout_sec=timeout)
+    def spin_for(self, duration):
+        """Handle every message that arrives in the next DURATION s."""
+        self._executor.spin_until_future_complete(self._never_done, timeout_sec=duration)
 
     def close(self, timeout=RECORDER_CLOSE_TIMEOUT):
         """Destroy the node and shut its context down; return False if that hung.
@@ -469,15 +516,16 @@ class Recorder:
         rotated by the robot's heading at its stamp), NaN where missing; only instants every
         robot has are kept.
         """
+        ground_truth, received_commands = self.ground_truth, self.commands
         stamps = sorted(set.intersection(
-            *(set(self.ground_truth[name]) for name in self.robot_names)))
+            *(set(ground_truth[name]) for name in self.robot_names)))
         states = np.full((len(stamps), len(self.robot_names), 5), math.nan)
         commands = np.full((len(stamps), len(self.robot_names), 2), math.nan)
         for step, stamp in enumerate(stamps):
             for robot, name in enumerate(self.robot_names):
-                states[step, robot] = self.ground_truth[name][stamp]
-                if stamp in self.commands[name]:
-                    command_x, command_y, frame_id = self.commands[name][stamp]
+                states[step, robot] = ground_truth[name][stamp]
+                if stamp in received_commands[name]:
+                    command_x, command_y, frame_id = received_commands[name][stamp]
                     command = np.array([command_x, command_y])
                     if frame_id not in ('', WORLD_FRAME):
                         yaw = states[step, robot, 4]
@@ -532,7 +580,7 @@ def wait_for_end(recorder, children, spec, progress):
     settled_since = None
     next_progress = started
     while True:
-        recorder.spin_once(0.05)
+        recorder.spin_for(0.05)
         now = time.monotonic()
         exited = children.first_exited()
         if exited is not None:

@@ -49,6 +49,7 @@ from prvo_msgs_util import (
     quiet_subscription_events,
     robot_topic,
     seconds_to_stamp,
+    spin_events,
     stamp_to_seconds,
     twist_to_velocity,
 )
@@ -293,11 +294,7 @@ class SimNode(Node):
     def _republish_initial_odometry(self, now):
         """Send the t_0 messages again, unchanged, so a late subscriber gets the same draw."""
         self._republished_at = now
-        self._clock_publisher.publish(ClockMsg(clock=self._stamp))
-        for robot, (odometry, ground_truth) in zip(
-                self._robots, self._last_odometry, strict=True):
-            robot.odom_publisher.publish(odometry)
-            robot.ground_truth_publisher.publish(ground_truth)
+        self._send_last_state()
 
     def _advance(self):
         """Execute every robot's command for one dt and publish the state at t_(k+1)."""
@@ -363,11 +360,15 @@ class SimNode(Node):
         return sum(robot.deadline_misses for robot in self._robots)
 
     def _publish_state(self):
-        """Publish /clock, then every robot's odometry and ground truth, then diagnostics."""
+        """Publish /clock, every robot's odometry, then ground truth and diagnostics.
+
+        Every message is built before the first is sent: each odometry message wakes planners
+        that then compete with this process for the CPU, and a planner plans only once all its
+        neighbours' odometry is in, so the odometry goes out back to back.
+        """
         now = self._sim_time()
         self._yaws_at_step[self._step] = self._yaws.copy()
         self._yaws_at_step.pop(self._step - _YAW_HISTORY, None)
-        self._clock_publisher.publish(ClockMsg(clock=self._stamp))
         noisy_positions, noisy_velocities = kinematics.noisy_odometry(
             self._positions, self._velocities, self._position_std, self._velocity_std,
             self._rng)
@@ -382,10 +383,17 @@ class SimNode(Node):
             ground_truth = make_odometry(
                 now, self._positions[index], self._velocities[index], np.zeros((2, 2)),
                 np.zeros((2, 2)), **frames)
-            robot.odom_publisher.publish(odometry)
-            robot.ground_truth_publisher.publish(ground_truth)
             self._last_odometry.append((odometry, ground_truth))
+        self._send_last_state()
         self._publish_status()
+
+    def _send_last_state(self):
+        """Publish /clock, then every robot's last odometry, then every ground truth."""
+        self._clock_publisher.publish(ClockMsg(clock=self._stamp))
+        for robot, (odometry, _) in zip(self._robots, self._last_odometry, strict=True):
+            robot.odom_publisher.publish(odometry)
+        for robot, (_, ground_truth) in zip(self._robots, self._last_odometry, strict=True):
+            robot.ground_truth_publisher.publish(ground_truth)
 
     def _publish_idle_status(self):
         # Stepping publishes a status every step; before and after, this keeps it visible.
@@ -428,7 +436,7 @@ def main(args=None):
         return EXIT_BAD_INPUT
     freeze_startup_objects()
     try:
-        rclpy.spin(node)
+        spin_events(node)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     except RuntimeError:
