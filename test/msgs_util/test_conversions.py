@@ -18,6 +18,7 @@ from prvo_msgs_util import (
     odometry_to_measurement,
     pose_stamped_to_goal,
     seconds_to_stamp,
+    serialize_odometry,
     serialized_odometry_to_measurement,
     stamp_to_seconds,
     twist_to_velocity,
@@ -198,6 +199,19 @@ def test_serialized_odometry_gives_the_measurement_of_the_message():
             for field in ('position', 'velocity', 'covariance'):
                 np.testing.assert_array_equal(
                     getattr(measurement, field), getattr(expected, field))
+
+
+def test_serialize_odometry_gives_the_bytes_of_make_odometrys_message():
+    rng = np.random.default_rng(4)
+    names = ['', 'm', 'map', 'odom', 'w\u00f6rld', 'robot_1/base_link', 'a' * 13, 'b' * 30]
+    for index in range(64):
+        arguments = (rng.uniform(0.0, 1e5), rng.normal(size=2), rng.normal(size=2),
+                     random_covariance(rng), random_covariance(rng))
+        frames = {'frame_id': names[index % 8], 'child_frame_id': names[(index // 8) % 8],
+                  'yaw': rng.uniform(-math.pi, math.pi)}
+        # rclpy's deserializer reads the packed bytes back as the message make_odometry builds.
+        assert deserialize_message(serialize_odometry(*arguments, **frames), Odometry) == (
+            make_odometry(*arguments, **frames))
 
 
 @pytest.mark.parametrize(('corrupt', 'fault'), [

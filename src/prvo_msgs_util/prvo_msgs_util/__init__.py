@@ -10,6 +10,7 @@ from prvo_msgs_util.conversions import (
     odometry_to_measurement,
     pose_stamped_to_goal,
     seconds_to_stamp,
+    serialize_odometry,
     serialized_odometry_to_measurement,
     stamp_to_seconds,
     twist_to_velocity,
@@ -59,6 +60,6 @@ __all__ = [
     'make_belief_markers', 'make_diagnostic_array', 'make_diagnostic_status', 'make_odometry',
     'make_pose_stamped', 'make_twist', 'make_twist_stamped', 'odometry_to_measurement',
     'pose_stamped_to_goal', 'robot_from_topic', 'robot_topic', 'seconds_to_stamp',
-    'serialized_odometry_to_measurement', 'stamp_to_seconds', 'twist_to_velocity',
-    'validate_robot_name',
+    'serialize_odometry', 'serialized_odometry_to_measurement', 'stamp_to_seconds',
+    'twist_to_velocity', 'validate_robot_name',
 ]

@@ -11,7 +11,6 @@ import numpy as np
 
 _NS_PER_S = 1_000_000_000
 # Row-major indices of the x/y block inside a 6x6 ROS covariance.
-_XY_INDICES = np.array([0, 1, 6, 7])
 _XY_FLAT_INDICES = (0, 1, 6, 7)
 # Eigenvalues this far below zero, relative to the largest, are rounding, not a fault.
 _PSD_RELATIVE_TOLERANCE = 1e-12
@@ -24,6 +23,7 @@ _MIN_QUATERNION_NORM = 1e-6
 # covariance (36).
 _CDR_HEADER_BYTES = 4
 _CDR_BYTE_ORDERS = {b'\x00\x00': '>', b'\x00\x01': '<'}
+_CDR_LITTLE_ENDIAN = b'\x00\x01\x00\x00'
 _ODOMETRY_FLOAT_COUNT = 85
 _POSITION, _ORIENTATION = slice(0, 2), slice(3, 7)
 _POSE_COVARIANCE, _LINEAR, _TWIST_COVARIANCE = slice(7, 43), slice(43, 45), slice(49, 85)
@@ -40,10 +40,15 @@ def stamp_to_seconds(stamp):
 
 def seconds_to_stamp(seconds):
     """Return float SECONDS (finite, >= 0) as a builtin_interfaces/Time, rounded to 1 ns."""
+    sec, nanosec = _stamp_fields(seconds)
+    return Time(sec=sec, nanosec=nanosec)
+
+
+def _stamp_fields(seconds):
+    """Return float SECONDS (finite, >= 0) as (sec, nanosec), rounded to 1 ns."""
     if not math.isfinite(seconds) or seconds < 0.0:
         raise ValueError(f'cannot make a stamp of {seconds} s')
-    nanoseconds = round(seconds * _NS_PER_S)
-    return Time(sec=nanoseconds // _NS_PER_S, nanosec=nanoseconds % _NS_PER_S)
+    return divmod(round(seconds * _NS_PER_S), _NS_PER_S)
 
 
 @dataclass(frozen=True)
@@ -57,17 +62,6 @@ class OdometryMeasurement:
     velocity: np.ndarray
     covariance: np.ndarray
     yaw: float
-
-
-def _rotation(yaw):
-    cos_yaw, sin_yaw = math.cos(yaw), math.sin(yaw)
-    return np.array([[cos_yaw, -sin_yaw], [sin_yaw, cos_yaw]])
-
-
-def _rotate_covariance(rotation, covariance):
-    """Return R C R^T, symmetrised: the product alone is asymmetric by rounding."""
-    rotated = rotation @ covariance @ rotation.T
-    return 0.5 * (rotated + rotated.T)
 
 
 def _require_finite(values, field):
@@ -203,12 +197,6 @@ def _measurement(stamp, frame_id, child_frame_id, position, orientation, pose_co
         yaw=yaw)
 
 
-def _covariance_6x6(xy_block):
-    covariance = np.zeros(36)
-    covariance[_XY_INDICES] = np.asarray(xy_block, dtype=float).reshape(4)
-    return covariance.tolist()
-
-
 def make_odometry(stamp_seconds, position, velocity, position_cov, velocity_cov, frame_id='map',
                   child_frame_id='base_link', yaw=0.0):
     """Return a nav_msgs/Odometry of a planar robot.
@@ -216,20 +204,61 @@ def make_odometry(stamp_seconds, position, velocity, position_cov, velocity_cov,
     VELOCITY and both (2, 2) covariances are in the world frame; the twist is written in the
     child frame (rotated by -YAW), as Odometry requires.
     """
+    values = _odometry_values(position, velocity, position_cov, velocity_cov, yaw)
     msg = Odometry()
     msg.header.stamp = seconds_to_stamp(stamp_seconds)
     msg.header.frame_id = frame_id
     msg.child_frame_id = child_frame_id
-    msg.pose.pose.position.x, msg.pose.pose.position.y = (float(value) for value in position)
-    msg.pose.pose.orientation.z = math.sin(0.5 * yaw)
-    msg.pose.pose.orientation.w = math.cos(0.5 * yaw)
-    msg.pose.covariance = _covariance_6x6(position_cov)
-    world_to_body = _rotation(-yaw)
-    body_velocity = world_to_body @ np.asarray(velocity, dtype=float)
-    msg.twist.twist.linear.x, msg.twist.twist.linear.y = (float(value) for value in body_velocity)
-    msg.twist.covariance = _covariance_6x6(
-        _rotate_covariance(world_to_body, np.asarray(velocity_cov, dtype=float)))
+    pose, twist = msg.pose.pose, msg.twist.twist
+    pose.position.x, pose.position.y = values[_POSITION]
+    pose.orientation.x, pose.orientation.y, pose.orientation.z, pose.orientation.w = (
+        values[_ORIENTATION])
+    msg.pose.covariance = values[_POSE_COVARIANCE]
+    twist.linear.x, twist.linear.y = values[_LINEAR]
+    msg.twist.covariance = values[_TWIST_COVARIANCE]
     return msg
+
+
+def serialize_odometry(stamp_seconds, position, velocity, position_cov, velocity_cov,
+                       frame_id='map', child_frame_id='base_link', yaw=0.0):
+    """Return make_odometry's message serialized (little-endian CDR), ready to publish.
+
+    A publisher sends bytes as they are; packing the few fields a planar robot sets costs a
+    small fraction of building the message in Python and having rclpy convert it.
+    """
+    values = _odometry_values(position, velocity, position_cov, velocity_cov, yaw)
+    body = bytearray(struct.pack('<iI', *_stamp_fields(stamp_seconds)))
+    for text in (frame_id, child_frame_id):
+        body += bytes(-len(body) % 4)
+        encoded = text.encode() + b'\x00'
+        body += struct.pack('<I', len(encoded)) + encoded
+    body += bytes(-len(body) % 8)
+    body += struct.pack(f'<{_ODOMETRY_FLOAT_COUNT}d', *values)
+    return _CDR_LITTLE_ENDIAN + bytes(body)
+
+
+def _odometry_values(position, velocity, position_cov, velocity_cov, yaw):
+    """Return the 85 floats of a planar robot's Odometry after its two frame names."""
+    # Plain floats, as in _measurement: the simulator sends two of these per robot per step.
+    cos_yaw, sin_yaw = math.cos(yaw), math.sin(yaw)
+    world_x, world_y = (float(value) for value in velocity)
+    (axx, axy), (ayx, ayy) = np.asarray(velocity_cov, dtype=float).tolist()
+    (pxx, pxy), (pyx, pyy) = np.asarray(position_cov, dtype=float).tolist()
+    # The twist in the child frame: W v and W C W^T with W the rotation by -yaw.
+    cross, axy = cos_yaw * sin_yaw, 0.5 * (axy + ayx)
+    bxx = cos_yaw * cos_yaw * axx + 2.0 * cross * axy + sin_yaw * sin_yaw * ayy
+    bxy = cross * (ayy - axx) + (cos_yaw * cos_yaw - sin_yaw * sin_yaw) * axy
+    byy = sin_yaw * sin_yaw * axx - 2.0 * cross * axy + cos_yaw * cos_yaw * ayy
+    values = [0.0] * _ODOMETRY_FLOAT_COUNT
+    values[_POSITION] = (float(value) for value in position)
+    values[_ORIENTATION] = (0.0, 0.0, math.sin(0.5 * yaw), math.cos(0.5 * yaw))
+    values[_LINEAR] = (cos_yaw * world_x + sin_yaw * world_y,
+                       -sin_yaw * world_x + cos_yaw * world_y)
+    for block, (xx, xy, yx, yy) in ((_POSE_COVARIANCE, (pxx, pxy, pyx, pyy)),
+                                    (_TWIST_COVARIANCE, (bxx, bxy, bxy, byy))):
+        for index, value in zip(_XY_FLAT_INDICES, (xx, xy, yx, yy), strict=True):
+            values[block.start + index] = value
+    return values
 
 
 def make_twist(velocity):

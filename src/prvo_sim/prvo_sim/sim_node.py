@@ -44,11 +44,11 @@ from prvo_msgs_util import (
     freeze_startup_objects,
     make_diagnostic_array,
     make_diagnostic_status,
-    make_odometry,
     quiet_publisher_events,
     quiet_subscription_events,
     robot_topic,
     seconds_to_stamp,
+    serialize_odometry,
     spin_events,
     stamp_to_seconds,
     twist_to_velocity,
@@ -376,11 +376,12 @@ class SimNode(Node):
         for index, robot in enumerate(self._robots):
             frames = {'frame_id': WORLD_FRAME, 'child_frame_id': robot.base_frame,
                       'yaw': float(self._yaws[index])}
-            odometry = make_odometry(
+            # Serialized: sent as they are, without rclpy converting a Python message.
+            odometry = serialize_odometry(
                 now, noisy_positions[index], noisy_velocities[index],
                 self._position_std[index] ** 2 * np.eye(2),
                 self._velocity_std[index] ** 2 * np.eye(2), **frames)
-            ground_truth = make_odometry(
+            ground_truth = serialize_odometry(
                 now, self._positions[index], self._velocities[index], np.zeros((2, 2)),
                 np.zeros((2, 2)), **frames)
             self._last_odometry.append((odometry, ground_truth))
