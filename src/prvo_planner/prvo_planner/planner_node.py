@@ -65,6 +65,8 @@ from prvo_planner.estimation import ConstantVelocityTracker
 # A stamp this far behind a track's last one means its source restarted (e.g. the simulator):
 # the track starts over instead of rejecting every message from then on.
 _TIME_RESET_SECONDS = 1.0
+# Plans for a made-up encounter before spinning (see PlannerNode.warm_up).
+_WARM_UP_PLANS = 3
 _WARN_PERIOD_SECONDS = 2.0
 _ODOMETRY_TYPE = 'nav_msgs/msg/Odometry'
 
@@ -321,6 +323,22 @@ class PlannerNode(Node):
             self._sync_timer.timer_period_ns = int(max(values['sync_timeout'], 1e-3) * 1e9)
         return SetParametersResult(successful=True)
 
+    def warm_up(self):
+        """Plan for a made-up encounter a few times, before the first real plan.
+
+        A process's first plans pay one-off costs (numpy's first calls into its linear algebra,
+        the planner's caches). When a team starts together on few cores, that is enough to
+        miss the first realtime deadlines. The planner is pure: nothing here reaches a real plan.
+        """
+        radius = self._values['radius']
+        own = AgentBelief([0.0, 0.0], [0.5, 0.0], 0.01 * np.eye(4), radius)
+        neighbours = [AgentBelief([2.0, 0.2], [-0.5, 0.0], 0.01 * np.eye(4), radius),
+                      AgentBelief([1.0, -1.5], [0.0, 0.5], 0.01 * np.eye(4), radius)]
+        previous = None
+        for _ in range(_WARM_UP_PLANS):
+            previous = plan_velocity(own, neighbours, np.array([1.0, 0.0]), self._config,
+                                     previous=previous).velocity
+
     # Inputs -----------------------------------------------------------------------------------
 
     def _warn(self, kind, message):
@@ -552,6 +570,7 @@ def main(args=None):
     node = None
     try:
         node = PlannerNode()
+        node.warm_up()
         freeze_startup_objects()
         spin_events(node)
     except (KeyboardInterrupt, ExternalShutdownException):
