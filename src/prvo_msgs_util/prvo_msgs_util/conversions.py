@@ -178,23 +178,33 @@ def _measurement(stamp, frame_id, child_frame_id, position, orientation, pose_co
     _require_finite(body_velocity, 'twist.linear')
     yaw = _yaw_from_quaternion(orientation)
     pxx, pxy, pyy = _xy_covariance(pose_covariance, 'pose.covariance')
-    bxx, bxy, byy = _xy_covariance(twist_covariance, 'twist.covariance')
-    # The twist into the world frame, R v and R C R^T with R the rotation by yaw, in plain
-    # floats: every odometry message of every robot passes here.
+    # The twist into the world frame: rotated by yaw.
     cos_yaw, sin_yaw = math.cos(yaw), math.sin(yaw)
-    body_x, body_y = body_velocity
-    cross = cos_yaw * sin_yaw
-    vxx = cos_yaw * cos_yaw * bxx - 2.0 * cross * bxy + sin_yaw * sin_yaw * byy
-    vxy = cross * (bxx - byy) + (cos_yaw * cos_yaw - sin_yaw * sin_yaw) * bxy
-    vyy = sin_yaw * sin_yaw * bxx + 2.0 * cross * bxy + cos_yaw * cos_yaw * byy
+    vxx, vxy, vyy = _rotated_covariance(
+        cos_yaw, sin_yaw, *_xy_covariance(twist_covariance, 'twist.covariance'))
     return OdometryMeasurement(
         stamp=stamp, frame_id=frame_id, child_frame_id=child_frame_id,
         position=np.array(position, dtype=float),
-        velocity=np.array([cos_yaw * body_x - sin_yaw * body_y,
-                           sin_yaw * body_x + cos_yaw * body_y]),
+        velocity=np.array(_rotated_vector(cos_yaw, sin_yaw, *body_velocity)),
         covariance=np.array([[pxx, pxy, 0.0, 0.0], [pxy, pyy, 0.0, 0.0],
                              [0.0, 0.0, vxx, vxy], [0.0, 0.0, vxy, vyy]]),
         yaw=yaw)
+
+
+# Rotations by the angle of (COS, SIN) in plain floats: every odometry message of every robot
+# is built or read through them, and numpy's per-call cost exceeds the arithmetic of a 2x2.
+
+def _rotated_vector(cos, sin, x, y):
+    """Return R (x, y) as a tuple, R the rotation with cosine COS and sine SIN."""
+    return cos * x - sin * y, sin * x + cos * y
+
+
+def _rotated_covariance(cos, sin, xx, xy, yy):
+    """Return R C R^T as (xx, xy, yy), C = [[XX, XY], [XY, YY]], symmetric by construction."""
+    cross = cos * sin
+    return (cos * cos * xx - 2.0 * cross * xy + sin * sin * yy,
+            cross * (xx - yy) + (cos * cos - sin * sin) * xy,
+            sin * sin * xx + 2.0 * cross * xy + cos * cos * yy)
 
 
 def make_odometry(stamp_seconds, position, velocity, position_cov, velocity_cov, frame_id='map',
@@ -239,21 +249,16 @@ def serialize_odometry(stamp_seconds, position, velocity, position_cov, velocity
 
 def _odometry_values(position, velocity, position_cov, velocity_cov, yaw):
     """Return the 85 floats of a planar robot's Odometry after its two frame names."""
-    # Plain floats, as in _measurement: the simulator sends two of these per robot per step.
-    cos_yaw, sin_yaw = math.cos(yaw), math.sin(yaw)
-    world_x, world_y = (float(value) for value in velocity)
     (axx, axy), (ayx, ayy) = np.asarray(velocity_cov, dtype=float).tolist()
     (pxx, pxy), (pyx, pyy) = np.asarray(position_cov, dtype=float).tolist()
-    # The twist in the child frame: W v and W C W^T with W the rotation by -yaw.
-    cross, axy = cos_yaw * sin_yaw, 0.5 * (axy + ayx)
-    bxx = cos_yaw * cos_yaw * axx + 2.0 * cross * axy + sin_yaw * sin_yaw * ayy
-    bxy = cross * (ayy - axx) + (cos_yaw * cos_yaw - sin_yaw * sin_yaw) * axy
-    byy = sin_yaw * sin_yaw * axx - 2.0 * cross * axy + cos_yaw * cos_yaw * ayy
+    # The twist in the child frame: rotated by -yaw.
+    cos_yaw, minus_sin_yaw = math.cos(yaw), -math.sin(yaw)
+    bxx, bxy, byy = _rotated_covariance(cos_yaw, minus_sin_yaw, axx, 0.5 * (axy + ayx), ayy)
     values = [0.0] * _ODOMETRY_FLOAT_COUNT
     values[_POSITION] = (float(value) for value in position)
     values[_ORIENTATION] = (0.0, 0.0, math.sin(0.5 * yaw), math.cos(0.5 * yaw))
-    values[_LINEAR] = (cos_yaw * world_x + sin_yaw * world_y,
-                       -sin_yaw * world_x + cos_yaw * world_y)
+    values[_LINEAR] = _rotated_vector(cos_yaw, minus_sin_yaw,
+                                      *(float(value) for value in velocity))
     for block, (xx, xy, yx, yy) in ((_POSE_COVARIANCE, (pxx, pxy, pyx, pyy)),
                                     (_TWIST_COVARIANCE, (bxx, bxy, bxy, byy))):
         for index, value in zip(_XY_FLAT_INDICES, (xx, xy, yx, yy), strict=True):

@@ -38,9 +38,9 @@ def quiet_subscription_events():
     """Event callbacks for a control-loop subscription: no rclpy QoS event handlers.
 
     rclpy gives every endpoint two default event handlers (incompatible QoS, incompatible
-    type). Each is a waitable that the executor adds to every wait set and polls after every
-    wake-up, which costs a planner about a millisecond per control step; ``QosWatch`` reports
-    incompatible QoS from the ROS graph instead.
+    type). Each is a waitable: rclpy's default executor adds it to every wait set and polls it
+    after every wake-up, about a millisecond per planner step, and every executor holds it.
+    ``QosWatch`` reports incompatible QoS from the ROS graph instead.
     """
     return SubscriptionEventCallbacks(use_default_callbacks=False)
 

@@ -381,7 +381,6 @@ class Recorder:
         self._decoded = {kind: ({name: {} for name in self.robot_names},
                                 dict.fromkeys(self.robot_names, 0))
                          for kind in ('ground_truth', 'commands')}
-        self._latest = {}
         self.plan_times_ms = []
         self.sim_status = {}
         self.context = Context()
@@ -407,18 +406,17 @@ class Recorder:
         self.node.create_subscription(DiagnosticArray, DIAGNOSTICS, self._on_diagnostics,
                                       DIAGNOSTICS_QOS, event_callbacks=quiet_subscription_events())
 
-    @property
     def latest(self):
-        """{robot: (stamp ns, position (2,))} of the newest ground truth of each robot heard."""
+        """Return {robot: (stamp ns, position (2,))} of the newest ground truth of each robot."""
         from prvo_msgs_util import serialized_odometry_to_measurement
 
+        latest = {}
         for name, received in self._serialized['ground_truth'].items():
-            if received and self._latest.get(name, (None, None, 0))[2] != len(received):
+            if received:
                 measurement = serialized_odometry_to_measurement(
                     received[-1], expected_frame=WORLD_FRAME)
-                self._latest[name] = (_seconds_ns(measurement.stamp), measurement.position,
-                                      len(received))
-        return {name: latest[:2] for name, latest in self._latest.items()}
+                latest[name] = (_seconds_ns(measurement.stamp), measurement.position)
+        return latest
 
     @property
     def ground_truth(self):
@@ -588,12 +586,13 @@ def wait_for_end(recorder, children, spec, progress):
                     f'(log: {exited.log_path})')
         if now - started > spec.timeout:
             return f'timed out after {spec.timeout:g} s of wall time'
-        if len(recorder.latest) < len(scenario.robots):
+        latest = recorder.latest()
+        if len(latest) < len(scenario.robots):
             if now - started > STARTUP_LIMIT:
                 return f'no ground truth from every robot within {STARTUP_LIMIT:g} s'
             continue
-        sim_time = min(stamp for stamp, _ in recorder.latest.values()) * 1e-9
-        positions = np.array([recorder.latest[robot.name][1] for robot in scenario.robots])
+        sim_time = min(stamp for stamp, _ in latest.values()) * 1e-9
+        positions = np.array([latest[robot.name][1] for robot in scenario.robots])
         arrived = np.linalg.norm(positions - goals, axis=1) <= scenario.goal_tolerance
         if now >= next_progress:
             progress(sim_time, int(arrived.sum()), now - started)
