@@ -1,4 +1,4 @@
-"""The probabilistic guarantees, checked by sampling the beliefs (prvo-math.md 5 and 7)."""
+"""The probabilistic guarantees, checked by sampling the beliefs (docs/method.md 5 and 7)."""
 
 import math
 

@@ -13,13 +13,9 @@ from prvo_planner.core import (
     rvo_moments,
     rvo_satisfaction_probability,
 )
+from prvo_planner.core.encounter import build_encounter, candidate_directions, condition_layout
+from prvo_planner.core.feasibility import ray_gaps
 from prvo_planner.core.moments import condition_moments, ray_polynomials
-from prvo_planner.core.planner import (
-    build_encounter,
-    candidate_directions,
-    condition_layout,
-    ray_gaps,
-)
 from prvo_planner.core.probability import rvo_condition, sample_relative_states
 
 MODELS = ('prvo', 'rvo', 'inflate', 'mc')

@@ -4,14 +4,9 @@ import numpy as np
 from prvo_core_testing import random_covariance, random_two_robot_encounter
 
 from prvo_planner.core import AgentBelief, PlannerConfig, plan_velocity
+from prvo_planner.core.encounter import build_encounter, candidate_directions, condition_layout
+from prvo_planner.core.feasibility import achieved_margins, ray_gaps
 from prvo_planner.core.moments import condition_moments, ray_polynomials
-from prvo_planner.core.planner import (
-    achieved_margins,
-    build_encounter,
-    candidate_directions,
-    condition_layout,
-    ray_gaps,
-)
 
 
 def membership(gap_direction, lower, upper, directions, t):

@@ -1,7 +1,7 @@
 """
 Closed-form moments of the RVO condition and of the receding and horizon conditions.
 
-With ``z = (r_x, r_y, u_x, u_y) ~ N(mu, S)`` every condition of prvo-math.md is a quadratic
+With ``z = (r_x, r_y, u_x, u_y) ~ N(mu, S)`` every condition of docs/method.md is a quadratic
 form ``z'Xz`` or, for ``f``, ``q^2 - R^2 p`` with quadratic forms ``q = r x u = z'Az`` and
 ``p = |u|^2 = z'Bz``. Joint cumulants of Gaussian quadratic forms have a closed form (from the
 cumulant generating function ``-1/2 log det(I - 2 M S) + mu' (I - 2 M S)^-1 M mu``):
@@ -213,7 +213,7 @@ def condition_moments(origin, cov, combined_radius, velocities, time_horizon, re
     Mean and variance of every condition at given commanded velocities.
 
     The conditions are, in order: ``f``; ``g`` if ``receding_gate``; ``h1`` and ``h2`` if
-    ``time_horizon`` is finite (prvo-math.md sections 3 and 7).
+    ``time_horizon`` is finite (docs/method.md, sections 3 and 7).
 
     Parameters
     ----------

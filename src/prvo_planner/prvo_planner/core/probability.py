@@ -97,7 +97,7 @@ def sample_relative_states(ego, neighbour, command, actuation_cov, n_samples, rn
 
 def rvo_condition(z, combined_radius):
     """
-    Evaluate ``f(r, u) = (r x u)^2 - R^2 |u|^2`` (prvo-math.md section 3).
+    Evaluate ``f(r, u) = (r x u)^2 - R^2 |u|^2`` (docs/method.md, section 3).
 
     Parameters
     ----------

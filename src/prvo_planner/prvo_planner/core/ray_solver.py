@@ -267,7 +267,7 @@ def polynomial_roots(columns):
 
 def taylor_quadratics(means, variances, margins, preferred):
     """
-    Build the paper's quadratic surrogate ``mean(t) - k T(t)`` (prvo-math.md 6, Taylor).
+    Build the paper's quadratic surrogate ``mean(t) - k T(t)`` (docs/method.md, section 6).
 
     ``T`` is the second-order Taylor expansion of ``sigma = sqrt(variance)`` around ``t*``, the
     point of ``{t in [0, 1] : mean(t) >= 0}`` closest to the preferred ``t`` on the ray (the

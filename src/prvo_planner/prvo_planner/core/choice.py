@@ -1,0 +1,162 @@
+"""
+The choice among feasible velocities, and the ranking of candidates when none is feasible.
+
+The cost of a velocity is ``|v - v_pref| + inertia |v - previous| + passing_bias max(0,
+left(v))``; the extra terms only rank velocities that the constraints already admit.
+"""
+
+import math
+
+import numpy as np
+
+from .feasibility import achieved_margins, horner_coefficient_major
+
+# Speeds, as fractions of v_max, tried on every direction when no direction is feasible (and by
+# the Monte Carlo baseline), besides the preferred speed on the direction.
+_SPEED_GRID = np.linspace(0.0, 1.0, 9)
+_SPEED_GRID_POWERS = _SPEED_GRID[:, None] ** np.arange(5)
+# The best speed on a ray under the inertia / passing-bias cost: a grid of 17 points over the
+# interval, zoomed 5 times onto the best point's two cells (1/8 of the span each time): to
+# 8^-5 (3e-5) of the interval.
+_ZOOM_GRID = np.linspace(0.0, 1.0, 17)
+_ZOOM_LEVELS = 5
+# Chosen speeds stay this far (in t) inside a feasible interval so that rounding in the roots
+# cannot put them on the rejected side.
+INTERIOR = 1e-9
+
+
+def _distances(points, point):
+    """Euclidean distances of POINTS (..., 2) from POINT (2,), shape (...)."""
+    offset = points - point
+    # sqrt of a sum, not np.linalg.norm: a fraction of the cost on the small arrays of a plan.
+    return np.sqrt(offset[..., 0] * offset[..., 0] + offset[..., 1] * offset[..., 1])
+
+
+def choice_costs(velocities, v_pref, previous, config):
+    """
+    Cost of commanded velocities, shape (..., 2) -> (...): smaller is better.
+
+    ``|v - v_pref|`` (docs/method.md, section 7), plus ``inertia |v - previous|`` when a previous
+    command is given and ``passing_bias max(0, left(v))`` with ``left`` the component of ``v``
+    to the left of ``v_pref``'s direction. Both extra terms are convex in ``v`` and only rank
+    velocities; which ones are acceptable is decided by the constraints alone.
+    """
+    costs = _distances(velocities, v_pref)
+    if previous is not None and config.inertia > 0.0:
+        costs += config.inertia * _distances(velocities, previous)
+    norm = math.hypot(v_pref[0], v_pref[1])
+    if config.passing_bias > 0.0 and norm > 1e-9:
+        left = (v_pref[0] * velocities[..., 1] - v_pref[1] * velocities[..., 0]) / norm
+        costs += config.passing_bias * np.maximum(left, 0.0)
+    return costs
+
+
+def best_speeds(directions, lower, upper, preferred, v_pref, previous, config):
+    """
+    Best ``t`` in ``[lower, upper]`` on each ray ``t v_max e``, shape (G,).
+
+    Under the plain cost it is the preferred ``t`` projected onto the interval. The extra terms
+    of :func:`choice_costs` keep the cost convex along the ray, so its minimum lies within a
+    cell of the best point of a grid; zooming a grid onto those two cells a few times finds it
+    (the interval ends and the plain optimum are candidates too: a flat or kinked minimum).
+    Only intervals that can hold the overall optimum are searched; the others keep the
+    projected ``t``, whose cost cannot be the smallest.
+    """
+    projected = np.clip(preferred, lower, upper)
+    if not ((previous is not None and config.inertia > 0.0) or config.passing_bias > 0.0):
+        return projected
+    # The plain term alone, smallest at the projected t, bounds an interval's cost from below
+    # (the extra terms are >= 0); the full cost at a projected t bounds the optimum from above.
+    at_projected = config.max_speed * projected[:, None] * directions
+    plain = _distances(at_projected, v_pref)
+    searched = (plain <= choice_costs(at_projected, v_pref, previous, config).min()).nonzero()[0]
+    best = projected.copy()
+    best[searched] = _zoomed_speeds(directions[searched], lower[searched], upper[searched],
+                                    projected[searched], v_pref, previous, config)
+    return best
+
+
+def _zoomed_speeds(directions, lower, upper, projected, v_pref, previous, config):
+    """Minimise :func:`choice_costs` on each ray's interval by a zoomed grid, shape (G,)."""
+    velocity_directions = config.max_speed * directions[:, None, :]
+    low, high = lower, upper
+    for _ in range(_ZOOM_LEVELS):
+        grid = low[:, None] + (high - low)[:, None] * _ZOOM_GRID
+        best = np.argmin(choice_costs(grid[..., None] * velocity_directions, v_pref, previous,
+                                       config), axis=1)
+        rows = np.arange(grid.shape[0])
+        # The minimum of a convex function lies within one cell of the best grid point.
+        low = grid[rows, np.maximum(best - 1, 0)]
+        high = grid[rows, np.minimum(best + 1, _ZOOM_GRID.size - 1)]
+    options = np.stack([0.5 * (low + high), projected, lower, upper], axis=1)
+    option_costs = choice_costs(options[..., None] * velocity_directions, v_pref, previous,
+                                 config)
+    return options[np.arange(options.shape[0]), np.argmin(option_costs, axis=1)]
+
+
+def speed_grid(directions, preferred, v_pref, previous, config):
+    """
+    Candidate speeds for sampling-based choices and their choice costs.
+
+    Returns
+    -------
+    speeds : numpy.ndarray
+        ``t`` per direction, shape (M, T): the preferred one (clipped), then a fixed grid.
+    costs : numpy.ndarray
+        :func:`choice_costs` of ``t v_max e``, shape (M, T).
+
+    """
+    speeds = np.concatenate([np.clip(preferred, 0.0, 1.0)[:, None],
+                             np.broadcast_to(_SPEED_GRID, (directions.shape[0],
+                                                           _SPEED_GRID.size))], axis=1)
+    costs = choice_costs(config.max_speed * speeds[..., None] * directions[:, None, :], v_pref,
+                          previous, config)
+    return speeds, costs
+
+
+def grid_scores(means, variances, speeds, layout, deterministic):
+    """
+    Ranked achieved ``k`` at candidate speeds, minimised over neighbours.
+
+    Parameters
+    ----------
+    means, variances : numpy.ndarray
+        Condition polynomials, shapes (N, M, C, 3) and (N, M, C, 5).
+    speeds : numpy.ndarray
+        ``t`` per direction, shape (M, T).
+    layout : ConditionLayout
+        Column meaning.
+    deterministic : bool
+        All variances are zero: rank by the normalised margin (``achieved_margins``' ``rank``).
+
+    Returns
+    -------
+    numpy.ndarray
+        Shape (M, T).
+
+    """
+    count, directions, conditions = means.shape[:3]
+    # Speed 0 is each direction's own (Horner's rule, per direction); the others are the same
+    # grid on every direction: one product with the coefficient-major rows of every
+    # (neighbour, direction, condition). Grid values are laid out (T, N, M, C).
+    own = np.tile(np.repeat(speeds[:, 0], conditions), count)
+    grid = []
+    for polynomial in (means, variances):
+        rows = polynomial.transpose(3, 0, 1, 2).reshape(polynomial.shape[-1], -1)
+        values = np.empty((speeds.shape[1], rows.shape[1]))
+        values[1:] = _SPEED_GRID_POWERS[:, :rows.shape[0]] @ rows
+        values[0] = horner_coefficient_major(rows, own)
+        grid.append(values.reshape(speeds.shape[1], count, directions, conditions))
+    scores = np.min(achieved_margins(grid[0], grid[1], layout, layout.receding_enabled[:, None],
+                                     rank=deterministic, scratch=True), axis=1)
+    return scores.T
+
+
+def best_ranked(score, costs):
+    """Flat index of the largest score, ties (within rounding) broken by the smallest cost."""
+    best = np.max(score)
+    if np.isfinite(best):
+        ties = score >= best - 1e-9 * max(1.0, abs(best))
+    else:
+        ties = score == best
+    return int(np.argmin(np.where(ties, costs, np.inf)))

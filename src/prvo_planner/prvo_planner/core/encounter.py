@@ -1,0 +1,186 @@
+"""
+The neighbours of one plan as relative Gaussians, the candidate directions, and the conditions.
+
+``build_encounter`` turns beliefs into the mean and covariance of ``z = (r, u)`` per neighbour
+(docs/method.md, section 2); ``condition_layout`` says which of the alternatives
+``f``, ``g``, ``h1 and h2`` each neighbour is judged by; ``model_moments`` gives the covariance and
+radius each model plans with.
+"""
+
+from dataclasses import dataclass
+import functools
+import math
+
+import numpy as np
+
+from .probability import eta_from_k
+
+
+@dataclass(frozen=True)
+class Encounter:
+    """
+    The neighbours a plan considers, as relative Gaussians (docs/method.md, section 2).
+
+    Attributes
+    ----------
+    origin : numpy.ndarray
+        Mean of ``z = (r, u)`` at zero command, shape (N, 4).
+    cov : numpy.ndarray
+        Covariance of ``z`` (with ``4 S_a`` in the velocity block), shape (N, 4, 4).
+    combined_radius : numpy.ndarray
+        ``R = R_i + R_j + margin``, shape (N,).
+    overlapping : numpy.ndarray
+        Whether the mean centres are closer than ``R``, shape (N,).
+    margin : float
+        Per-neighbour ``k`` for ``f`` and ``g``.
+    horizon_margin : float
+        Per-neighbour ``k'`` for each of ``h1`` and ``h2``.
+    eta : float
+        Per-neighbour probability in force.
+
+    """
+
+    origin: np.ndarray
+    cov: np.ndarray
+    combined_radius: np.ndarray
+    overlapping: np.ndarray
+    margin: float
+    horizon_margin: float
+    eta: float
+
+
+def build_encounter(ego, neighbours, config):
+    """
+    Select the neighbours within ``neighbor_distance`` and form their relative Gaussians.
+
+    The distance is between the mean disk surfaces: ``|p_i - p_j| - R_i - R_j``.
+
+    Parameters
+    ----------
+    ego : AgentBelief
+        The planning robot.
+    neighbours : sequence of AgentBelief
+        Other robots.
+    config : PlannerConfig
+        Planner parameters.
+
+    Returns
+    -------
+    Encounter
+        The selected neighbours (possibly none).
+
+    """
+    positions = np.array([belief.position for belief in neighbours]).reshape(-1, 2)
+    velocities = np.array([belief.velocity for belief in neighbours]).reshape(-1, 2)
+    covariances = np.array([belief.covariance for belief in neighbours]).reshape(-1, 4, 4)
+    radii = np.array([belief.radius for belief in neighbours])
+    relative_position = ego.position - positions
+    distance = np.hypot(relative_position[:, 0], relative_position[:, 1])
+    near = distance - ego.radius - radii <= config.neighbor_distance
+    count = int(near.sum())
+    margin = config.effective_k
+    if config.risk == 'joint' and count > 0:
+        # 1 - eta_j = (1 - eta) / n with 1 - eta = 1 / (1 + k^2), written in k to stay finite.
+        margin = math.sqrt((1.0 + margin ** 2) * count - 1.0)
+    cov = np.zeros((count, 4, 4))
+    cov[:, :2, :2] = ego.covariance[:2, :2] + covariances[near, :2, :2]
+    cov[:, 2:, 2:] = (4.0 * config.actuation_cov + ego.covariance[2:, 2:]
+                      + covariances[near, 2:, 2:])
+    cross = -ego.covariance[:2, 2:] + covariances[near, :2, 2:]
+    cov[:, :2, 2:] = cross
+    cov[:, 2:, :2] = cross.swapaxes(-1, -2)
+    combined_radius = ego.radius + radii[near] + config.safety_margin
+    return Encounter(
+        origin=np.concatenate([relative_position[near], -ego.velocity - velocities[near]], axis=1),
+        cov=cov, combined_radius=combined_radius,
+        overlapping=distance[near] < combined_radius, margin=margin,
+        # k' = sqrt((1 + eta) / (1 - eta)) with eta = k^2 / (1 + k^2).
+        horizon_margin=math.sqrt(1.0 + 2.0 * margin ** 2), eta=eta_from_k(margin))
+
+
+@functools.lru_cache(maxsize=16)
+def _headings(count, seed):
+    """``count`` evenly spaced unit headings, rotated by a random offset when seeded (M, 2)."""
+    offset = 0.0
+    if seed is not None:
+        offset = np.random.default_rng(seed).uniform(0.0, 2.0 * np.pi / count)
+    headings = offset + 2.0 * np.pi * np.arange(count) / count
+    directions = np.stack([np.cos(headings), np.sin(headings)], axis=1)
+    # Shared between calls: read-only so that no caller can alter the cached value.
+    directions.flags.writeable = False
+    return directions
+
+
+def candidate_directions(ego, v_pref, config):
+    """
+    Return unit candidate directions: ``v_pref``'s, the current velocity's, ``M`` headings.
+
+    Parameters
+    ----------
+    ego : AgentBelief
+        Supplies the current (mean) velocity.
+    v_pref : numpy.ndarray
+        Preferred velocity, shape (2,).
+    config : PlannerConfig
+        ``num_directions`` and ``seed`` (a seed rotates the headings by a random offset).
+
+    Returns
+    -------
+    numpy.ndarray
+        Shape (M', 2) with M' in [M, M + 2].
+
+    """
+    directions = [_headings(config.num_directions, config.seed)]
+    for vector in (ego.velocity, v_pref):
+        norm = math.hypot(vector[0], vector[1])
+        if norm > 1e-9:
+            directions.insert(0, (vector / norm)[None, :])
+    return np.concatenate(directions, axis=0)
+
+
+@dataclass(frozen=True)
+class ConditionLayout:
+    """
+    Which conditions each neighbour has, in the column order of ``condition_moments``.
+
+    Attributes
+    ----------
+    has_receding : bool
+        A ``g`` column exists (index 1).
+    has_horizon : bool
+        ``h1`` and ``h2`` columns exist (the last two).
+    receding_enabled : numpy.ndarray
+        Per neighbour, whether ``g`` is accepted, shape (N,).
+
+    """
+
+    has_receding: bool
+    has_horizon: bool
+    receding_enabled: np.ndarray
+
+    def margins(self, encounter):
+        """Return the ``k`` of each condition column (``k'`` for ``h1``, ``h2``), shape (C,)."""
+        return np.array([encounter.margin] * (1 + self.has_receding)
+                        + [encounter.horizon_margin] * (2 * self.has_horizon))
+
+
+def condition_layout(encounter, config):
+    """Conditions for an encounter: ``g`` is always on for overlapping neighbours (f < 0)."""
+    enabled = np.full(encounter.overlapping.shape, config.receding_gate) | encounter.overlapping
+    return ConditionLayout(has_receding=bool(enabled.any()),
+                           has_horizon=math.isfinite(config.time_horizon),
+                           receding_enabled=enabled)
+
+
+def model_moments(encounter, config):
+    """Covariance and radius the model plans with, and whether it is noise-free."""
+    if config.model in ('prvo', 'mc'):
+        # Exactly known beliefs make every variance zero: the means alone decide.
+        return encounter.cov, encounter.combined_radius, not encounter.cov.any()
+    radius = encounter.combined_radius
+    if config.model == 'inflate':
+        position_spread = np.linalg.eigvalsh(encounter.cov[:, :2, :2])[:, -1]
+        # c = sqrt(-2 ln(1 - eta)) with 1 - eta = 1 / (1 + k^2).
+        confidence = math.sqrt(2.0 * math.log1p(encounter.margin ** 2))
+        radius = radius + confidence * np.sqrt(np.maximum(position_spread, 0.0))
+    return np.zeros_like(encounter.cov), radius, True

@@ -1,0 +1,373 @@
+"""
+Which speeds on each candidate ray meet the chance constraints, and by what margin.
+
+``ray_gaps`` finds, for every direction, the intervals of ``t`` (speed ``t v_max``) where every
+neighbour's accepted alternative holds with margin ``k``: closed-form roots of the mean and
+``mean^2 - k^2 variance`` polynomials, Bernstein certificates per quarter of each ray, and one
+sorted sweep over the rejected pieces. ``achieved_margins`` gives the ``k`` a velocity does reach
+(the fallback when nothing is feasible), ``monte_carlo_probabilities`` the sampled baseline.
+"""
+
+import numpy as np
+
+from .ray_solver import (
+    SEGMENTS,
+    bernstein_minimum,
+    polynomial_roots,
+    quadratic_roots,
+    segment_certificates,
+    taylor_quadratics,
+)
+
+# Relative floor on sigma used only to rank infeasible candidates of noise-free models.
+_RANK_FLOOR = 1e-6
+
+
+def combine_conditions(per_condition, layout, receding_enabled, any_of=np.logical_or,
+                       all_of=np.logical_and):
+    """
+    Combine per-condition values into ``f or g or (h1 and h2)``.
+
+    Parameters
+    ----------
+    per_condition : numpy.ndarray
+        Shape (..., C): booleans, or margins with ``any_of=np.maximum, all_of=np.minimum``.
+    layout : ConditionLayout
+        Column meaning.
+    receding_enabled : numpy.ndarray
+        Whether ``g`` counts, broadcastable to shape (...).
+    any_of, all_of : callable
+        The binary "or" and "and".
+
+    Returns
+    -------
+    numpy.ndarray
+        Shape (...).
+
+    """
+    result = per_condition[..., 0]
+    if layout.has_receding:
+        disabled = False if per_condition.dtype == bool else -np.inf
+        result = any_of(result, np.where(receding_enabled, per_condition[..., 1], disabled))
+    if layout.has_horizon:
+        result = any_of(result, all_of(per_condition[..., -2], per_condition[..., -1]))
+    return result
+
+
+def achieved_margins(means, variances, layout, receding_enabled, rank=False, scratch=False):
+    """
+    Achieved ``k`` at given points (docs/method.md, section 7: no accepted velocity).
+
+    Per condition the achieved ``k`` is ``mean / sigma`` (``+-inf`` when ``sigma = 0``). The
+    pair ``h1 and h2`` meets ``k' = min(k_h1, k_h2)``, which is reported as the pairwise ``k``
+    with that ``k'``: ``sqrt((k'^2 - 1) / 2)`` (and ``k' - 1 < 0`` below ``k' = 1``, where the
+    pair bounds nothing). The largest over the accepted alternatives is returned.
+
+    Parameters
+    ----------
+    means, variances : numpy.ndarray
+        Condition values at the points, shape (..., C).
+    layout : ConditionLayout
+        Column meaning.
+    receding_enabled : numpy.ndarray
+        Whether ``g`` counts, broadcastable to shape (...).
+    rank : bool
+        Floor ``sigma`` relative to the mean's size, so that noise-free candidates are ranked
+        by their normalised margin instead of tying at ``-inf``.
+    scratch : bool
+        ``variances`` is a temporary that may be overwritten (saves a copy of a large grid).
+
+    Returns
+    -------
+    numpy.ndarray
+        Shape (...).
+
+    """
+    sigma = np.maximum(variances, 0.0, out=variances if scratch else None)
+    if rank:
+        # sqrt of a sum, not np.hypot: the same floor at a fraction of the cost; in place, as
+        # the grid of candidates can be large.
+        floor = np.multiply(means, _RANK_FLOOR)
+        floor *= floor
+        sigma += floor
+    np.sqrt(sigma, out=sigma)
+    with np.errstate(divide='ignore', invalid='ignore'):
+        # mean / 0 is +-inf as it should be; 0 / 0 (a zero mean known exactly) meets any k.
+        margins = np.divide(means, sigma, out=sigma)
+    margins[np.isnan(margins)] = np.inf
+    result = margins[..., 0]
+    if layout.has_receding:
+        result = np.maximum(result, np.where(receding_enabled, margins[..., 1], -np.inf))
+    if layout.has_horizon:
+        joint = np.minimum(margins[..., -2], margins[..., -1])
+        # sqrt((k'^2 - 1) / 2) for k' >= 1, else k' - 1; in place, as the grid can be large.
+        pairwise = np.multiply(joint, joint)
+        pairwise -= 1.0
+        pairwise *= 0.5
+        np.sqrt(pairwise, out=pairwise, where=joint >= 1.0)
+        np.subtract(joint, 1.0, out=pairwise, where=joint < 1.0)
+        result = np.maximum(result, pairwise)
+    return result
+
+
+def horner_coefficient_major(coefficients, t):
+    """Evaluate polynomials with ascending coefficients along axis 0, shape (L, ...), at t."""
+    value = coefficients[-1]
+    for power in range(coefficients.shape[0] - 2, -1, -1):
+        value = value * t + coefficients[power]
+    return value
+
+
+def _row_tests(means, variances, margins, method, deterministic, preferred):
+    """
+    Build the acceptance tests of every (neighbour, direction, condition) row.
+
+    For the exact method ``mean - k sigma >= 0`` iff ``mean >= 0`` and ``mean^2 - k^2 var >= 0``
+    (the quartic). Where the variance is certified positive on the ray, the surrogate changes
+    only where ``mean = k sigma``, a root of the quartic, so the mean's roots bound pieces only
+    where the variance may vanish (there the quartic has a double root at the mean's root,
+    which closed-form roots resolve poorly).
+
+    Parameters
+    ----------
+    means, variances, margins, method, deterministic, preferred
+        As for :func:`ray_gaps`.
+
+    Returns
+    -------
+    list of (numpy.ndarray, numpy.ndarray or None)
+        Each test's coefficients, coefficient-major: shape (L, K) over the K = N M C rows in
+        (neighbour, direction, condition) order (acceptance needs every test ``>= 0``), with
+        ``None``, or the variance polynomials (5, K) where a row's roots need not bound pieces
+        if its variance is certified positive.
+
+    """
+    rows = means.shape[0] * means.shape[1] * means.shape[2]
+    # Free reshapes when the polynomials are laid out coefficient-major (ray_polynomials).
+    mean_rows = means.transpose(3, 0, 1, 2).reshape(3, rows)
+    if deterministic:
+        return [(mean_rows, None)]
+    if method == 'taylor':
+        quadratic = taylor_quadratics(means, variances, margins, preferred[None, :, None])
+        return [(np.moveaxis(quadratic, -1, 0).reshape(3, rows), None)]
+    variance_rows = variances.transpose(3, 0, 1, 2).reshape(5, rows)
+    constant, linear, square = mean_rows
+    quartic = np.empty((5, rows))
+    np.multiply(constant, constant, out=quartic[0])
+    np.multiply(constant, linear, out=quartic[1])
+    quartic[1] *= 2.0
+    np.multiply(constant, square, out=quartic[2])
+    quartic[2] *= 2.0
+    quartic[2] += linear * linear
+    np.multiply(linear, square, out=quartic[3])
+    quartic[3] *= 2.0
+    np.multiply(square, square, out=quartic[4])
+    # Rows cycle through the conditions fastest: k^2 broadcasts over (5, rows / C, C).
+    quartic.reshape(5, -1, margins.size)[...] -= (
+        margins ** 2 * variance_rows.reshape(5, -1, margins.size))
+    return [(quartic, None), (mean_rows, variance_rows)]
+
+
+def _relevant_conditions(reject_all, layout, receding_enabled):
+    """
+    Mark the conditions whose acceptance can change their pair's on a segment.
+
+    A disabled ``g`` cannot, nor can ``h1`` (``h2``) when ``h2`` (``h1``) is rejected on the
+    whole segment; their roots need not bound pieces.
+
+    Parameters
+    ----------
+    reject_all : numpy.ndarray
+        Per condition, rejected on the whole segment, shape (..., P, C).
+    layout : ConditionLayout
+        Column meaning.
+    receding_enabled : numpy.ndarray
+        Whether ``g`` counts, shape (P,).
+
+    Returns
+    -------
+    numpy.ndarray
+        Booleans, shape (..., P, C).
+
+    """
+    relevant = np.ones(reject_all.shape, dtype=bool)
+    if layout.has_receding:
+        relevant[..., 1] = receding_enabled
+    if layout.has_horizon:
+        relevant[..., -2] = ~reject_all[..., -1]
+        relevant[..., -1] = ~reject_all[..., -2]
+    return relevant
+
+
+def ray_gaps(means, variances, margins, layout, method, deterministic, preferred):
+    """
+    Feasible speed intervals on every ray: the intersection over neighbours of accepted sets.
+
+    Rays are split into ``SEGMENTS`` equal segments of ``t``. A segment that some neighbour
+    rejects entirely (a Bernstein certificate) is closed; on every other segment, each
+    (neighbour, direction) pair whose acceptance is not certified there is cut at the roots of
+    its tests that fall in the segment; each piece is accepted or not by its midpoint, and the
+    rejected pieces and closed segments of each direction are swept in one sort.
+
+    Parameters
+    ----------
+    means, variances : numpy.ndarray
+        Condition polynomials, shapes (N, M, C, 3) and (N, M, C, 5).
+    margins : numpy.ndarray
+        ``k`` per condition column, shape (C,).
+    layout : ConditionLayout
+        Column meaning.
+    method : str
+        ``'exact'`` or ``'taylor'``.
+    deterministic : bool
+        All variances are zero (the mean alone decides).
+    preferred : numpy.ndarray
+        Preferred ``t`` per direction, shape (M,).
+
+    Returns
+    -------
+    direction : numpy.ndarray
+        Direction index of each feasible interval, shape (G,).
+    lower, upper : numpy.ndarray
+        Interval ends in ``t``, shape (G,), ``lower < upper``.
+
+    """
+    count, directions, conditions = means.shape[:3]
+    pairs = count * directions
+    tests = _row_tests(means, variances, margins, method, deterministic, preferred)
+    # Per (segment, row): (S, K), viewed as (S, P, C).
+    certificates = [segment_certificates(test) for test, _ in tests]
+    accept, reject = certificates[0]
+    for nonnegative, negative in certificates[1:]:
+        accept, reject = accept & nonnegative, reject | negative
+    enabled = np.repeat(layout.receding_enabled, directions)
+    accept = accept.reshape(SEGMENTS, pairs, conditions)
+    reject = reject.reshape(SEGMENTS, pairs, conditions)
+    accept_pair = combine_conditions(accept, layout, enabled)
+    reject_pair = ~combine_conditions(~reject, layout, enabled)
+    # A segment of a direction is open unless some neighbour rejects all of it: (S, M).
+    open_segments = ~reject_pair.reshape(SEGMENTS, count, directions).any(axis=1)
+    open_directions = open_segments.any(axis=0)
+    # Units: (segment, pair) on an open segment, not certified accepted there; flat s P + p.
+    open_unit = (~accept_pair & np.tile(open_segments, count)).ravel()
+    open_index = open_unit.nonzero()[0]
+    unit_slot = np.zeros(open_unit.size, dtype=int)
+    unit_slot[open_index] = np.arange(open_index.size)
+    # Only a condition undecided on a segment can split it, and only where its own test is.
+    splitting = (~(accept | reject) & _relevant_conditions(reject, layout, enabled)
+                 & open_unit.reshape(SEGMENTS, pairs, 1))
+    # g's quartic is a quadratic: its mean is linear and its variance quadratic in t.
+    quadratic_condition = np.zeros(conditions, dtype=bool)
+    quadratic_condition[1:2] = layout.has_receding
+    # Every open unit's cuts, flat, with its segment's ends as the ends of its first and last
+    # pieces: cut values and the open unit (slot) each belongs to.
+    unit_segment = open_index // pairs
+    cut_values = [unit_segment / SEGMENTS, (unit_segment + 1) / SEGMENTS]
+    cut_slots = [np.arange(open_index.size)] * 2
+    for (test, variance_rows), (nonnegative, negative) in zip(tests, certificates, strict=True):
+        undecided = splitting & ~(nonnegative | negative).reshape(SEGMENTS, pairs, conditions)
+        needed = undecided.any(axis=0)
+        quadratic_rows = needed & quadratic_condition
+        for rows, quartic in ((needed & ~quadratic_condition, test.shape[0] == 5),
+                              (quadratic_rows, False)):
+            row = rows.ravel().nonzero()[0]
+            if variance_rows is not None and row.size:
+                # Quiet rows: a variance certified positive needs no cuts at this test's roots.
+                row = row[bernstein_minimum(np.take(variance_rows, row, axis=1)) <= 0.0]
+            if not row.size:
+                continue
+            columns = np.take(test, row, axis=1)
+            roots = (polynomial_roots(columns) if quartic else
+                     quadratic_roots(columns[0], columns[1], columns[2]))
+            # A root cuts the unit of the segment it falls in, if the row splits that one.
+            inside = (roots > 0.0) & (roots < 1.0)
+            values = roots[inside]
+            segment = np.minimum((values * SEGMENTS).astype(int), SEGMENTS - 1)
+            root_row = np.broadcast_to(row[:, None], roots.shape)[inside]
+            cuts = undecided.reshape(SEGMENTS, -1)[segment, root_row]
+            cut_values.append(values[cuts])
+            cut_slots.append(unit_slot[segment[cuts] * pairs + root_row[cuts] // conditions])
+    cut_values = np.concatenate(cut_values)
+    cut_slots = np.concatenate(cut_slots)
+    order = np.lexsort((cut_values, cut_slots))
+    cut_values, cut_slots = cut_values[order], cut_slots[order]
+    piece = cut_slots[1:] == cut_slots[:-1]
+    piece_start, piece_end = cut_values[:-1][piece], cut_values[1:][piece]
+    piece_pair = open_index[cut_slots[:-1][piece]] % pairs
+    midpoints = (0.5 * (piece_start + piece_end))[:, None]
+    accepted = True
+    for test, _ in tests:
+        # (L, pieces, C): each piece's pair's coefficients; Horner's rule at its midpoint.
+        value = horner_coefficient_major(
+            np.take(test.reshape(test.shape[0], pairs, conditions), piece_pair, axis=1),
+            midpoints)
+        accepted = accepted & (value >= 0.0)
+    accepted = combine_conditions(accepted, layout, enabled[piece_pair])
+    # Sweep the rejected pieces and closed segments of each open direction, shifted by 4 per
+    # direction so that one sort handles every direction; sentinels reject t < 0 and t > 1 and
+    # end where the next direction's first sentinel starts, so no gap spans two directions.
+    rejected = ~accepted
+    closed_segment, closed_direction = (~open_segments & open_directions).nonzero()
+    sentinel_direction = open_directions.nonzero()[0]
+    direction = np.concatenate([piece_pair[rejected] % directions, closed_direction,
+                                sentinel_direction, sentinel_direction])
+    shift = 4.0 * direction
+    sentinels = sentinel_direction.size
+    starts = np.concatenate([piece_start[rejected], closed_segment / SEGMENTS,
+                             np.full(sentinels, -1.0), np.ones(sentinels)]) + shift
+    ends = np.concatenate([piece_end[rejected], (closed_segment + 1) / SEGMENTS,
+                           np.zeros(sentinels), np.full(sentinels, 3.0)]) + shift
+    order = np.argsort(starts, kind='stable')
+    starts, direction = starts[order], direction[order]
+    reach = np.maximum.accumulate(ends[order])
+    valid = (starts[1:] > reach[:-1]) & (direction[1:] == direction[:-1])
+    direction = direction[1:][valid]
+    return direction, reach[:-1][valid] - 4.0 * direction, starts[1:][valid] - 4.0 * direction
+
+
+def monte_carlo_probabilities(encounter, layout, directions, speeds, config, rng):
+    """
+    Per neighbour, the sampled probability that the accepted event holds at each candidate.
+
+    Parameters
+    ----------
+    encounter : Encounter
+        Neighbours.
+    layout : ConditionLayout
+        Which alternatives are accepted.
+    directions : numpy.ndarray
+        Shape (M, 2).
+    speeds : numpy.ndarray
+        ``t`` per direction, shape (M, T).
+    config : PlannerConfig
+        ``mc_samples``, ``max_speed``, ``time_horizon``.
+    rng : numpy.random.Generator
+        Source of samples.
+
+    Returns
+    -------
+    numpy.ndarray
+        Shape (N, M, T).
+
+    """
+    velocity = 2.0 * config.max_speed * speeds[..., None] * directions[:, None, :]
+    probabilities = []
+    for index in range(encounter.origin.shape[0]):
+        eigenvalues, eigenvectors = np.linalg.eigh(encounter.cov[index])
+        root = eigenvectors * np.sqrt(np.maximum(eigenvalues, 0.0))
+        z = encounter.origin[index] + rng.standard_normal((config.mc_samples, 4)) @ root.T
+        rel_x, rel_y = z[:, 0], z[:, 1]
+        u_x = z[:, 2] + velocity[..., 0, None]
+        u_y = z[:, 3] + velocity[..., 1, None]
+        radius_sq = encounter.combined_radius[index] ** 2
+        speed_sq = u_x * u_x + u_y * u_y
+        event = (rel_x * u_y - rel_y * u_x) ** 2 - radius_sq * speed_sq >= 0.0
+        closing = rel_x * u_x + rel_y * u_y
+        if layout.receding_enabled[index]:
+            event |= closing >= 0.0
+        if layout.has_horizon:
+            tau = config.time_horizon
+            event |= ((-closing - tau * speed_sq >= 0.0)
+                      & ((rel_x + tau * u_x) ** 2 + (rel_y + tau * u_y) ** 2 >= radius_sq))
+        probabilities.append(np.mean(event, axis=-1))
+    return np.array(probabilities)
