@@ -7,7 +7,7 @@ import numbers
 import numpy as np
 
 from .beliefs import as_covariance, as_finite_array
-from .probability import k_from_eta
+from .probability import eta_from_k, k_from_eta
 
 METHODS = ('exact', 'taylor')
 MODELS = ('prvo', 'rvo', 'inflate', 'mc')
@@ -167,7 +167,7 @@ class PlannerConfig:
     @property
     def effective_eta(self):
         """The pairwise probability in force: ``eta_from_k(k)`` if ``k`` is given, else ``eta``."""
-        return self.k ** 2 / (1.0 + self.k ** 2) if self.k is not None else self.eta
+        return eta_from_k(float(self.k)) if self.k is not None else self.eta
 
 
 @dataclass(frozen=True)

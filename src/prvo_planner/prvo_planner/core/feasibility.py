@@ -10,6 +10,7 @@ sorted sweep over the rejected pieces. ``achieved_margins`` gives the ``k`` a ve
 
 import numpy as np
 
+from .probability import rvo_condition_of
 from .ray_solver import (
     SEGMENTS,
     bernstein_minimum,
@@ -361,7 +362,7 @@ def monte_carlo_probabilities(encounter, layout, directions, speeds, config, rng
         u_y = z[:, 3] + velocity[..., 1, None]
         radius_sq = encounter.combined_radius[index] ** 2
         speed_sq = u_x * u_x + u_y * u_y
-        event = (rel_x * u_y - rel_y * u_x) ** 2 - radius_sq * speed_sq >= 0.0
+        event = rvo_condition_of(rel_x, rel_y, u_x, u_y, encounter.combined_radius[index]) >= 0.0
         closing = rel_x * u_x + rel_y * u_y
         if layout.receding_enabled[index]:
             event |= closing >= 0.0

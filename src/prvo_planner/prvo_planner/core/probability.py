@@ -112,8 +112,13 @@ def rvo_condition(z, combined_radius):
         ``f``, shape (...).
 
     """
-    cross = z[..., 0] * z[..., 3] - z[..., 1] * z[..., 2]
-    return cross ** 2 - combined_radius ** 2 * (z[..., 2] ** 2 + z[..., 3] ** 2)
+    return rvo_condition_of(z[..., 0], z[..., 1], z[..., 2], z[..., 3], combined_radius)
+
+
+def rvo_condition_of(r_x, r_y, u_x, u_y, combined_radius):
+    """``f`` of :func:`rvo_condition` from broadcastable components (no stacked ``z``)."""
+    cross = r_x * u_y - r_y * u_x
+    return cross * cross - combined_radius ** 2 * (u_x * u_x + u_y * u_y)
 
 
 def rvo_satisfaction_probability(ego, neighbour, command, actuation_cov, n_samples=100_000,
