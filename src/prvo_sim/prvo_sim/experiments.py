@@ -19,7 +19,15 @@ import time
 
 import numpy as np
 
-from prvo_planner.core import AgentBelief, PlannerConfig, k_from_eta, plan_velocity, rvo_moments
+from prvo_planner.core import (
+    AgentBelief,
+    PlannerConfig,
+    eta_from_k,
+    k_from_eta,
+    plan_velocity,
+    rvo_moments,
+)
+from prvo_planner.core.probability import confidence_ellipse_scale, rvo_condition_of
 from prvo_sim import kinematics, metrics
 from prvo_sim.plotting import draw_trajectories, plt, robot_colours
 from prvo_sim.scenario import NoiseSpec, find_scenario, load_scenario
@@ -90,7 +98,8 @@ def sample_rvo_satisfaction(beliefs, ego, command, actuation_cov, samples, rng):
     """Sample every belief and the ego's actuation noise; return (ego positions, per-pair ok).
 
     ok[:, j] says whether the deterministic RVO condition f(r, u) >= 0 holds for the pair
-    (ego, neighbour j) in each sample, with u = 2 (v_c + eps) - v_i - v_j (prvo-math.md 2-3).
+    (ego, neighbour j) in each sample, with u = 2 (v_c + eps) - v_i - v_j
+    (docs/method.md, sections 2-3).
     """
     states = [rng.multivariate_normal(np.r_[belief.position, belief.velocity],
                                       belief.covariance, size=samples) for belief in beliefs]
@@ -102,10 +111,8 @@ def sample_rvo_satisfaction(beliefs, ego, command, actuation_cov, samples, rng):
         relative_position = states[ego][:, :2] - states[other][:, :2]
         relative_velocity = 2.0 * executed - states[ego][:, 2:] - states[other][:, 2:]
         combined_radius = beliefs[ego].radius + belief.radius
-        cross = (relative_position[:, 0] * relative_velocity[:, 1]
-                 - relative_position[:, 1] * relative_velocity[:, 0])
-        f_values = cross ** 2 - combined_radius ** 2 * np.sum(relative_velocity ** 2, axis=1)
-        satisfied.append(f_values >= 0.0)
+        satisfied.append(rvo_condition_of(*relative_position.T, *relative_velocity.T,
+                                          combined_radius) >= 0.0)
     return states[ego][:, :2], np.stack(satisfied, axis=1)
 
 
@@ -227,7 +234,7 @@ def deviation_against_k(scenario, ks, seed, path):
         draw_trajectories(axes, times, positions, starts, goals, radii, contacts,
                           labels=names)
         deviation = lateral_deviation(positions, starts, goals)
-        axes.set_title(f'k = {k:g} (eta >= {k * k / (1 + k * k):.2f})\nmean max deviation '
+        axes.set_title(f'k = {k:g} (eta >= {eta_from_k(float(k)):.2f})\nmean max deviation '
                        f'{deviation.mean():.2f} m', fontsize=9)
         rows.append({'k': k, 'deviation': float(deviation.mean()),
                      'min_separation': run['min_separation'], 'collisions': run['collisions'],
@@ -263,7 +270,7 @@ def time_scaling_table(noise_std, resolution=4001):
     rows = []
     for level in CONFIDENCE_LEVELS:
         k = k_from_eta(level)
-        enlargement = math.sqrt(-2.0 * math.log(1.0 - level))
+        enlargement = confidence_ellipse_scale(k)
         for agent, other in ((0, 1), (1, 0)):
             heading = velocities[agent] / np.linalg.norm(velocities[agent])
             relative_position = positions[agent] - positions[other]
@@ -282,10 +289,8 @@ def time_scaling_table(noise_std, resolution=4001):
                 surrogates.append(expectation - k * np.sqrt(np.maximum(variance, 0.0)) >= 0.0)
             inflated_radius = 2.0 * radius + enlargement * math.sqrt(
                 float(np.linalg.eigvalsh(cov[:2, :2]).max()))
-            cross = (relative_position[0] * relative_velocity[:, 1]
-                     - relative_position[1] * relative_velocity[:, 0])
-            inflated = (cross ** 2 - inflated_radius ** 2
-                        * np.sum(relative_velocity ** 2, axis=1)) >= 0.0
+            inflated = rvo_condition_of(*relative_position, *relative_velocity.T,
+                                        inflated_radius) >= 0.0
             rows.append({'level': level, 'k': k, 'agent': agent + 1,
                          'surrogate': feasible_intervals(surrogates[0], speeds),
                          'surrogate_full': feasible_intervals(surrogates[1], speeds),
@@ -395,7 +400,7 @@ def write_report(path, results):
     for k, records in results['validation'].items():
         for record in records:
             pairs = ', '.join(f'{value:.3f}' for value in record['pair_probabilities'])
-            lines.append(f"| {k:g} | {k * k / (1 + k * k):.2f} | {record['robot']} | "
+            lines.append(f"| {k:g} | {eta_from_k(float(k)):.2f} | {record['robot']} | "
                          f"{record['feasible']} | {pairs} | "
                          f"{min(record['pair_probabilities']):.3f} | "
                          f"{record['joint_probability']:.3f} |")

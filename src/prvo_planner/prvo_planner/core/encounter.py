@@ -13,7 +13,7 @@ import math
 
 import numpy as np
 
-from .probability import eta_from_k
+from .probability import confidence_ellipse_scale, eta_from_k
 
 
 @dataclass(frozen=True)
@@ -180,7 +180,6 @@ def model_moments(encounter, config):
     radius = encounter.combined_radius
     if config.model == 'inflate':
         position_spread = np.linalg.eigvalsh(encounter.cov[:, :2, :2])[:, -1]
-        # c = sqrt(-2 ln(1 - eta)) with 1 - eta = 1 / (1 + k^2).
-        confidence = math.sqrt(2.0 * math.log1p(encounter.margin ** 2))
+        confidence = confidence_ellipse_scale(encounter.margin)
         radius = radius + confidence * np.sqrt(np.maximum(position_spread, 0.0))
     return np.zeros_like(encounter.cov), radius, True

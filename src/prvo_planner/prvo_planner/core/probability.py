@@ -61,6 +61,28 @@ def k_from_eta(eta):
     return float(k) if k.ndim == 0 else k
 
 
+def confidence_ellipse_scale(k):
+    """
+    Scale ``c`` of the ``eta`` confidence ellipse of a 2D Gaussian, with ``eta`` given by ``k``.
+
+    The ellipse ``x' S^-1 x <= c^2`` holds probability ``eta = 1 - exp(-c^2 / 2)``, so
+    ``c = sqrt(-2 ln(1 - eta))``; with Cantelli's ``eta = k^2 / (1 + k^2)`` that is
+    ``sqrt(2 ln(1 + k^2))``, computed from ``k`` so that it stays finite as ``eta -> 1``.
+
+    Parameters
+    ----------
+    k : float
+        Margin, >= 0.
+
+    Returns
+    -------
+    float
+        ``c``; the radius-enlargement baseline grows ``R`` by ``c sqrt(lambda_max)``.
+
+    """
+    return math.sqrt(2.0 * math.log1p(k * k))
+
+
 def sample_relative_states(ego, neighbour, command, actuation_cov, n_samples, rng):
     """
     Sample ``z = (r, u)`` for one pair by sampling both beliefs and the actuation noise.
