@@ -325,3 +325,11 @@ def test_runner_exits_2_on_a_bad_file_before_starting_anything(tmp_path, old, ne
     assert len(lines) == 1 and f'{path}: {key}: ' in lines[0], result.stderr
     assert not marker.exists()
     assert not (tmp_path / 'out').exists()
+
+
+def test_the_scenario_documentation_names_every_planner_parameter():
+    from prvo_planner.parameters import PARAMETERS
+
+    documentation = (pathlib.Path(__file__).resolve().parents[2] / 'docs/scenarios.md').read_text()
+    missing = [name for name in PARAMETERS if f'`{name}`' not in documentation]
+    assert not missing, missing
