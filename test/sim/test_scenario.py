@@ -333,3 +333,14 @@ def test_the_scenario_documentation_names_every_planner_parameter():
     documentation = (pathlib.Path(__file__).resolve().parents[2] / 'docs/scenarios.md').read_text()
     missing = [name for name in PARAMETERS if f'`{name}`' not in documentation]
     assert not missing, missing
+
+
+def test_runner_refuses_a_team_the_memory_cannot_hold(tmp_path, monkeypatch):
+    from prvo_sim import run_scenario, scenario
+
+    monkeypatch.setattr(scenario, 'available_memory_mib', lambda: 400)
+    with pytest.raises(run_scenario.UsageError) as raised:
+        run_scenario.parse_arguments(['headon2', '--out', str(tmp_path / 'out')])
+    assert 'robots: 2 robots need an estimated 500 MiB' in str(raised.value)
+    assert 'more than the 400 MiB available' in str(raised.value)
+    assert not (tmp_path / 'out').exists()
