@@ -1,8 +1,13 @@
 """A running planner's parameters: bad values at startup stop it, bad updates are refused."""
 
+from geometry_msgs.msg import TwistStamped
+from nav_msgs.msg import Odometry
+import numpy as np
 import pytest
 from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue
-from rcl_interfaces.srv import SetParameters
+from rcl_interfaces.srv import GetParameters, SetParameters
+
+from prvo_msgs_util import CMD_VEL, CMD_VEL_QOS, ODOM, ODOM_QOS, make_odometry, robot_topic
 
 pytestmark = pytest.mark.integration
 
@@ -42,3 +47,44 @@ def test_set_parameters_rejects_bad_values_with_a_reason(children, ros2_executab
     assert not refused.successful and 'k' in refused.reason
     accepted = _set(probe, client, 'eta', 0.9)
     assert accepted.successful, accepted.reason
+
+
+def test_goal_set_as_a_double_array_is_accepted_and_driven_to(children, ros2_executable, probe):
+    """`ros2 param set /robot_0/planner goal "[2.0, -1.0]"` sends a double array."""
+    children.start('planner', [ros2_executable('prvo_planner', 'planner'), '--ros-args',
+                               '-r', '__ns:=/robot_0'])
+    setter = probe.node.create_client(SetParameters, '/robot_0/planner/set_parameters')
+    getter = probe.node.create_client(GetParameters, '/robot_0/planner/get_parameters')
+    assert setter.wait_for_service(timeout_sec=20.0)
+    assert getter.wait_for_service(timeout_sec=20.0)
+    request = SetParameters.Request(parameters=[Parameter(
+        name='goal', value=ParameterValue(type=ParameterType.PARAMETER_DOUBLE_ARRAY,
+                                          double_array_value=[2.0, -1.0]))])
+    future = setter.call_async(request)
+    probe.wait_until(future.done, timeout=10.0, what='the answer to setting goal')
+    result = future.result().results[0]
+    assert result.successful, result.reason
+
+    future = getter.call_async(GetParameters.Request(names=['goal']))
+    probe.wait_until(future.done, timeout=10.0, what='the answer to getting goal')
+    value = future.result().values[0]
+    assert value.type == ParameterType.PARAMETER_DOUBLE_ARRAY
+    assert list(value.double_array_value) == [2.0, -1.0]
+
+    # Alone at the origin, the planner heads straight for the new goal.
+    commands = probe.record(TwistStamped, robot_topic('robot_0', CMD_VEL), CMD_VEL_QOS)
+    odometry = probe.node.create_publisher(Odometry, robot_topic('robot_0', ODOM), ODOM_QOS)
+    stamp = [0.0]
+
+    def answered():
+        stamp[0] += 0.1
+        odometry.publish(make_odometry(stamp[0], [0.0, 0.0], [0.0, 0.0], 1e-4 * np.eye(2),
+                                       1e-4 * np.eye(2), child_frame_id='robot_0/base_link'))
+        return [command for command in commands
+                if np.hypot(command.twist.linear.x, command.twist.linear.y) > 0.0]
+
+    moving = probe.wait_until(answered, timeout=20.0, what='a command towards the goal',
+                              poll=0.1)
+    velocity = np.array([moving[0].twist.linear.x, moving[0].twist.linear.y])
+    towards_goal = np.array([2.0, -1.0]) / np.hypot(2.0, -1.0)
+    assert velocity @ towards_goal / np.linalg.norm(velocity) > 0.99, velocity

@@ -1,21 +1,29 @@
 """Planner parameter validation and the preferred velocity, without ROS processes."""
 
+import array
 import dataclasses
 import math
 
 import numpy as np
 import pytest
+from rclpy.parameter import Parameter
 
 from prvo_planner.core import AgentBelief, plan_velocity
+from prvo_planner.parameters import (
+    DEFAULTS,
+    PARAMETERS,
+    ParameterError,
+    check_parameter,
+    nearest_name,
+    planner_config_from,
+)
 from prvo_planner.planner_node import (
     _PARAMETERS,
-    ParameterError,
+    _goal_from_parameter,
+    _neighbour_list,
     goal_horizon,
-    planner_config_from,
     preferred_velocity,
 )
-
-DEFAULTS = {name: default for name, (default, _) in _PARAMETERS.items()}
 
 
 def test_defaults_give_a_valid_configuration():
@@ -84,3 +92,105 @@ def test_robots_standing_beyond_the_goal_do_not_block_it():
     np.testing.assert_allclose(capped.velocity, v_pref, atol=1e-9)
     uncapped = plan_velocity(ego, standing, v_pref, config)
     assert np.linalg.norm(uncapped.velocity - v_pref) > 0.1
+
+
+def test_goal_accepts_any_sequence_of_numbers():
+    """Rclpy hands a double array set at runtime over as array.array('d')."""
+    np.testing.assert_array_equal(_goal_from_parameter(array.array('d', [2.0, -1.0])),
+                                  [2.0, -1.0])
+    np.testing.assert_array_equal(_goal_from_parameter([4, 0]), [4.0, 0.0])
+    assert _goal_from_parameter(None) is None
+
+
+@pytest.mark.parametrize('value, reason', [
+    ([1.0, 2.0, 3.0], 'must be [x, y], got [1.0, 2.0, 3.0]'),
+    ([1.0, math.nan], 'goal[1]: expected a number, got nan'),
+    ([math.inf, 0.0], 'expected finite numbers'),
+    ([2.0e6, 0.0], 'coordinates must be in [-1e+06, 1e+06]'),
+    (4.0, 'expected a list, got a number'),
+    (['a', 'b'], 'goal[0]: expected a number, got a string'),
+])
+def test_bad_goals_are_refused_naming_goal_and_value(value, reason):
+    with pytest.raises(ParameterError) as raised:
+        _goal_from_parameter(value)
+    assert str(raised.value).startswith('goal') and reason in str(raised.value)
+
+
+def test_neighbour_names_must_be_robot_names():
+    assert _neighbour_list(['robot_1', '', 'robot_2']) == ['robot_1', 'robot_2']
+    assert _neighbour_list(None) is None
+    with pytest.raises(ParameterError, match="neighbors: robot name '2bad' is not a valid"):
+        _neighbour_list(['robot_1', '2bad'])
+    with pytest.raises(ParameterError, match='neighbors: expected a list of strings'):
+        _neighbour_list([1, 2])
+
+
+def test_a_zero_neighbour_radius_is_refused():
+    """0 used to pass and made every plan with a neighbour raise in AgentBelief."""
+    with pytest.raises(ParameterError, match=r'neighbor_radius: must be -1 \(= radius\) or > 0'):
+        planner_config_from(dict(DEFAULTS, neighbor_radius=0.0))
+    assert check_parameter('neighbor_radius', -1.0) == -1.0
+
+
+@pytest.mark.parametrize('name, value, reason', [
+    ('eta', 2.0, 'must be in (0, 1), got 2.0'),
+    ('eta', math.nan, 'expected a number, got nan'),
+    ('eta', 'high', 'expected a number, got a string'),
+    ('eta', True, 'expected a number, got a boolean'),
+    ('num_directions', 0, 'must be in [1, 4096], got 0'),
+    ('num_directions', 8.0, 'expected an integer, got a number'),
+    ('radius', 10 ** 400, 'too large a number'),
+    ('radius', 0.0, 'must be in (0, 100], got 0.0'),
+    ('neighbor_distance', math.inf, 'expected a finite number, got inf'),
+    ('time_horizon', -math.inf, 'must be > 0'),
+    ('model', 'magic', 'must be one of prvo, rvo, inflate, mc'),
+    ('stamped_cmd_vel', 1, 'expected true or false'),
+    ('frame_id', '', 'must not be empty'),
+    ('eta', None, 'must be set'),
+])
+def test_check_parameter_names_the_parameter_and_value(name, value, reason):
+    with pytest.raises(ParameterError) as raised:
+        check_parameter(name, value)
+    assert raised.value.name == name
+    assert str(raised.value) == f'{name}: {raised.value.reason}'
+    assert reason in raised.value.reason
+
+
+def test_check_parameter_types_values():
+    assert type(check_parameter('max_speed', 2)) is float
+    assert check_parameter('time_horizon', math.inf) == math.inf
+    assert check_parameter('neighbors', ('a',)) == ['a']
+    assert check_parameter('goal', None) is None
+
+
+def test_unknown_names_get_the_nearest_valid_one():
+    with pytest.raises(ParameterError, match=r"etaa: unknown planner parameter \(did you mean "
+                       r"'eta'\?\)"):
+        check_parameter('etaa', 0.9)
+    assert nearest_name('horizon') == 'time_horizon'
+    assert nearest_name('num_direction') == 'num_directions'
+    assert nearest_name('zzzzzz') is None
+
+
+def test_every_default_passes_its_own_rules():
+    for name, spec in PARAMETERS.items():
+        assert check_parameter(name, spec.default) == spec.default
+
+
+def test_descriptors_state_the_specs_types_and_ranges():
+    """The node declares exactly the specified parameters, with their ROS types and ranges."""
+    assert list(_PARAMETERS) == list(PARAMETERS)
+    default, eta = _PARAMETERS['eta']
+    assert default == 0.8 and eta.type == Parameter.Type.DOUBLE.value
+    assert (eta.floating_point_range[0].from_value, eta.floating_point_range[0].to_value) == (
+        0.0, 1.0)
+    _, directions = _PARAMETERS['num_directions']
+    assert directions.type == Parameter.Type.INTEGER.value
+    assert (directions.integer_range[0].from_value, directions.integer_range[0].to_value) == (
+        1, 4096)
+    default, goal = _PARAMETERS['goal']
+    assert default is None and goal.dynamic_typing
+    _, neighbours = _PARAMETERS['neighbors']
+    assert neighbours.read_only and neighbours.dynamic_typing
+    _, horizon = _PARAMETERS['time_horizon']
+    assert not horizon.floating_point_range

@@ -2,11 +2,24 @@
 
 import pathlib
 import re
+import subprocess
+import sys
 
 import numpy as np
 import pytest
+import yaml
 
-from prvo_sim.scenario import ScenarioError, find_scenario, load_scenario
+from prvo_sim.scenario import (
+    PLANNER_MEMORY_MIB,
+    RUNNER_MEMORY_MIB,
+    SIMULATOR_MEMORY_MIB,
+    ScenarioError,
+    available_memory_mib,
+    check_team_memory,
+    estimate_team_memory,
+    find_scenario,
+    load_scenario,
+)
 
 SHIPPED = ('circle8', 'crossing4', 'headon2', 'paper3')
 
@@ -21,7 +34,7 @@ noise:
   actuation_std: 0.02
 planner:
   eta: 0.8
-  horizon: 2.0
+  time_horizon: 2.0
 robots:
   - name: robot_0
     start: [-2.0, 0.0]
@@ -71,8 +84,8 @@ def test_valid_file_merges_blocks_under_robot_overrides(tmp_path):
         0.05, 0.0, 0.1)
     assert (second.noise.position_std, second.noise.velocity_std,
             second.noise.actuation_std) == (0.05, 0.0, 0.02)
-    assert first.planner == {'eta': 0.95, 'horizon': 2.0}
-    assert second.planner == {'eta': 0.8, 'horizon': 2.0}
+    assert first.planner == {'eta': 0.95, 'time_horizon': 2.0}
+    assert second.planner == {'eta': 0.8, 'time_horizon': 2.0}
     assert (second.radius, second.max_speed) == (0.25, 0.5)
     assert load_scenario(write(tmp_path, VALID), seed=99).seed == 99
 
@@ -89,14 +102,16 @@ def test_valid_file_merges_blocks_under_robot_overrides(tmp_path):
     ('    radius: 0.25\n', '    radius: "0.25"\n', 'robots[1].radius',
      'expected a number, got a string'),
     ('seed: 3\n', 'seed: 3.5\n', 'seed', 'expected an integer'),
-    ('    radius: 0.25\n', '    radius: 0.0\n', 'robots[1].radius', 'must be > 0'),
-    ('    max_speed: 0.5\n', '    max_speed: -1\n', 'robots[1].max_speed', 'must be > 0'),
-    ('dt: 0.1\n', 'dt: 0\n', 'dt', 'must be > 0'),
+    ('    radius: 0.25\n', '    radius: 0.0\n', 'robots[1].radius',
+     'must be in (0, 100], got 0.0'),
+    ('    max_speed: 0.5\n', '    max_speed: -1\n', 'robots[1].max_speed',
+     'must be in (0, 100], got -1.0'),
+    ('dt: 0.1\n', 'dt: 0\n', 'dt', 'must be in [0.0001, 10], got 0'),
     ('duration: 5.0\n', 'duration: -5.0\n', 'duration', 'must be > 0'),
     ('  actuation_std: 0.02\n', '  actuation_std: -0.02\n', 'noise.actuation_std',
-     'must be >= 0'),
+     'must be in [0, 1000], got -0.02'),
     ('{actuation_std: 0.1}', '{velocity_std: -0.1}', 'robots[0].noise.velocity_std',
-     'must be >= 0'),
+     'must be in [0, 1000], got -0.1'),
     ('dt: 0.1\n', 'dt: .nan\n', 'dt', 'finite'),
     ('name: pair\n', 'name: my pair\n', 'name', 'may only contain'),
     ('  - name: robot_1\n', '  - name: 1robot\n', 'robots[1].name', 'not a valid ROS name'),
@@ -107,7 +122,7 @@ def test_valid_file_merges_blocks_under_robot_overrides(tmp_path):
     ('    start: [2.0, 0.0]\n', '    start: [2.0]\n', 'robots[1].start', 'expected [x, y]'),
     ('    goal: [2.0, 0.0]\n', '    goal: [2.0, null]\n', 'robots[0].goal[1]',
      'expected a number, got nothing'),
-    ('  eta: 0.8\n', '  eta: {a: 1}\n', 'planner.eta', 'expected a ROS parameter value'),
+    ('  eta: 0.8\n', '  eta: {a: 1}\n', 'planner.eta', 'expected a number, got a mapping'),
     ('seed: 3\n', 'seed: 3\nseed: 4\n', 'line 3, column 1', 'duplicate key'),
     ('dt: 0.1\n', 'dt: [0.1\n', 'line', 'YAML syntax error'),
 ])
@@ -141,7 +156,7 @@ def test_unreadable_file_is_named(tmp_path):
 
 
 def test_bad_seed_override(tmp_path):
-    with pytest.raises(ScenarioError, match='seed: must be >= 0'):
+    with pytest.raises(ScenarioError, match=re.escape('seed: must be in [0, 2147483647], got -3')):
         load_scenario(write(tmp_path, VALID), seed=-3)
 
 
@@ -149,3 +164,183 @@ def test_shipped_directory_is_found_from_the_source_tree_too():
     source_copy = pathlib.Path(__file__).resolve().parents[2] / 'src/prvo_sim/scenarios'
     for name in SHIPPED:
         assert (source_copy / f'{name}.yaml').read_text() == find_scenario(name).read_text()
+
+
+# Bad planner blocks and limits: (replace old, with new, key named, reason).
+BAD_FILES = [
+    ('  eta: 0.8\n', '  eta: 2.0\n', 'planner.eta', 'must be in (0, 1), got 2.0'),
+    ('  eta: 0.8\n', '  eta: .nan\n', 'planner.eta', 'got nan'),
+    ('  eta: 0.8\n', '  eta: high\n', 'planner.eta', 'expected a number, got a string'),
+    ('  eta: 0.8\n', '  eta: 0.8\n  num_directions: 0\n', 'planner.num_directions',
+     'must be in [1, 4096], got 0'),
+    ('  eta: 0.8\n', '  etaa: 0.9\n', 'planner.etaa',
+     "unknown planner parameter (did you mean 'eta'?)"),
+    ('{eta: 0.95}', '{etaa: 0.9}', 'robots[0].planner.etaa',
+     "unknown planner parameter (did you mean 'eta'?)"),
+    ('{eta: 0.95}', '{eta: 1.0}', 'robots[0].planner.eta', 'must be in (0, 1)'),
+    ('{eta: 0.95}', '{num_directions: 8.0}', 'robots[0].planner.num_directions',
+     'expected an integer, got a number'),
+    ('  eta: 0.8\n', '  eta: 0.8\n  radius: 0.5\n', 'planner.radius',
+     "set by the runner from each robot's radius"),
+    ('{eta: 0.95}', '{goal: [1.0, 1.0]}', 'robots[0].planner.goal',
+     "set by the runner from each robot's goal"),
+    ('  eta: 0.8\n', '  eta: 0.8\n  actuation_std: 0.1\n', 'planner.actuation_std',
+     'noise.actuation_std'),
+    ('  eta: 0.8\n', '  model: rvo\n', 'planner.model', '--method'),
+    ('  eta: 0.8\n', '  eta: 0.8\n  max_speed: 2.0\n', 'planner.max_speed', 'max_speed'),
+    ('  eta: 0.8\n', '  eta: 0.8\n  goal_tolerance: 0.1\n', 'planner.goal_tolerance',
+     'top-level goal_tolerance'),
+    ('  eta: 0.8\n', '  eta: 0.8\n  use_sim_time: false\n', 'planner.use_sim_time',
+     'set by the runner'),
+    ('  eta: 0.8\n', '  eta: 0.8\n  neighbors: [robot_1, 2bad]\n', 'planner.neighbors',
+     'not a valid ROS name'),
+    ('  eta: 0.8\n', '  eta: 0.8\n  neighbor_radius: 0.0\n', 'planner.neighbor_radius',
+     'must be -1 (= radius) or > 0, got 0.0'),
+    ('dt: 0.1\n', 'dt: 1e-300\n', 'dt', 'must be in [0.0001, 10], got 1e-300'),
+    ('dt: 0.1\n', 'dt: 20.0\n', 'dt', 'must be in [0.0001, 10], got 20.0'),
+    ('duration: 5.0\n', 'duration: 1.0e6\n', 'duration', 'more than 1000000 steps'),
+    ('    radius: 0.25\n', '    radius: ' + '9' * 400 + '\n', 'robots[1].radius',
+     'too large a number'),
+    ('    radius: 0.25\n', '    radius: 101.0\n', 'robots[1].radius', 'must be in (0, 100]'),
+    ('    max_speed: 0.5\n', '    max_speed: 1e3\n', 'robots[1].max_speed',
+     'must be in (0, 100], got 1000.0'),
+    ('    start: [2.0, 0.0]\n', '    start: [2.0e7, 0.0]\n', 'robots[1].start[0]',
+     'must be in [-1e+06, 1e+06]'),
+    ('    goal: [2.0, 0.0]\n', '    goal: [2.0, -1.0e9]\n', 'robots[0].goal[1]',
+     'must be in [-1e+06, 1e+06]'),
+    ('  position_std: 0.05\n', '  position_std: 5.0e3\n', 'noise.position_std',
+     'must be in [0, 1000]'),
+    ('{actuation_std: 0.1}', '{actuation_std: 1e4}', 'robots[0].noise.actuation_std',
+     'must be in [0, 1000]'),
+    ('goal_tolerance: 0.2\n', 'goal_tolerance: 200.0\n', 'goal_tolerance',
+     'must be in (0, 100]'),
+    ('seed: 3\n', 'seed: 4294967296\n', 'seed', 'must be in [0, 2147483647]'),
+]
+
+
+@pytest.mark.parametrize(('old', 'new', 'key', 'reason'), BAD_FILES)
+def test_bad_values_are_refused_naming_the_key(tmp_path, old, new, key, reason):
+    assert old in VALID
+    path = write(tmp_path, VALID.replace(old, new, 1))
+    with pytest.raises(ScenarioError) as raised:
+        load_scenario(path)
+    message = str(raised.value)
+    assert message.startswith(f'{path}: {key}: '), message
+    assert reason in message, message
+    assert '\n' not in message
+
+
+def test_too_many_robots_is_refused(tmp_path):
+    robots = ''.join(
+        f'  - {{name: r{index}, start: [{index}.0, 0.0], goal: [{index}.0, 5.0], radius: 0.3, '
+        f'max_speed: 1.0}}\n' for index in range(257))
+    path = write(tmp_path, VALID.split('robots:')[0] + 'robots:\n' + robots)
+    with pytest.raises(ScenarioError, match=re.escape(
+            f'{path}: robots: 257 robots, more than 256')):
+        load_scenario(path)
+
+
+def test_yaml_1_2_numbers_are_numbers(tmp_path):
+    text = (VALID.replace('dt: 0.1\n', 'dt: 1e-2\n').replace('duration: 5.0\n', 'duration: 1E1\n')
+            .replace('  eta: 0.8\n', '  eta: .5\n  num_directions: +32\n  inertia: 1.5e-1\n'))
+    scenario = load_scenario(write(tmp_path, text))
+    assert (scenario.dt, scenario.duration) == (0.01, 10.0)
+    second = scenario.robots[1]
+    assert second.planner == {'eta': 0.5, 'num_directions': 32, 'inertia': 0.15,
+                              'time_horizon': 2.0}
+    assert type(second.planner['num_directions']) is int
+    assert type(second.planner['eta']) is float
+
+
+def test_yaml_1_2_floats_do_not_change_the_shared_safe_loader():
+    assert yaml.safe_load('x: 1e-2') == {'x': '1e-2'}
+
+
+def test_per_robot_planner_block_is_merged_typed_and_complete(tmp_path):
+    text = VALID.replace('{eta: 0.95}', '{eta: 0.5, k: 2}').replace(
+        '  eta: 0.8\n', '  eta: 0.8\n  num_directions: 32\n')
+    first, second = load_scenario(write(tmp_path, text)).robots
+    assert first.planner == {'eta': 0.5, 'k': 2.0, 'num_directions': 32, 'time_horizon': 2.0}
+    assert type(first.planner['k']) is float
+    assert second.planner == {'eta': 0.8, 'num_directions': 32, 'time_horizon': 2.0}
+
+
+def test_every_parameter_the_runner_sets_except_eta_is_refused_in_a_planner_block(tmp_path):
+    from prvo_sim.run_scenario import RUNNER_PARAMETERS
+
+    for name in set(RUNNER_PARAMETERS) - {'eta'}:
+        path = write(tmp_path, VALID.replace('{eta: 0.95}', f'{{{name}: 1.0}}'))
+        with pytest.raises(ScenarioError, match=re.escape(
+                f'robots[0].planner.{name}: set by the runner')):
+            load_scenario(path)
+
+
+def test_a_directory_named_like_a_shipped_scenario_is_not_a_scenario(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / 'headon2').mkdir()
+    assert find_scenario('headon2').name == 'headon2.yaml'
+    assert load_scenario(find_scenario('headon2')).name == 'headon2'
+    (tmp_path / 'circle8').write_text(VALID)
+    assert find_scenario('circle8') == pathlib.Path('circle8')
+
+
+def test_team_memory_estimate_grows_with_the_team():
+    headon, circle = (load_scenario(find_scenario(name)) for name in ('headon2', 'circle8'))
+    difference = estimate_team_memory(circle) - estimate_team_memory(headon)
+    assert difference == 6 * PLANNER_MEMORY_MIB
+    assert estimate_team_memory(headon) == (
+        2 * PLANNER_MEMORY_MIB + SIMULATOR_MEMORY_MIB + RUNNER_MEMORY_MIB)
+
+
+def test_team_memory_check_against_available_memory(tmp_path):
+    circle = load_scenario(find_scenario('circle8'))
+    needed = estimate_team_memory(circle)
+    check_team_memory(circle, available_mib=needed)
+    with pytest.raises(ScenarioError) as raised:
+        check_team_memory(circle, available_mib=needed - 1)
+    message = str(raised.value)
+    assert message.startswith(f'{circle.path}: robots: ')
+    assert f'{needed} MiB' in message and f'{needed - 1} MiB available' in message
+    meminfo = tmp_path / 'meminfo'
+    meminfo.write_text('MemTotal:       24683060 kB\nMemFree:         1000 kB\n'
+                       'MemAvailable:    2048000 kB\n')
+    assert available_memory_mib(meminfo) == 2000
+    assert available_memory_mib(tmp_path / 'no-such-file') is None
+
+
+@pytest.mark.parametrize(('old', 'new', 'key'), [
+    ('  eta: 0.8\n', '  etaa: 0.9\n', 'planner.etaa'),
+    ('dt: 0.1\n', 'dt: 1e-300\n', 'dt'),
+])
+def test_runner_exits_2_on_a_bad_file_before_starting_anything(tmp_path, old, new, key):
+    marker = tmp_path / 'a-child-started'
+    command = f'{sys.executable} -c "open({str(marker)!r}, \'w\').close()"'
+    path = write(tmp_path, VALID.replace(old, new, 1))
+    result = subprocess.run(
+        [sys.executable, '-m', 'prvo_sim.run_scenario', str(path), '--out',
+         str(tmp_path / 'out'), '--sim-command', command, '--planner-command', command],
+        capture_output=True, text=True, timeout=120)
+    assert result.returncode == 2, result.stderr
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1 and f'{path}: {key}: ' in lines[0], result.stderr
+    assert not marker.exists()
+    assert not (tmp_path / 'out').exists()
+
+
+def test_the_scenario_documentation_names_every_planner_parameter():
+    from prvo_planner.parameters import PARAMETERS
+
+    documentation = (pathlib.Path(__file__).resolve().parents[2] / 'docs/scenarios.md').read_text()
+    missing = [name for name in PARAMETERS if f'`{name}`' not in documentation]
+    assert not missing, missing
+
+
+def test_runner_refuses_a_team_the_memory_cannot_hold(tmp_path, monkeypatch):
+    from prvo_sim import run_scenario, scenario
+
+    monkeypatch.setattr(scenario, 'available_memory_mib', lambda: 400)
+    with pytest.raises(run_scenario.UsageError) as raised:
+        run_scenario.parse_arguments(['headon2', '--out', str(tmp_path / 'out')])
+    assert 'robots: 2 robots need an estimated 500 MiB' in str(raised.value)
+    assert 'more than the 400 MiB available' in str(raised.value)
+    assert not (tmp_path / 'out').exists()

@@ -267,7 +267,7 @@ def test_same_seed_gives_the_same_run(probe, children, ros2_executable):
 
 
 @pytest.mark.parametrize(('parameters', 'expected'), [
-    ({'scenario': 'BAD_FILE'}, ['BAD_FILE', 'robots[1].radius', 'must be > 0']),
+    ({'scenario': 'BAD_FILE'}, ['BAD_FILE', 'robots[1].radius', 'must be in (0, 100]']),
     ({'mode': 'fast'}, ['mode', 'fast', 'lockstep, realtime']),
     ({'scenario': 'no_such_scenario'}, ['no_such_scenario', 'no such scenario']),
 ])

@@ -29,6 +29,7 @@ from rclpy.clock import Clock, ClockType
 from rclpy.exceptions import InvalidParameterTypeException, InvalidParameterValueException
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
+from rclpy.parameter import Parameter
 from visualization_msgs.msg import MarkerArray
 
 from prvo_msgs_util import (
@@ -58,9 +59,23 @@ from prvo_msgs_util import (
     robot_topic,
     serialized_odometry_to_measurement,
     spin_events,
+    validate_robot_name,
 )
-from prvo_planner.core import AgentBelief, PlannerConfig, plan_velocity
+from prvo_planner.core import AgentBelief, plan_velocity
 from prvo_planner.estimation import ConstantVelocityTracker
+from prvo_planner.parameters import (
+    BOOL,
+    FLOAT,
+    FLOAT_ARRAY,
+    INTEGER,
+    PARAMETERS,
+    STRING,
+    STRING_ARRAY,
+    ParameterError,
+    check_parameter,
+    checked_parameters,
+    planner_config_from,
+)
 
 # A stamp this far behind a track's last one means its source restarted (e.g. the simulator):
 # the track starts over instead of rejecting every message from then on.
@@ -71,136 +86,51 @@ _WARN_PERIOD_SECONDS = 2.0
 _ODOMETRY_TYPE = 'nav_msgs/msg/Odometry'
 
 
-class ParameterError(ValueError):
-    """A planner parameter has a value the planner cannot use."""
+_ROS_TYPES = {BOOL: Parameter.Type.BOOL, INTEGER: Parameter.Type.INTEGER,
+              FLOAT: Parameter.Type.DOUBLE, STRING: Parameter.Type.STRING,
+              FLOAT_ARRAY: Parameter.Type.DOUBLE_ARRAY, STRING_ARRAY: Parameter.Type.STRING_ARRAY}
 
 
-def _descriptor(description, floating=None, integer=None, read_only=False, dynamic=False):
-    """Build a ParameterDescriptor with a description and an optional inclusive range."""
+def _descriptor(spec):
+    """Return the ParameterDescriptor of the parameter SPEC: type, range, description.
+
+    A parameter without a default (goal, neighbors) is dynamically typed, so that it can stay
+    unset and take integers as well as doubles; its rules are checked on every set.
+    """
     descriptor = ParameterDescriptor(
-        description=description, read_only=read_only, dynamic_typing=dynamic)
-    if floating is not None:
-        descriptor.floating_point_range = [
-            FloatingPointRange(from_value=floating[0], to_value=floating[1], step=0.0)]
-    if integer is not None:
-        descriptor.integer_range = [
-            IntegerRange(from_value=integer[0], to_value=integer[1], step=1)]
+        description=spec.description, read_only=spec.read_only,
+        dynamic_typing=spec.default is None, type=_ROS_TYPES[spec.kind].value)
+    if spec.bounds is not None and spec.kind == FLOAT:
+        descriptor.floating_point_range = [FloatingPointRange(
+            from_value=float(spec.bounds[0]), to_value=float(spec.bounds[1]), step=0.0)]
+    if spec.bounds is not None and spec.kind == INTEGER:
+        descriptor.integer_range = [IntegerRange(
+            from_value=spec.bounds[0], to_value=spec.bounds[1], step=1)]
     return descriptor
 
 
-# name: (default, descriptor). Float defaults are float literals so the types are doubles.
-_PARAMETERS = {
-    'eta': (0.8, _descriptor(
-        'Required probability that the RVO condition holds for each neighbour, in (0, 1).',
-        floating=(0.0, 1.0))),
-    'k': (-1.0, _descriptor(
-        'Surrogate margin k >= 0 (mean - k std >= 0); wins over eta when set. -1 = use eta.',
-        floating=(-1.0, 1.0e3))),
-    'radius': (0.3, _descriptor("This robot's radius [m], > 0.", floating=(1.0e-3, 100.0))),
-    'neighbor_radius': (-1.0, _descriptor(
-        'Radius assumed for every neighbour [m]; -1 = the same as radius.',
-        floating=(-1.0, 100.0))),
-    'max_speed': (1.0, _descriptor('Speed limit [m/s], > 0.', floating=(1.0e-3, 100.0))),
-    'num_directions': (64, _descriptor(
-        'Candidate headings evaluated per plan.', integer=(1, 4096))),
-    'time_horizon': (5.0, _descriptor(
-        'Collisions later than this many seconds do not constrain now; .inf for none.')),
-    'neighbor_distance': (10.0, _descriptor(
-        'Neighbours farther than this [m] are not considered.', floating=(0.0, 1.0e4))),
-    'actuation_std': (0.0, _descriptor(
-        "Std of this robot's velocity execution error per axis [m/s] (PRVO ego noise).",
-        floating=(0.0, 10.0))),
-    'safety_margin': (0.0, _descriptor(
-        'Extra clearance added to the sum of radii [m].', floating=(0.0, 10.0))),
-    'model': ('prvo', _descriptor('Planner model: prvo, rvo, inflate or mc.')),
-    'method': ('exact', _descriptor('PRVO ray solver: exact (quartic) or taylor (paper).')),
-    'risk': ('pairwise', _descriptor('Risk allocation over neighbours: pairwise or joint.')),
-    'goal': (None, _descriptor(
-        'Goal [x, y] in the map frame; unset = wait for a goal_pose message.', dynamic=True)),
-    'goal_tolerance': (0.2, _descriptor(
-        'Distance to the goal [m] under which the robot stops.', floating=(1.0e-3, 100.0))),
-    'approach_time': (0.5, _descriptor(
-        'Preferred speed is distance / approach_time near the goal [s].',
-        floating=(1.0e-3, 100.0))),
-    'stamped_cmd_vel': (True, _descriptor(
-        'Publish geometry_msgs/TwistStamped (true) or Twist (false).', read_only=True)),
-    'neighbors': (None, _descriptor(
-        'Robot names to avoid; unset discovers every other /<name>/odom in the graph.',
-        read_only=True, dynamic=True)),
-    'neighbor_timeout': (2.0, _descriptor(
-        'A neighbour silent this long [s, wall time] is dropped.', floating=(0.01, 3600.0))),
-    'sync_timeout': (0.2, _descriptor(
-        "Wall time [s] to wait for neighbours' odometry of the same stamp before planning.",
-        floating=(0.0, 10.0))),
-    'status_period': (0.2, _descriptor(
-        'Diagnostics and markers are published at most this often [s, wall]; cmd_vel always.',
-        floating=(0.0, 60.0))),
-    'acceleration_std': (1.0, _descriptor(
-        'Process noise of the constant-velocity tracker [m/s^2].', floating=(1.0e-3, 100.0))),
-    'frame_id': ('map', _descriptor('World frame of odometry and goals.', read_only=True)),
-    'seed': (-1, _descriptor(
-        'Seed for the random rotation of candidate headings; -1 = fixed headings.',
-        integer=(-1, 2 ** 31 - 1))),
-    # Both only rank the velocities that meet the constraints (issue 5): without them,
-    # the closest-to-v_pref choice flips side from one step to the next (the chosen
-    # command turned by more than 90 degrees in 15% of the steps of circle8, PRVO eta 0.8).
-    'inertia': (0.5, _descriptor(
-        'Weight in [0, 1) of |v - previous command| in the choice cost |v - v_pref| + ...; '
-        'damps side flips. 0 = closest to v_pref.', floating=(0.0, 0.99))),
-    'passing_bias': (0.1, _descriptor(
-        'Cost per m/s of velocity left of the preferred direction: every robot breaks the '
-        'tie of a symmetric encounter the same way (pass on the right). 0 = none.',
-        floating=(0.0, 10.0))),
-}
+# name: (default, descriptor), in declaration order.
+_PARAMETERS = {name: (spec.default, _descriptor(spec)) for name, spec in PARAMETERS.items()}
 
 
 def _goal_from_parameter(value):
     """Return the goal (2,) from the `goal` parameter, None when unset; raise ParameterError."""
-    if value is None:
-        return None
-    if (not isinstance(value, (list, tuple)) or len(value) != 2
-            or not all(isinstance(item, (int, float)) and not isinstance(item, bool)
-                       and math.isfinite(item) for item in value)):
-        raise ParameterError(f'goal must be [x, y] with finite numbers, got {value!r}')
-    return np.array(value, dtype=float)
+    goal = check_parameter('goal', value)
+    return None if goal is None else np.array(goal, dtype=float)
 
 
 def _neighbour_list(value):
     """Return the `neighbors` parameter as a list of names, None to discover them."""
-    if value is None:
+    names = check_parameter('neighbors', value)
+    if names is None:
         return None
-    if not isinstance(value, (list, tuple)) or not all(isinstance(n, str) for n in value):
-        raise ParameterError(f'neighbors must be a list of robot names, got {value!r}')
-    return [name for name in value if name]
-
-
-def planner_config_from(values):
-    """Build the core's PlannerConfig from a name -> value mapping of parameters.
-
-    Raises ParameterError naming the parameter and value when the planner cannot use it.
-    """
-    eta = values['eta']
-    if not 0.0 < eta < 1.0:
-        raise ParameterError(f'eta must be in (0, 1), got {eta}')
-    k = values['k']
-    if k != -1.0 and k < 0.0:
-        raise ParameterError(f'k must be >= 0 (or -1 to use eta), got {k}')
-    time_horizon = values['time_horizon']
-    if not time_horizon > 0.0:
-        raise ParameterError(f'time_horizon must be > 0 (.inf for none), got {time_horizon}')
-    actuation_variance = values['actuation_std'] ** 2
-    try:
-        return PlannerConfig(
-            eta=eta, k=None if k == -1.0 else k, max_speed=values['max_speed'],
-            num_directions=values['num_directions'], time_horizon=time_horizon,
-            neighbor_distance=values['neighbor_distance'],
-            actuation_cov=actuation_variance * np.eye(2),
-            safety_margin=values['safety_margin'], method=values['method'],
-            model=values['model'], risk=values['risk'],
-            seed=None if values['seed'] < 0 else values['seed'], inertia=values['inertia'],
-            passing_bias=values['passing_bias'])
-    except ValueError as error:
-        raise ParameterError(str(error)) from error
+    for name in names:
+        if name:
+            try:
+                validate_robot_name(name)
+            except ValueError as error:
+                raise ParameterError('neighbors', str(error)) from None
+    return [name for name in names if name]
 
 
 def preferred_velocity(position, goal, max_speed, approach_time, goal_tolerance):
@@ -240,7 +170,8 @@ class PlannerNode(Node):
         super().__init__('planner')
         for name, (default, descriptor) in _PARAMETERS.items():
             self.declare_parameter(name, default, descriptor)
-        self._values = {name: self.get_parameter(name).value for name in _PARAMETERS}
+        self._values = checked_parameters(
+            {name: self.get_parameter(name).value for name in _PARAMETERS})
         self._config = planner_config_from(self._values)
         self._goal = _goal_from_parameter(self._values['goal'])
         self._neighbours_listed = _neighbour_list(self._values['neighbors'])
@@ -249,7 +180,7 @@ class PlannerNode(Node):
         self._robot = self.get_namespace().strip('/')
         if not self._robot or '/' in self._robot:
             raise ParameterError(
-                f'run the planner in a robot namespace (-r __ns:=/robot_0), '
+                '__ns', f'run the planner in a robot namespace (-r __ns:=/robot_0), '
                 f'got namespace {self.get_namespace()!r}')
         self._steady_clock = Clock(clock_type=ClockType.STEADY_TIME)
         self._own_track = None
@@ -310,10 +241,10 @@ class PlannerNode(Node):
     def _on_set_parameters(self, parameters):
         """Accept a parameter change only if the whole configuration stays valid."""
         values = dict(self._values)
-        for parameter in parameters:
-            if parameter.name in values:
-                values[parameter.name] = parameter.value
         try:
+            for parameter in parameters:
+                if parameter.name in values:
+                    values[parameter.name] = check_parameter(parameter.name, parameter.value)
             config = planner_config_from(values)
             goal = _goal_from_parameter(values['goal'])
         except ParameterError as error:

@@ -115,7 +115,12 @@ def build_parser():
 
 def parse_arguments(argv):
     """Parse and check ARGV; return (options, scenario). Raise UsageError on bad input."""
-    from prvo_sim.scenario import ScenarioError, find_scenario, load_scenario
+    from prvo_sim.scenario import (
+        ScenarioError,
+        check_team_memory,
+        find_scenario,
+        load_scenario,
+    )
 
     options = build_parser().parse_args(argv)
     if options.eta is not None and not 0.0 < options.eta < 1.0:
@@ -132,6 +137,7 @@ def parse_arguments(argv):
             raise UsageError(f"--{name.replace('_', '-')}: empty command")
     try:
         scenario = load_scenario(find_scenario(options.scenario), seed=options.seed)
+        check_team_memory(scenario)
     except ScenarioError as error:
         raise UsageError(str(error)) from None
     except OSError as error:

@@ -1,4 +1,9 @@
-"""Loading and validating scenario files (schema: /work/shared/scenarios/README.md)."""
+"""Loading and validating scenario files (schema: docs/scenarios.md).
+
+Everything is checked before any process starts: the keys, their types and ranges, and the
+planner blocks by the planner's own parameter rules (`prvo_planner.parameters`), so that a file
+that loads starts every planner. `check_team_memory` tells whether the machine can hold the team.
+"""
 
 from dataclasses import dataclass
 import math
@@ -10,6 +15,13 @@ import numpy as np
 import yaml
 
 from prvo_msgs_util import validate_robot_name
+from prvo_planner.parameters import (
+    COORDINATE_LIMIT,
+    ParameterError,
+    check_parameter,
+    type_name,
+    unknown_parameter_reason,
+)
 
 _SCENARIO_NAME = re.compile(r'[A-Za-z0-9_-]+')
 _TOP_LEVEL_KEYS = {'name', 'description', 'seed', 'dt', 'duration', 'goal_tolerance', 'noise',
@@ -18,7 +30,31 @@ _TOP_LEVEL_REQUIRED = {'name', 'seed', 'dt', 'duration', 'goal_tolerance', 'robo
 _ROBOT_KEYS = {'name', 'start', 'goal', 'radius', 'max_speed', 'noise', 'planner'}
 _ROBOT_REQUIRED = {'name', 'start', 'goal', 'radius', 'max_speed'}
 _NOISE_KEYS = ('position_std', 'velocity_std', 'actuation_std')
-_PLANNER_SCALARS = (bool, int, float, str)
+DT_RANGE = (1.0e-4, 10.0)
+MAX_STEPS = 10 ** 6
+MAX_NOISE_STD = 1.0e3
+MAX_GOAL_TOLERANCE = 100.0
+MAX_ROBOTS = 256
+MAX_SEED = 2 ** 31 - 1  # the simulator's and the planner's seed parameters are 32-bit
+# Planner parameters the runner sets from the robot entry or its own options: a planner block
+# that sets one would be overridden, so it is refused with where the value belongs.
+SET_BY_RUNNER = {
+    'radius': "set by the runner from each robot's radius: set it there",
+    'max_speed': "set by the runner from each robot's max_speed: set it there",
+    'goal': "set by the runner from each robot's goal: set it there",
+    'actuation_std': 'set by the runner from noise.actuation_std (top level or per robot): '
+                     'set it there',
+    'goal_tolerance': 'set by the runner from the top-level goal_tolerance: set it there',
+    'model': 'set by the runner from its --method option',
+    'use_sim_time': 'set by the runner (always true: the simulator keeps the time)',
+}
+# Resident memory of one process of a run [MiB], measured by prvo_sim.bench_team (planners
+# 141-149 MiB, simulator 73-81 MiB) and rounded up: an estimate, not a bound.
+PLANNER_MEMORY_MIB = 150
+SIMULATOR_MEMORY_MIB = 80
+RUNNER_MEMORY_MIB = 120
+_YAML_1_2_FLOAT = re.compile(
+    r'^[-+]?(?:\.[0-9]+|[0-9]+(?:\.[0-9]*)?)(?:[eE][-+]?[0-9]+)?$')
 
 
 class ScenarioError(ValueError):
@@ -44,7 +80,9 @@ class NoiseSpec:
 class RobotSpec:
     """One robot of a scenario, with the file-level noise and planner blocks merged in.
 
-    `start` and `goal` are read-only arrays (2,), so specs compare by identity.
+    `start` and `goal` are read-only arrays (2,), so specs compare by identity. `planner` holds
+    the planner parameters given for this robot, typed and checked: the file-level block with
+    the robot's own block over it.
     """
 
     name: str
@@ -85,6 +123,12 @@ class _UniqueKeyLoader(yaml.SafeLoader):
         return super().construct_mapping(node, deep=deep)
 
 
+# PyYAML reads YAML 1.1, where `1e-2` (no dot) and `1.0e3` (unsigned exponent) are strings;
+# scenario files are read with YAML 1.2's floats. Integers still resolve first.
+_UniqueKeyLoader.add_implicit_resolver(
+    'tag:yaml.org,2002:float', _YAML_1_2_FLOAT, list('-+0123456789.'))
+
+
 class _Validator:
     """Check one parsed file; every failure raises ScenarioError with its key path."""
 
@@ -97,7 +141,7 @@ class _Validator:
     def mapping(self, value, key, allowed, required):
         """Return VALUE if it is a mapping with REQUIRED keys and only ALLOWED (None: any)."""
         if not isinstance(value, dict):
-            self.fail(key, f'expected a mapping, got {_type_name(value)}')
+            self.fail(key, f'expected a mapping, got {type_name(value)}')
         prefix = f'{key}.' if key != '(top level)' else ''
         for name in value:
             if allowed is not None and name not in allowed:
@@ -108,33 +152,44 @@ class _Validator:
                 self.fail(f'{prefix}{name}', 'missing required key')
         return value
 
-    def number(self, value, key, minimum=None, strictly=True):
+    def number(self, value, key, low=None, high=None, low_open=False):
+        """Return VALUE as a finite float within [LOW, HIGH] (LOW excluded if LOW_OPEN)."""
         # bool is an int in Python, but `radius: true` is a mistake, not a number.
         if isinstance(value, bool) or not isinstance(value, (int, float)):
-            self.fail(key, f'expected a number, got {_type_name(value)}')
-        if not math.isfinite(value):
+            self.fail(key, f'expected a number, got {type_name(value)}')
+        try:
+            number = float(value)
+        except OverflowError:
+            self.fail(key, f'too large a number (an integer of {value.bit_length()} bits)')
+        if not math.isfinite(number):
             self.fail(key, f'expected a finite number, got {value}')
-        if minimum is not None and (value <= minimum if strictly else value < minimum):
-            self.fail(key, f'must be {">" if strictly else ">="} {minimum}, got {value}')
-        return float(value)
+        below = number <= low if low_open else number < low if low is not None else False
+        if below or (high is not None and number > high):
+            shown = repr(value) if isinstance(value, float) else str(value)
+            if high is None:
+                self.fail(key, f'must be {">" if low_open else ">="} {low:g}, got {shown}')
+            self.fail(key, f'must be in {"(" if low_open else "["}{low:g}, {high:g}], '
+                      f'got {shown}')
+        return number
 
     def seed(self, value, key):
         if isinstance(value, bool) or not isinstance(value, int):
-            self.fail(key, f'expected an integer, got {_type_name(value)}')
-        if value < 0:
-            self.fail(key, f'must be >= 0, got {value}')
+            self.fail(key, f'expected an integer, got {type_name(value)}')
+        if not 0 <= value <= MAX_SEED:
+            self.fail(key, f'must be in [0, {MAX_SEED}], got {value}')
         return value
 
     def string(self, value, key):
         if not isinstance(value, str):
-            self.fail(key, f'expected a string, got {_type_name(value)}')
+            self.fail(key, f'expected a string, got {type_name(value)}')
         return value
 
     def point(self, value, key):
         if not isinstance(value, list) or len(value) != 2:
             self.fail(key, f'expected [x, y], got {value!r}')
-        point = np.array([self.number(coordinate, f'{key}[{index}]')
-                          for index, coordinate in enumerate(value)])
+        point = np.array([
+            self.number(coordinate, f'{key}[{index}]', -COORDINATE_LIMIT, COORDINATE_LIMIT)
+            for index, coordinate in enumerate(value)])
         point.flags.writeable = False
         return point
 
@@ -142,28 +197,36 @@ class _Validator:
         if value is None:
             return {}
         block = self.mapping(value, key, set(_NOISE_KEYS), set())
-        return {name: self.number(std, f'{key}.{name}', 0.0, strictly=False)
+        return {name: self.number(std, f'{key}.{name}', 0.0, MAX_NOISE_STD)
                 for name, std in block.items()}
 
+    def planner_parameter(self, name, value, key):
+        """Return VALUE of the planner parameter NAME checked by the planner's own rules."""
+        try:
+            return check_parameter(name, value)
+        except ParameterError as error:
+            self.fail(key, error.reason)
+
     def planner(self, value, key):
+        """Return the planner block VALUE as a typed dict; refuse what a planner would."""
         if value is None:
             return {}
         block = self.mapping(value, key, None, set())
+        checked = {}
         for name, parameter in block.items():
+            path = f'{key}.{name}'
+            if name in SET_BY_RUNNER:
+                self.fail(path, SET_BY_RUNNER[name])
             if not isinstance(name, str):
-                self.fail(f'{key}.{name}', 'parameter names must be strings')
-            items = parameter if isinstance(parameter, list) else [parameter]
-            if not all(isinstance(item, _PLANNER_SCALARS) for item in items):
-                self.fail(f'{key}.{name}',
-                          f'expected a ROS parameter value (bool, int, float, string or a '
-                          f'list of them), got {_type_name(parameter)}')
-        return dict(block)
-
-
-def _type_name(value):
-    return {type(None): 'nothing', dict: 'a mapping', list: 'a list', bool: 'a boolean',
-            str: 'a string', int: 'an integer', float: 'a number'}.get(
-                type(value), type(value).__name__)
+                self.fail(path, unknown_parameter_reason(name))
+            checked[name] = self.planner_parameter(name, parameter, path)
+            if name == 'neighbors':
+                for robot in checked[name] or ():
+                    try:
+                        validate_robot_name(robot)
+                    except ValueError as error:
+                        self.fail(path, str(error))
+        return checked
 
 
 def _parse(path):
@@ -173,6 +236,9 @@ def _parse(path):
         raise ScenarioError(path, '(file)', f'cannot read: {error}') from None
     try:
         return yaml.load(text, Loader=_UniqueKeyLoader)
+    except ValueError as error:
+        # Python refuses to read integers of more than 4300 digits.
+        raise ScenarioError(path, '(document)', f'unreadable number: {error}') from None
     except yaml.YAMLError as error:
         mark = getattr(error, 'problem_mark', None)
         where = f'line {mark.line + 1}, column {mark.column + 1}' if mark else '(document)'
@@ -194,14 +260,19 @@ def load_scenario(path, seed=None):
         check.fail('name', f'{name!r} may only contain letters, digits, "_" and "-"')
     description = check.string(document.get('description', ''), 'description')
     file_seed = check.seed(document['seed'], 'seed')
-    dt = check.number(document['dt'], 'dt', 0.0)
-    duration = check.number(document['duration'], 'duration', 0.0)
-    goal_tolerance = check.number(document['goal_tolerance'], 'goal_tolerance', 0.0)
+    dt = check.number(document['dt'], 'dt', *DT_RANGE)
+    duration = check.number(document['duration'], 'duration', 0.0, low_open=True)
+    if duration / dt > MAX_STEPS:
+        check.fail('duration', f'{duration:g} s at dt {dt:g} s is more than {MAX_STEPS} steps')
+    goal_tolerance = check.number(document['goal_tolerance'], 'goal_tolerance', 0.0,
+                                  MAX_GOAL_TOLERANCE, low_open=True)
     file_noise = check.noise(document.get('noise'), 'noise')
     file_planner = check.planner(document.get('planner'), 'planner')
     robot_list = document['robots']
     if not isinstance(robot_list, list) or not robot_list:
-        check.fail('robots', f'expected a non-empty list, got {_type_name(robot_list)}')
+        check.fail('robots', f'expected a non-empty list, got {type_name(robot_list)}')
+    if len(robot_list) > MAX_ROBOTS:
+        check.fail('robots', f'{len(robot_list)} robots, more than {MAX_ROBOTS}')
     robots = tuple(_robot(check, entry, f'robots[{index}]', file_noise, file_planner)
                    for index, entry in enumerate(robot_list))
     _check_robots_distinct(check, robots)
@@ -222,8 +293,9 @@ def _robot(check, entry, key, file_noise, file_planner):
     return RobotSpec(
         name=name, start=check.point(entry['start'], f'{key}.start'),
         goal=check.point(entry['goal'], f'{key}.goal'),
-        radius=check.number(entry['radius'], f'{key}.radius', 0.0),
-        max_speed=check.number(entry['max_speed'], f'{key}.max_speed', 0.0),
+        # A planner gets both as its parameters of the same name: the same rules apply.
+        radius=check.planner_parameter('radius', entry['radius'], f'{key}.radius'),
+        max_speed=check.planner_parameter('max_speed', entry['max_speed'], f'{key}.max_speed'),
         noise=NoiseSpec(**{field: noise.get(field, 0.0) for field in _NOISE_KEYS}),
         planner={**file_planner, **check.planner(entry.get('planner'), f'{key}.planner')})
 
@@ -245,11 +317,13 @@ def _check_robots_distinct(check, robots):
 def find_scenario(name_or_path):
     """Return the path of a scenario given as a file path or a bare name like 'circle8'.
 
-    A bare name resolves to the installed share/prvo_sim/scenarios/<name>.yaml, else to the
-    copy in the source tree. Raises ScenarioError if neither exists.
+    A bare name is a file of that name if one exists, else the installed
+    share/prvo_sim/scenarios/<name>.yaml, else the copy in the source tree. Raises ScenarioError
+    if none exists.
     """
     candidate = pathlib.Path(name_or_path)
-    if candidate.suffix in ('.yaml', '.yml') or len(candidate.parts) > 1 or candidate.exists():
+    # A directory of that name (say, an output folder) is not a scenario.
+    if candidate.suffix in ('.yaml', '.yml') or len(candidate.parts) > 1 or candidate.is_file():
         return candidate
     directories = []
     try:
@@ -263,3 +337,42 @@ def find_scenario(name_or_path):
             return path
     raise ScenarioError(name_or_path, '(file)', 'no such scenario in ' + ', '.join(
         str(directory) for directory in directories))
+
+
+def estimate_team_memory(scenario):
+    """Return the memory a run of SCENARIO is estimated to need [MiB].
+
+    One planner process per robot, the simulator and the runner, each at the resident size
+    measured for it (PLANNER_MEMORY_MIB, ...): an estimate that ignores sharing between
+    processes and growth with the team, good to a few tens of percent.
+    """
+    return (len(scenario.robots) * PLANNER_MEMORY_MIB + SIMULATOR_MEMORY_MIB
+            + RUNNER_MEMORY_MIB)
+
+
+def available_memory_mib(meminfo='/proc/meminfo'):
+    """Return MemAvailable of MEMINFO [MiB], or None where the system does not report it."""
+    try:
+        with open(meminfo) as lines:
+            for line in lines:
+                if line.startswith('MemAvailable:'):
+                    return int(line.split()[1]) // 1024
+    except (OSError, ValueError, IndexError):
+        return None
+    return None
+
+
+def check_team_memory(scenario, available_mib=None):
+    """Raise ScenarioError if a run of SCENARIO needs more memory than is available.
+
+    AVAILABLE_MIB defaults to the machine's MemAvailable; where that is unknown, nothing is
+    checked. Call before starting anything.
+    """
+    available = available_memory_mib() if available_mib is None else available_mib
+    needed = estimate_team_memory(scenario)
+    if available is not None and needed > available:
+        raise ScenarioError(
+            scenario.path, 'robots',
+            f'{len(scenario.robots)} robots need an estimated {needed} MiB '
+            f'({PLANNER_MEMORY_MIB} MiB per planner, {SIMULATOR_MEMORY_MIB} MiB simulator, '
+            f'{RUNNER_MEMORY_MIB} MiB runner), more than the {available} MiB available')

@@ -1,0 +1,301 @@
+"""The planner's parameters, defined once for the planner node and for scenario files (no ROS).
+
+Every parameter has a kind, a default, an inclusive range (what a ROS parameter descriptor can
+state) and the further rules the planner needs. `check_parameter` applies them to one value,
+`planner_config_from` to a whole mapping: the planner node validates its parameters with these
+at start-up and on every change, and the scenario loader validates the planner blocks of a
+scenario file with the same functions, so a file the loader accepts starts every planner.
+"""
+
+import array
+from dataclasses import dataclass
+import difflib
+import math
+import numbers
+
+import numpy as np
+
+from prvo_planner.core import PlannerConfig
+from prvo_planner.core.config import METHODS, MODELS, RISKS
+
+BOOL = 'bool'
+INTEGER = 'int'
+FLOAT = 'float'
+STRING = 'str'
+FLOAT_ARRAY = 'float[]'
+STRING_ARRAY = 'str[]'
+# Goals (and the scenario's coordinates) are in metres of one shared map: 1000 km is plenty and
+# keeps every product of coordinates far from floating-point trouble.
+COORDINATE_LIMIT = 1.0e6
+
+
+class ParameterError(ValueError):
+    """A planner parameter value the planner cannot use: '<name>: <reason>'."""
+
+    def __init__(self, name, reason):
+        super().__init__(f'{name}: {reason}')
+        self.name = name
+        self.reason = reason
+
+
+@dataclass(frozen=True)
+class ParameterSpec:
+    """One planner parameter.
+
+    `bounds` is an inclusive (low, high) range of a scalar, as a ROS descriptor states it;
+    `rule(value)` returns why a value is refused beyond that (None: accepted). A default of
+    None means the parameter may be left unset.
+    """
+
+    name: str
+    kind: str
+    default: object
+    description: str
+    bounds: tuple = None
+    choices: tuple = ()
+    rule: object = None
+    read_only: bool = False
+
+
+def _positive(value):
+    return None if value > 0.0 else f'must be > 0, got {_shown(value)}'
+
+
+def _positive_up_to_100(value):
+    return None if 0.0 < value <= 100.0 else f'must be in (0, 100], got {_shown(value)}'
+
+
+def _open_unit_interval(value):
+    return None if 0.0 < value < 1.0 else f'must be in (0, 1), got {_shown(value)}'
+
+
+def _below_one(value):
+    return None if value < 1.0 else f'must be in [0, 1), got {_shown(value)}'
+
+
+def _k_rule(value):
+    return None if value == -1.0 or value >= 0.0 else (
+        f'must be >= 0 (or -1 to use eta), got {_shown(value)}')
+
+
+def _neighbour_radius_rule(value):
+    return None if value == -1.0 or value > 0.0 else (
+        f'must be -1 (= radius) or > 0, got {_shown(value)}')
+
+
+def _goal_rule(value):
+    if len(value) != 2:
+        return f'must be [x, y], got {_shown(value)}'
+    if any(abs(coordinate) > COORDINATE_LIMIT for coordinate in value):
+        return f'coordinates must be in [{-COORDINATE_LIMIT:g}, {COORDINATE_LIMIT:g}], got ' \
+            f'{_shown(value)}'
+    return None
+
+
+def _not_empty(value):
+    return None if value else 'must not be empty'
+
+
+_SPECS = (
+    ParameterSpec('eta', FLOAT, 0.8, 'Required probability that the RVO condition holds for '
+                  'each neighbour, in (0, 1).', (0.0, 1.0), rule=_open_unit_interval),
+    ParameterSpec('k', FLOAT, -1.0, 'Surrogate margin k >= 0 (mean - k std >= 0); wins over '
+                  'eta when set. -1 = use eta.', (-1.0, 1.0e3), rule=_k_rule),
+    ParameterSpec('radius', FLOAT, 0.3, "This robot's radius [m], in (0, 100].", (0.0, 100.0),
+                  rule=_positive_up_to_100),
+    ParameterSpec('neighbor_radius', FLOAT, -1.0, 'Radius assumed for every neighbour [m], > 0; '
+                  '-1 = the same as radius.', (-1.0, 100.0), rule=_neighbour_radius_rule),
+    ParameterSpec('max_speed', FLOAT, 1.0, 'Speed limit [m/s], in (0, 100].', (0.0, 100.0),
+                  rule=_positive_up_to_100),
+    ParameterSpec('num_directions', INTEGER, 64, 'Candidate headings evaluated per plan.',
+                  (1, 4096)),
+    ParameterSpec('time_horizon', FLOAT, 5.0, 'Collisions later than this many seconds do not '
+                  'constrain now, > 0; .inf for none.', rule=_positive),
+    ParameterSpec('neighbor_distance', FLOAT, 10.0, 'Neighbours farther than this [m] are not '
+                  'considered, > 0.', (0.0, 1.0e4), rule=_positive),
+    ParameterSpec('actuation_std', FLOAT, 0.0, "Std of this robot's velocity execution error "
+                  'per axis [m/s] (PRVO ego noise).', (0.0, 1.0e3)),
+    ParameterSpec('safety_margin', FLOAT, 0.0, 'Extra clearance added to the sum of radii [m].',
+                  (0.0, 10.0)),
+    ParameterSpec('model', STRING, 'prvo', 'Planner model: prvo, rvo, inflate or mc.',
+                  choices=MODELS),
+    ParameterSpec('method', STRING, 'exact', 'PRVO ray solver: exact (quartic) or taylor '
+                  '(paper).', choices=METHODS),
+    ParameterSpec('risk', STRING, 'pairwise', 'Risk allocation over neighbours: pairwise or '
+                  'joint.', choices=RISKS),
+    ParameterSpec('goal', FLOAT_ARRAY, None, 'Goal [x, y] in the map frame [m], |x|, |y| <= '
+                  '1e6; unset = wait for a goal_pose message.', rule=_goal_rule),
+    ParameterSpec('goal_tolerance', FLOAT, 0.2, 'Distance to the goal [m] under which the robot '
+                  'stops, in (0, 100].', (0.0, 100.0), rule=_positive_up_to_100),
+    ParameterSpec('approach_time', FLOAT, 0.5, 'Preferred speed is distance / approach_time '
+                  'near the goal [s].', (1.0e-3, 100.0)),
+    ParameterSpec('stamped_cmd_vel', BOOL, True, 'Publish geometry_msgs/TwistStamped (true) or '
+                  'Twist (false).', read_only=True),
+    ParameterSpec('neighbors', STRING_ARRAY, None, 'Robot names to avoid; unset discovers every '
+                  'other /<name>/odom in the graph.', read_only=True),
+    ParameterSpec('neighbor_timeout', FLOAT, 2.0, 'A neighbour silent this long [s, wall time] '
+                  'is dropped.', (0.01, 3600.0)),
+    ParameterSpec('sync_timeout', FLOAT, 0.2, "Wall time [s] to wait for neighbours' odometry "
+                  'of the same stamp before planning.', (0.0, 10.0)),
+    ParameterSpec('status_period', FLOAT, 0.2, 'Diagnostics and markers are published at most '
+                  'this often [s, wall]; cmd_vel always.', (0.0, 60.0)),
+    ParameterSpec('acceleration_std', FLOAT, 1.0, 'Process noise of the constant-velocity '
+                  'tracker [m/s^2].', (1.0e-3, 100.0)),
+    ParameterSpec('frame_id', STRING, 'map', 'World frame of odometry and goals.',
+                  read_only=True, rule=_not_empty),
+    ParameterSpec('seed', INTEGER, -1, 'Seed for the random rotation of candidate headings; '
+                  '-1 = fixed headings.', (-1, 2 ** 31 - 1)),
+    # Both only rank the velocities that meet the constraints: without them, the
+    # closest-to-v_pref choice flips side from one step to the next (the chosen command turned
+    # by more than 90 degrees in 15% of the steps of circle8, PRVO eta 0.8).
+    ParameterSpec('inertia', FLOAT, 0.5, 'Weight in [0, 1) of |v - previous command| in the '
+                  'choice cost |v - v_pref| + ...; damps side flips. 0 = closest to v_pref.',
+                  (0.0, 0.99), rule=_below_one),
+    ParameterSpec('passing_bias', FLOAT, 0.1, 'Cost per m/s of velocity left of the preferred '
+                  'direction: every robot breaks the tie of a symmetric encounter the same way '
+                  '(pass on the right). 0 = none.', (0.0, 10.0)),
+)
+
+# Every planner parameter by name, in declaration order.
+PARAMETERS = {spec.name: spec for spec in _SPECS}
+DEFAULTS = {spec.name: spec.default for spec in _SPECS}
+
+
+def type_name(value):
+    """Return how an error message names the type of VALUE ('a string', 'nothing', ...)."""
+    if isinstance(value, bool):
+        return 'a boolean'
+    if isinstance(value, numbers.Integral):
+        return 'an integer'
+    if isinstance(value, numbers.Real):
+        return 'a number'
+    return {type(None): 'nothing', dict: 'a mapping', list: 'a list', tuple: 'a list',
+            array.array: 'a list', str: 'a string'}.get(type(value), type(value).__name__)
+
+
+def _shown(value):
+    """Return VALUE as an error message shows it: arrays as lists, huge integers by size."""
+    if isinstance(value, (array.array, np.ndarray, tuple)):
+        value = list(value)
+    if isinstance(value, list):
+        return '[' + ', '.join(_shown(item) for item in value) + ']'
+    if isinstance(value, numbers.Integral) and not isinstance(value, bool) and (
+            abs(value) > 10 ** 30):
+        return f'an integer of {value.bit_length()} bits'
+    return repr(value) if isinstance(value, (str, float)) else str(value)
+
+
+def nearest_name(name, names=None):
+    """Return the name in NAMES (default: the planner's) closest to NAME, or None."""
+    matches = difflib.get_close_matches(str(name), list(names or PARAMETERS), n=1, cutoff=0.6)
+    return matches[0] if matches else None
+
+
+def unknown_parameter_reason(name):
+    """Return the reason an unknown parameter NAME is refused, with the nearest valid name."""
+    nearest = nearest_name(name)
+    suggestion = f' (did you mean {nearest!r}?)' if nearest else ''
+    return f'unknown planner parameter{suggestion}'
+
+
+def _is_sequence(value):
+    # rclpy hands array parameters over as array.array, YAML and the command line as lists.
+    return isinstance(value, (list, tuple, array.array, np.ndarray))
+
+
+def _real(name, value):
+    """Return VALUE as a float; NaN and numbers too large for a float are refused."""
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Real):
+        raise ParameterError(name, f'expected a number, got {type_name(value)}')
+    try:
+        number = float(value)
+    except OverflowError:
+        raise ParameterError(name, f'too large a number ({_shown(value)})') from None
+    if math.isnan(number):
+        raise ParameterError(name, f'expected a number, got {number}')
+    return number
+
+
+def _typed(spec, value):
+    """Return VALUE converted to SPEC's kind; raise ParameterError for a value of another type."""
+    name = spec.name
+    if spec.kind == BOOL:
+        if not isinstance(value, (bool, np.bool_)):
+            raise ParameterError(name, f'expected true or false, got {type_name(value)}')
+        return bool(value)
+    if spec.kind == INTEGER:
+        if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Integral):
+            raise ParameterError(name, f'expected an integer, got {type_name(value)}')
+        return int(value)
+    if spec.kind == FLOAT:
+        return _real(name, value)
+    if spec.kind == STRING:
+        if not isinstance(value, str):
+            raise ParameterError(name, f'expected a string, got {type_name(value)}')
+        return value
+    if not _is_sequence(value):
+        raise ParameterError(name, f'expected a list, got {type_name(value)}')
+    if spec.kind == FLOAT_ARRAY:
+        numbers_given = [_real(f'{name}[{index}]', item) for index, item in enumerate(value)]
+        if not all(math.isfinite(item) for item in numbers_given):
+            raise ParameterError(name, f'expected finite numbers, got {_shown(numbers_given)}')
+        return numbers_given
+    if not all(isinstance(item, str) for item in value):
+        raise ParameterError(name, f'expected a list of strings, got {_shown(value)}')
+    return list(value)
+
+
+def check_parameter(name, value):
+    """Return VALUE of the planner parameter NAME, typed; raise ParameterError if unusable.
+
+    Integers are accepted for float parameters and any sequence of numbers for an array. None
+    means unset, which only parameters without a default may be.
+    """
+    spec = PARAMETERS.get(name)
+    if spec is None:
+        raise ParameterError(name, unknown_parameter_reason(name))
+    if value is None:
+        if spec.default is None:
+            return None
+        raise ParameterError(name, f'must be set (default {_shown(spec.default)})')
+    typed = _typed(spec, value)
+    if spec.kind == FLOAT and math.isinf(typed) and spec.bounds is not None:
+        raise ParameterError(name, f'expected a finite number, got {typed}')
+    if spec.bounds is not None and not spec.bounds[0] <= typed <= spec.bounds[1]:
+        low, high = spec.bounds
+        reason = spec.rule(typed) if spec.rule is not None else None
+        raise ParameterError(name, reason or f'must be in [{_shown(low)}, {_shown(high)}], '
+                             f'got {_shown(typed)}')
+    if spec.choices and typed not in spec.choices:
+        raise ParameterError(name, f"must be one of {', '.join(spec.choices)}, got {typed!r}")
+    reason = spec.rule(typed) if spec.rule is not None else None
+    if reason is not None:
+        raise ParameterError(name, reason)
+    return typed
+
+
+def checked_parameters(values):
+    """Return a copy of the name -> value mapping VALUES with every value checked and typed."""
+    return {name: check_parameter(name, value) for name, value in values.items()}
+
+
+def planner_config_from(values):
+    """Return the core's PlannerConfig of VALUES (parameter name -> value) over the defaults.
+
+    Raises ParameterError naming the first parameter the planner cannot use and its value.
+    """
+    merged = {**DEFAULTS, **checked_parameters(values)}
+    k = merged['k']
+    seed = merged['seed']
+    try:
+        return PlannerConfig(
+            eta=merged['eta'], k=None if k == -1.0 else k, max_speed=merged['max_speed'],
+            num_directions=merged['num_directions'], time_horizon=merged['time_horizon'],
+            neighbor_distance=merged['neighbor_distance'],
+            actuation_cov=merged['actuation_std'] ** 2 * np.eye(2),
+            safety_margin=merged['safety_margin'], method=merged['method'],
+            model=merged['model'], risk=merged['risk'], seed=None if seed < 0 else seed,
+            inertia=merged['inertia'], passing_bias=merged['passing_bias'])
+    except ValueError as error:
+        # The rules above cover PlannerConfig's; should they ever diverge, still one clear line.
+        raise ParameterError('planner', str(error)) from error
