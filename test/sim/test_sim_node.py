@@ -5,6 +5,7 @@ import time
 
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import TwistStamped
+from kinematics_replay import replay
 from nav_msgs.msg import Odometry
 import numpy as np
 import pytest
@@ -264,6 +265,31 @@ def test_same_seed_gives_the_same_run(probe, children, ros2_executable):
     np.testing.assert_array_equal(first, second)
     # The seed parameter really reaches the noise: another seed, other trajectories.
     assert np.abs(first - other_seed).min() > 0.0
+
+
+def test_lockstep_run_is_the_kinematics_replay_of_its_commands(probe, children, ros2_executable):
+    steps = 15
+    planners = Planners(probe, HEAD_ON, answer_until_step=steps)
+    sim = start_sim(children, ros2_executable, 'sim', seed=7)
+    probe.wait_until(
+        lambda: all(len(planners.steps(robot, 'ground_truth')) > steps for robot in ROBOTS),
+        60.0, f'{steps} steps')
+    assert children.interrupt(sim) == 0
+
+    # The node's draws, step by step, in the order it made them before TeamWorld existed.
+    expected = replay(HEADON2, 7, [[HEAD_ON[robot] for robot in ROBOTS]] * steps)
+    for index, robot in enumerate(ROBOTS):
+        # From t_1: t_0 can go out before the probe's subscriptions have matched.
+        for step in range(1, steps + 1):
+            stamp = round(step * HEADON2.dt * 1e9)
+            truth = odometry_to_measurement(planners.ground_truth[robot][stamp])
+            noisy = odometry_to_measurement(planners.odometry[robot][stamp])
+            for value, name in ((truth.position, 'positions'), (truth.velocity, 'velocities'),
+                                (noisy.position, 'measured_positions'),
+                                (noisy.velocity, 'measured_velocities'),
+                                (truth.yaw, 'yaws'), (noisy.yaw, 'yaws')):
+                np.testing.assert_allclose(value, expected[name][step, index], rtol=0,
+                                           atol=1e-12, err_msg=f'{name} of {robot} at {step}')
 
 
 @pytest.mark.parametrize(('parameters', 'expected'), [
