@@ -20,6 +20,8 @@ from prvo_msgs_util import (
     diagnostic_values,
     make_twist,
     odometry_to_measurement,
+    seconds_to_stamp,
+    stamp_to_seconds,
 )
 from prvo_sim.scenario import find_scenario, load_scenario
 
@@ -37,20 +39,26 @@ class Planners:
     """Probe-side planners: answer each robot's odometry with a constant TwistStamped.
 
     Robots not in COMMANDS get a cmd_vel publisher but never answer; ROGUE robots answer with a
-    NaN command instead. FRAMES gives a robot's command frame (default map). Odometry and
-    ground truth are recorded per robot, keyed by stamp.
+    NaN command instead. FRAMES gives a robot's command frame (default map). ANSWER_UNTIL_STEP
+    (one step for all, or {robot: step}) ends a robot's answers after that step. SCRIPT(robot,
+    step) may return the list of (velocity, stamp offset [s]) to send instead of the answer.
+    Odometry and ground truth (unless GROUND_TRUTH is false) are recorded per robot, keyed by
+    stamp; `odometry_count` counts every odometry message per stamp, re-sent ones included.
     """
 
-    def __init__(self, probe, commands, rogue=(), answer_until_step=None, frames=None):
+    def __init__(self, probe, commands, rogue=(), answer_until_step=None, frames=None,
+                 script=None, ground_truth=True):
         self._probe = probe
         self._commands = commands
         self._frames = frames or {}
         self._rogue = rogue
-        self._answer_until_ns = (
-            None if answer_until_step is None
-            else round(answer_until_step * HEADON2.dt * 1e9))
+        self._script = script
+        if not isinstance(answer_until_step, dict):
+            answer_until_step = dict.fromkeys(ROBOTS, answer_until_step)
+        self._answer_until_step = answer_until_step
         self.lock = threading.Lock()
         self.odometry = {robot: {} for robot in ROBOTS}
+        self.odometry_count = {robot: {} for robot in ROBOTS}
         self.ground_truth = {robot: {} for robot in ROBOTS}
         self.arrival_times = {robot: {} for robot in ROBOTS}
         self._subscriptions = []
@@ -61,9 +69,14 @@ class Planners:
             self._subscriptions.append(probe.node.create_subscription(
                 Odometry, f'/{robot}/odom',
                 lambda msg, robot=robot: self._on_odometry(robot, msg), ODOM_QOS))
-            self._subscriptions.append(probe.node.create_subscription(
-                Odometry, f'/{robot}/ground_truth',
-                lambda msg, robot=robot: self._keep(self.ground_truth[robot], msg), ODOM_QOS))
+            if ground_truth:
+                self.subscribe_ground_truth(robot)
+
+    def subscribe_ground_truth(self, robot):
+        """Record ROBOT's ground truth from now on."""
+        self._subscriptions.append(self._probe.node.create_subscription(
+            Odometry, f'/{robot}/ground_truth',
+            lambda msg: self._keep(self.ground_truth[robot], msg), ODOM_QOS))
 
     def _keep(self, by_stamp, msg):
         with self.lock:
@@ -71,21 +84,30 @@ class Planners:
 
     def _on_odometry(self, robot, msg):
         stamp = stamp_ns(msg.header.stamp)
+        step = round(stamp / (HEADON2.dt * 1e9))
         with self.lock:
             self.arrival_times[robot].setdefault(stamp, time.monotonic())
+            counts = self.odometry_count[robot]
+            counts[stamp] = counts.get(stamp, 0) + 1
         self._keep(self.odometry[robot], msg)
-        if self._answer_until_ns is not None and stamp > self._answer_until_ns:
+        last_step = self._answer_until_step.get(robot)
+        if last_step is not None and step > last_step:
             return
-        if robot in self._rogue:
-            velocity = (float('nan'), 0.0)
+        scripted = self._script(robot, step) if self._script else None
+        if scripted is not None:
+            answers = scripted
+        elif robot in self._rogue:
+            answers = [((float('nan'), 0.0), 0.0)]
         elif robot in self._commands:
-            velocity = self._commands[robot]
+            answers = [(self._commands[robot], 0.0)]
         else:
             return
-        answer = TwistStamped(twist=make_twist(velocity))
-        answer.header.stamp = msg.header.stamp
-        answer.header.frame_id = self._frames.get(robot, 'map')
-        self._publishers[robot].publish(answer)
+        for velocity, stamp_offset in answers:
+            answer = TwistStamped(twist=make_twist(velocity))
+            answer.header.stamp = msg.header.stamp if not stamp_offset else seconds_to_stamp(
+                stamp_to_seconds(msg.header.stamp) + stamp_offset)
+            answer.header.frame_id = self._frames.get(robot, 'map')
+            self._publishers[robot].publish(answer)
 
     def steps(self, robot, what='odometry'):
         """Return the step indices recorded so far for ROBOT, sorted."""
@@ -237,6 +259,140 @@ def test_realtime_steps_on_the_wall_clock(probe, children, ros2_executable):
         arrivals = sorted(planners.arrival_times['robot_1'].values())
     # 20 Hz wall rate: ticks 50 ms apart on average (not lockstep's as-fast-as-answered).
     assert np.mean(np.diff(arrivals[1:])) == pytest.approx(0.05, rel=0.3)
+
+
+def ground_truth_positions(planners, robot, steps):
+    """Return {step: ground truth position} of ROBOT for the recorded STEPS."""
+    with planners.lock:
+        received = dict(planners.ground_truth[robot])
+    return {step: odometry_to_measurement(received[round(step * HEADON2.dt * 1e9)]).position
+            for step in steps if round(step * HEADON2.dt * 1e9) in received}
+
+
+def test_observer_sees_every_step_from_t0(probe, children, ros2_executable):
+    observer = probe.node.get_fully_qualified_name()
+    diagnostics = probe.record(DiagnosticArray, '/diagnostics', DIAGNOSTICS_QOS)
+    # Both robots answer every odometry; the observer's ground truth subscriptions come late.
+    planners = Planners(probe, HEAD_ON, ground_truth=False)
+    sim = start_sim(children, ros2_executable, 'sim', observers=f"['{observer}']")
+
+    probe.wait_until(
+        lambda: any(status.message == f'waiting for observers: {observer}'
+                    for array in diagnostics for status in array.status), 20.0,
+        'a status saying whom the sim waits for')
+    # Both robots have answered the t_0 odometry and had it re-sent: a sim that did not wait
+    # for the observer would have stepped on their first answers.
+    probe.wait_until(
+        lambda: all(planners.odometry_count[robot].get(0, 0) >= 3 for robot in ROBOTS), 20.0,
+        't_0 odometry re-sent to answering robots')
+    probe.wait_until(
+        lambda: f'{observer} has no subscription on /robot_0/ground_truth' in
+        children.output(sim), 5.0, 'the log naming the missing observer topics')
+    assert all(planners.steps(robot) == [0] for robot in ROBOTS)
+    for robot in ROBOTS:
+        planners.subscribe_ground_truth(robot)
+    probe.wait_until(
+        lambda: all(len(planners.steps(robot, 'ground_truth')) > 5 for robot in ROBOTS),
+        30.0, 'five steps once the observer subscribed')
+    assert children.interrupt(sim) == 0
+    for robot in ROBOTS:
+        # Every step from t_0 on, t_0 included.
+        steps = planners.steps(robot, 'ground_truth')
+        assert steps == list(range(len(steps)))
+        start = HEADON2.robots[ROBOTS.index(robot)].start
+        np.testing.assert_array_equal(ground_truth_positions(planners, robot, [0])[0], start)
+
+
+def test_realtime_robot_stops_when_its_commands_stop(probe, children, ros2_executable):
+    # Each robot answers the t_0 odometry only, then its planner is gone.
+    planners = Planners(probe, HEAD_ON, answer_until_step=0)
+    cmd_timeout = 0.3
+    sim = start_sim(children, ros2_executable, 'sim', mode='realtime', rate=20.0,
+                    cmd_timeout=cmd_timeout, startup_timeout=60.0)
+    last_step = 40
+    probe.wait_until(
+        lambda: all(last_step in planners.steps(robot, 'ground_truth') for robot in ROBOTS),
+        60.0, f'{last_step} realtime steps')
+    assert children.interrupt(sim) == 0
+    output = children.output(sim)
+    # Ticks are at least 1 / 20 s apart: from tick 7 on the last command is older than 0.3 s.
+    first_stopped = 10
+    noise_walk = 5 * 0.05 * HEADON2.dt * np.sqrt(last_step - first_stopped)
+    for robot, command in HEAD_ON.items():
+        positions = ground_truth_positions(planners, robot, range(1, last_step + 1))
+        start = HEADON2.robots[ROBOTS.index(robot)].start
+        # The first step executes the robot's one command.
+        np.testing.assert_allclose(positions[1] - start, np.array(command) * HEADON2.dt,
+                                   atol=5 * 0.05 * HEADON2.dt)
+        # Then it stops: it moves only by its actuation noise (1 m/s would be 3 m).
+        assert np.linalg.norm(positions[last_step] - positions[first_stopped]) < noise_walk
+        assert f'no cmd_vel from {robot} for' in output
+
+
+def test_lockstep_robot_that_stays_silent_is_stopped(probe, children, ros2_executable):
+    # robot_0 answers until step 3, then is silent; robot_1 answers every step.
+    planners = Planners(probe, HEAD_ON, answer_until_step={'robot_0': 3, 'robot_1': None})
+    sim = start_sim(children, ros2_executable, 'sim', step_timeout=0.2, cmd_timeout=0.5)
+    last_step = 20
+    probe.wait_until(
+        lambda: all(last_step in planners.steps(robot, 'ground_truth') for robot in ROBOTS),
+        60.0, f'{last_step} steps')
+    assert children.interrupt(sim) == 0
+    positions = ground_truth_positions(planners, 'robot_0', range(1, last_step + 1))
+    # Its misses start at step 4 (the step to t_5); 0.2 s apart, the silence exceeds 0.5 s at
+    # the fourth one: from t_8 on it executes zero velocity.
+    first_stopped = 8
+    noise_walk = 5 * 0.05 * HEADON2.dt * np.sqrt(last_step - first_stopped)
+    assert np.linalg.norm(positions[last_step] - positions[first_stopped]) < noise_walk
+    # An isolated miss still reuses the last command: it moved on at t_5.
+    assert positions[5][0] - positions[4][0] > HEADON2.dt - 5 * 0.05 * HEADON2.dt
+    assert 'no cmd_vel from robot_0 for' in children.output(sim)
+    # robot_1 answered throughout: it kept its speed.
+    robot_1 = ground_truth_positions(planners, 'robot_1', [1, last_step])
+    assert robot_1[1][0] - robot_1[last_step][0] == pytest.approx(
+        (last_step - 1) * HEADON2.dt, abs=5 * 0.05 * HEADON2.dt * np.sqrt(last_step))
+
+
+def test_bad_and_duplicate_commands_are_skipped(probe, children, ros2_executable):
+    def robot_0_script(robot, step):
+        if robot != 'robot_0':
+            return None
+        bad = {3: [((0.0, 5000.0), 0.0)], 5: [((float('inf'), 0.0), 0.0)],
+               7: [((0.0, 1.0), 1000.0)],
+               # Stamped 0.04 s: t_0's, 35 steps before the odometry it comes after.
+               35: [((0.0, 1.0), 0.04 - 35 * HEADON2.dt)]}
+        # Every good answer is sent twice.
+        return bad.get(step, [(HEAD_ON['robot_0'], 0.0)] * 2)
+    diagnostics = probe.record(DiagnosticArray, '/diagnostics', DIAGNOSTICS_QOS)
+    planners = Planners(probe, HEAD_ON, script=robot_0_script)
+    sim = start_sim(children, ros2_executable, 'sim', step_timeout=2.0, startup_timeout=30.0)
+    last_step = 37
+    probe.wait_until(
+        lambda: all(last_step in planners.steps(robot, 'ground_truth') for robot in ROBOTS),
+        60.0, f'{last_step} steps')
+    probe.wait_until(lambda: int(latest_statuses(diagnostics).get('prvo_sim', {}).get(
+        'step', 0)) >= last_step, 10.0, 'the status of the last step')
+    assert sim.poll() is None
+    statuses = latest_statuses(diagnostics)
+    assert children.interrupt(sim) == 0
+    output = children.output(sim)
+    assert 'skipping /robot_0/cmd_vel: speed 5000.000 m/s' in output
+    assert 'skipping /robot_0/cmd_vel: twist.linear contains NaN or inf' in output
+    assert 'skipping /robot_0/cmd_vel: stamp 1000.700 s is after' in output
+    assert 'skipping /robot_0/cmd_vel: stamp 0.040 s is' in output
+    # Steps 3, 5, 7 and 35 got no usable answer from robot_0: four misses, each reusing (1, 0);
+    # the duplicates did not step twice (every step published once, none skipped).
+    step = int(statuses['prvo_sim']['step'])
+    assert statuses['prvo_sim/robot_0']['deadline_misses'] == '4'
+    assert statuses['prvo_sim/robot_1']['deadline_misses'] == '0'
+    for robot in ROBOTS:
+        steps = planners.steps(robot)
+        assert steps == list(range(len(steps)))
+    positions = ground_truth_positions(planners, 'robot_0', range(1, step + 1))
+    start = HEADON2.robots[0].start
+    np.testing.assert_allclose(
+        positions[step], start + np.array(HEAD_ON['robot_0']) * step * HEADON2.dt,
+        atol=5 * 0.05 * HEADON2.dt * np.sqrt(step))
 
 
 def run_for_steps(probe, children, ros2_executable, label, seed, steps):
