@@ -1,5 +1,6 @@
 """The `sim` executable as a real process, driven by a probe-side stand-in for the planners."""
 
+import signal
 import threading
 import time
 
@@ -461,6 +462,8 @@ def test_lockstep_run_is_the_kinematics_replay_of_its_commands(probe, children, 
     ({'scenario': 'BAD_FILE'}, ['BAD_FILE', 'robots[1].radius', 'must be > 0']),
     ({'mode': 'fast'}, ['mode', 'fast', 'lockstep, realtime']),
     ({'scenario': 'no_such_scenario'}, ['no_such_scenario', 'no such scenario']),
+    ({'observers': "['prvo_run_recorder']"}, ["observers: 'prvo_run_recorder' does not start"]),
+    ({'cmd_timeout': '0.0'}, ['cmd_timeout']),
 ])
 def test_bad_input_exits_non_zero_naming_it(children, ros2_executable, tmp_path, parameters,
                                             expected):
@@ -477,3 +480,35 @@ def test_bad_input_exits_non_zero_naming_it(children, ros2_executable, tmp_path,
     for text in expected:
         assert text in output
     assert 'Traceback' not in output
+
+
+def loaded_library(process, name):
+    """Whether PROCESS has a shared library whose path contains NAME mapped."""
+    try:
+        with open(f'/proc/{process.pid}/maps') as maps:
+            return name in maps.read()
+    except OSError:
+        return False
+
+
+@pytest.mark.parametrize('moment', ['importing', 'waiting', 'stepping'])
+@pytest.mark.parametrize('signal_name', ['SIGINT', 'SIGTERM'])
+def test_shutdown_at_any_moment_is_quiet(probe, children, ros2_executable, moment, signal_name):
+    diagnostics = probe.record(DiagnosticArray, '/diagnostics', DIAGNOSTICS_QOS)
+    if moment != 'waiting':
+        Planners(probe, HEAD_ON)
+    sim = start_sim(children, ros2_executable, 'sim', mode='realtime')
+    if moment == 'importing':
+        # rclpy's C library is in: the interpreter runs the executable's imports (or later).
+        probe.wait_until(lambda: loaded_library(sim, 'librcl'), 30.0, 'rclpy loaded by the sim')
+    else:
+        status = 'running' if moment == 'stepping' else 'waiting for'
+        probe.wait_until(lambda: any(
+            s.name == 'prvo_sim' and s.message.startswith(status)
+            for array in diagnostics for s in array.status), 30.0, f'the sim {moment}')
+    sim.send_signal(getattr(signal, signal_name))
+    # Exit 0, or killed by SIGTERM itself before Python has a handler for it.
+    assert sim.wait(timeout=15.0) in (0, -signal.SIGTERM)
+    output = children.output(sim)
+    for bad in ('Traceback', 'FATAL', 'Error', 'KeyboardInterrupt'):
+        assert bad not in output

@@ -6,7 +6,6 @@ diagnostics and contact events) and its timing, lockstep or realtime. Topics, Qo
 diagnostics follow docs/interfaces.md.
 """
 
-import math
 import sys
 import time
 
@@ -22,16 +21,10 @@ from rcl_interfaces.msg import (
 )
 import rclpy
 from rclpy.clock import Clock, ClockType
-from rclpy.exceptions import (
-    InvalidNamespaceException,
-    InvalidNodeNameException,
-    ParameterException,
-)
+from rclpy.exceptions import ParameterException
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.parameter import Parameter
-from rclpy.validate_namespace import validate_namespace
-from rclpy.validate_node_name import validate_node_name
 from rosgraph_msgs.msg import Clock as ClockMsg
 
 from prvo_msgs_util import (
@@ -58,18 +51,15 @@ from prvo_msgs_util import (
     seconds_to_stamp,
     serialize_odometry,
     spin_events,
-    stamp_to_seconds,
-    twist_to_velocity,
 )
+from prvo_sim.commands import WORLD_FRAME, command_velocity
+from prvo_sim.observers import ObserverGate, observer_name_fault
 from prvo_sim.scenario import ScenarioError, find_scenario, load_scenario
-from prvo_sim.world import YAW_HISTORY, TeamWorld
+from prvo_sim.world import TeamWorld
 
 MODES = ('lockstep', 'realtime')
-WORLD_FRAME = 'map'
 # Exit code of a run rejected at startup (bad scenario or parameter).
 EXIT_BAD_INPUT = 2
-# A commanded speed above this [m/s] is a corrupt message, not a fast robot.
-MAX_COMMAND_SPEED = 1e3
 # How often timeouts, the cmd_vel publishers and the observers are checked [s]. Only timeouts
 # are polled (answers step the simulation from their callback): each poll is a spin of the
 # executor, which costs as much as a message.
@@ -139,7 +129,7 @@ class SimNode(Node):
             '(both modes), re-sending the t_0 odometry, so that late joiners are in from t_0',
             **seconds(0.001))
         # Typed without a value: an empty list has no type of its own in a ROS parameter.
-        self._observers = self.declare_parameter(
+        observers = self.declare_parameter(
             'observers', Parameter.Type.STRING_ARRAY, ParameterDescriptor(
                 description='Fully qualified names of nodes that must subscribe to every '
                             'ground truth and /diagnostics before the first step',
@@ -167,7 +157,7 @@ class SimNode(Node):
             DiagnosticArray, CONTACTS, CONTACT_QOS, event_callbacks=quiet())
         endpoints = [self._clock_publisher, self._diagnostics_publisher, self._contacts_publisher]
         # What every observer must subscribe to: each robot's ground truth and /diagnostics.
-        self._observed = [(DIAGNOSTICS, self._diagnostics_publisher)]
+        observed = [(DIAGNOSTICS, self._diagnostics_publisher)]
         command_type = TwistStamped if stamped else Twist
         for index, robot in enumerate(self._robots):
             robot.odom_publisher = self.create_publisher(
@@ -175,7 +165,7 @@ class SimNode(Node):
             ground_truth_topic = robot_topic(robot.name, GROUND_TRUTH)
             robot.ground_truth_publisher = self.create_publisher(
                 Odometry, ground_truth_topic, ODOM_QOS, event_callbacks=quiet())
-            self._observed.insert(index, (ground_truth_topic, robot.ground_truth_publisher))
+            observed.insert(index, (ground_truth_topic, robot.ground_truth_publisher))
             robot.logger = self.get_logger().get_child(robot.name)
             command_subscription = self.create_subscription(
                 command_type, robot.cmd_vel_topic,
@@ -184,6 +174,7 @@ class SimNode(Node):
             endpoints += [robot.odom_publisher, robot.ground_truth_publisher, command_subscription]
         for endpoint in endpoints:
             self._qos_watch.watch(endpoint)
+        self._observer_gate = ObserverGate(self, observers, observed)
 
         # Wall timers on a steady clock: they must run even when this node uses sim time.
         steady = Clock(clock_type=ClockType.STEADY_TIME)
@@ -196,7 +187,7 @@ class SimNode(Node):
                 1.0 / (rate or 1.0 / self._dt), self._advance, clock=steady, autostart=False)
         self._republished_at = time.monotonic()
         self._publish_state()
-        observers = f' and observers {", ".join(self._observers)}' if self._observers else ''
+        observers = f' and observers {", ".join(observers)}' if observers else ''
         self.get_logger().info(
             f'simulating {scenario.name} ({len(self._robots)} robots, seed {self._world.seed}, '
             f'{self._mode}) from {scenario.path}; waiting for every cmd_vel publisher'
@@ -213,16 +204,9 @@ class SimNode(Node):
                     successful=False, reason='scenario is required (a YAML path or a name)')
             if parameter.name == 'observers':
                 for name in parameter.value or []:
-                    namespace, _, node_name = name.rpartition('/')
-                    try:
-                        validate_namespace(namespace or '/')
-                        validate_node_name(node_name)
-                        if not name.startswith('/'):
-                            raise InvalidNamespaceException(name, 'it does not start with /', 0)
-                    except (InvalidNamespaceException, InvalidNodeNameException):
-                        return SetParametersResult(successful=False, reason=(
-                            f'observers: {name!r} is not a fully qualified node name '
-                            "(like '/prvo_run_recorder_1234')"))
+                    fault = observer_name_fault(name)
+                    if fault:
+                        return SetParametersResult(successful=False, reason=fault)
         return SetParametersResult(successful=True)
 
     def _apply_parameters(self, parameters):
@@ -234,32 +218,12 @@ class SimNode(Node):
 
     def _on_cmd_vel(self, index, msg):
         robot = self._robots[index]
-        world = self._world
         try:
-            velocity = twist_to_velocity(msg)
-            speed = math.hypot(*velocity)
-            if speed > MAX_COMMAND_SPEED:
-                raise MessageFault(f'speed {speed:.3f} m/s is above {MAX_COMMAND_SPEED:g} m/s')
-            if isinstance(msg, TwistStamped):
-                # A command answers the odometry of its stamp: rotate by that step's heading.
-                stamp = stamp_to_seconds(msg.header.stamp)
-                step = round(stamp / self._dt)
-                if not world.step_count - YAW_HISTORY < step <= world.step_count:
-                    relation = 'after' if step > world.step_count else (
-                        f'more than {YAW_HISTORY} steps before')
-                    raise MessageFault(
-                        f'stamp {stamp:.3f} s is {relation} the sim time {world.time:.3f} s')
-                velocity = self._to_world_frame(
-                    robot, msg.header.frame_id, velocity, world.yaws_at(step)[index])
-            else:
-                # A plain Twist is in the robot's body frame, as cmd_vel conventionally is.
-                velocity = self._to_world_frame(
-                    robot, robot.base_frame, velocity, world.yaws[index])
+            robot.command = command_velocity(msg, index, robot.base_frame, self._world)
         except MessageFault as fault:
             robot.logger.warning(f'skipping {robot.cmd_vel_topic}: {fault}',
                                  throttle_duration_sec=_WARNING_THROTTLE)
             return
-        robot.command = velocity
         robot.commanded_at = time.monotonic()
         robot.missed_since = None
         robot.stopped = False
@@ -267,20 +231,9 @@ class SimNode(Node):
         # duplicate answer finds the robot answered already, or the step it answers done.
         if not isinstance(msg, TwistStamped) or msg.header.stamp == self._stamp:
             robot.answered = True
-        if (self._mode == 'lockstep' and self._started and not world.finished
+        if (self._mode == 'lockstep' and self._started and not self._world.finished
                 and all(other.answered for other in self._robots)):
             self._advance()
-
-    @staticmethod
-    def _to_world_frame(robot, frame_id, velocity, yaw):
-        if frame_id in ('', WORLD_FRAME):
-            return velocity
-        if frame_id != robot.base_frame:
-            raise MessageFault(f'header.frame_id is {frame_id!r}, expected {WORLD_FRAME!r} or '
-                               f'{robot.base_frame!r}')
-        cos_yaw, sin_yaw = math.cos(yaw), math.sin(yaw)
-        return np.array([cos_yaw * velocity[0] - sin_yaw * velocity[1],
-                         sin_yaw * velocity[0] + cos_yaw * velocity[1]])
 
     def _poll(self):
         now = time.monotonic()
@@ -318,23 +271,12 @@ class SimNode(Node):
         if any(self.count_publishers(robot.cmd_vel_topic) == 0 for robot in self._robots):
             self._waiting_for = 'every cmd_vel publisher'
             return False
-        missing = {}
-        for topic, publisher in self._observed:
-            subscribers = {
-                f'{info.node_namespace.rstrip("/")}/{info.node_name}'
-                for info in self.get_subscriptions_info_by_topic(topic)}
-            for observer in self._observers:
-                if observer not in subscribers:
-                    missing.setdefault(observer, []).append(topic)
-            if publisher.get_subscription_count() < len(self._observers):
-                missing.setdefault('this node', []).append(topic)
+        missing = self._observer_gate.missing()
         if not missing:
             return True
-        self._waiting_for = 'observers: ' + ', '.join(self._observers)
-        self.get_logger().info('waiting for observers: ' + '; '.join(
-            f'{observer} has no subscription on {", ".join(topics)}'
-            if observer != 'this node' else f'no observer subscription matched yet on '
-            f'{", ".join(topics)}' for observer, topics in missing.items()),
+        self._waiting_for = 'observers: ' + ', '.join(self._observer_gate.observers)
+        self.get_logger().info(
+            f'waiting for observers: {ObserverGate.describe(missing)}',
             throttle_duration_sec=_WARNING_THROTTLE)
         return False
 
