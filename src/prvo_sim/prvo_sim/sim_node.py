@@ -9,7 +9,7 @@ diagnostics follow docs/interfaces.md.
 import sys
 import time
 
-from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
+from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import Twist, TwistStamped
 from nav_msgs.msg import Odometry
 import numpy as np
@@ -43,19 +43,17 @@ from prvo_msgs_util import (
     QosWatch,
     SigintRecorder,
     freeze_startup_objects,
-    make_diagnostic_array,
-    make_diagnostic_status,
     quiet_publisher_events,
     quiet_subscription_events,
     robot_topic,
     seconds_to_stamp,
-    serialize_odometry,
     spin_events,
 )
-from prvo_sim.commands import WORLD_FRAME, command_velocity
+from prvo_sim.commands import command_velocity
 from prvo_sim.observers import ObserverGate, observer_name_fault
 from prvo_sim.scenario import ScenarioError, find_scenario, load_scenario
 from prvo_sim.world import TeamWorld
+from prvo_sim.world_messages import contact_array, serialized_odometry, status_array
 
 MODES = ('lockstep', 'realtime')
 # Exit code of a run rejected at startup (bad scenario or parameter).
@@ -332,15 +330,11 @@ class SimNode(Node):
             f'{self._cmd_timeout:g} s): executing zero velocity until its next command')
 
     def _report_contact(self, contact):
-        names = self._robots[contact.first].name, self._robots[contact.second].name
+        first, second = self._robots[contact.first].name, self._robots[contact.second].name
         self.get_logger().warning(
-            f'contact at t={contact.time:.3f} s: {names[0]} and {names[1]}, centre distance '
+            f'contact at t={contact.time:.3f} s: {first} and {second}, centre distance '
             f'{contact.distance:.3f} m')
-        self._contacts_publisher.publish(make_diagnostic_array(contact.time, [
-            make_diagnostic_status(
-                'contact', f'{names[0]} and {names[1]} in contact',
-                {'robot_a': names[0], 'robot_b': names[1], 'time': contact.time,
-                 'distance': contact.distance}, level=DiagnosticStatus.WARN)]))
+        self._contacts_publisher.publish(contact_array(self._world, contact))
 
     def _publish_state(self):
         """Publish /clock, every robot's odometry, then ground truth and diagnostics.
@@ -349,20 +343,7 @@ class SimNode(Node):
         that then compete with this process for the CPU, and a planner plans only once all its
         neighbours' odometry is in, so the odometry goes out back to back.
         """
-        world = self._world
-        self._last_odometry = []
-        for index, robot in enumerate(self._robots):
-            frames = {'frame_id': WORLD_FRAME, 'child_frame_id': robot.base_frame,
-                      'yaw': float(world.yaws[index])}
-            # Serialized: sent as they are, without rclpy converting a Python message.
-            odometry = serialize_odometry(
-                world.time, world.measured_positions[index], world.measured_velocities[index],
-                world.position_std[index] ** 2 * np.eye(2),
-                world.velocity_std[index] ** 2 * np.eye(2), **frames)
-            ground_truth = serialize_odometry(
-                world.time, world.positions[index], world.velocities[index], np.zeros((2, 2)),
-                np.zeros((2, 2)), **frames)
-            self._last_odometry.append((odometry, ground_truth))
+        self._last_odometry = serialized_odometry(self._world)
         self._send_last_state()
         self._publish_status()
 
@@ -380,26 +361,12 @@ class SimNode(Node):
             self._publish_status()
 
     def _publish_status(self):
-        world = self._world
-        misses = sum(robot.deadline_misses for robot in self._robots)
-        if world.finished:
+        if self._world.finished:
             message = 'finished'
         else:
             message = 'running' if self._started else f'waiting for {self._waiting_for}'
-        warn = world.contact_count or misses
-        statuses = [make_diagnostic_status(
-            'prvo_sim', message,
-            {'sim_time': world.time, 'step': world.step_count, 'finished': world.finished,
-             'contacts': world.contact_count, 'deadline_misses': misses, 'mode': self._mode},
-            level=DiagnosticStatus.WARN if warn else DiagnosticStatus.OK)]
-        arrived = world.arrived()
-        for index, robot in enumerate(self._robots):
-            statuses.append(make_diagnostic_status(
-                f'prvo_sim/{robot.name}', 'arrived' if arrived[index] else 'driving',
-                {'deadline_misses': robot.deadline_misses, 'arrived': bool(arrived[index]),
-                 'x': float(world.positions[index, 0]), 'y': float(world.positions[index, 1])},
-                level=DiagnosticStatus.WARN if robot.deadline_misses else DiagnosticStatus.OK))
-        self._diagnostics_publisher.publish(make_diagnostic_array(world.time, statuses))
+        self._diagnostics_publisher.publish(status_array(
+            self._world, message, self._mode, [robot.deadline_misses for robot in self._robots]))
 
 
 def main(args=None):
