@@ -23,7 +23,7 @@ setup(
     license='Apache-2.0',
     entry_points={
         'console_scripts': [
-            'sim = prvo_sim.sim_node:main',
+            'sim = prvo_sim.sim_main:main',
             'run_scenario = prvo_sim.run_scenario:main',
             'prvo-run = prvo_sim.run_scenario:main',
             'experiments = prvo_sim.experiments:main',

@@ -1,10 +1,12 @@
 """The `sim` executable as a real process, driven by a probe-side stand-in for the planners."""
 
+import signal
 import threading
 import time
 
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import TwistStamped
+from kinematics_replay import replay
 from nav_msgs.msg import Odometry
 import numpy as np
 import pytest
@@ -19,6 +21,8 @@ from prvo_msgs_util import (
     diagnostic_values,
     make_twist,
     odometry_to_measurement,
+    seconds_to_stamp,
+    stamp_to_seconds,
 )
 from prvo_sim.scenario import find_scenario, load_scenario
 
@@ -36,20 +40,26 @@ class Planners:
     """Probe-side planners: answer each robot's odometry with a constant TwistStamped.
 
     Robots not in COMMANDS get a cmd_vel publisher but never answer; ROGUE robots answer with a
-    NaN command instead. FRAMES gives a robot's command frame (default map). Odometry and
-    ground truth are recorded per robot, keyed by stamp.
+    NaN command instead. FRAMES gives a robot's command frame (default map). ANSWER_UNTIL_STEP
+    (one step for all, or {robot: step}) ends a robot's answers after that step. SCRIPT(robot,
+    step) may return the list of (velocity, stamp offset [s]) to send instead of the answer.
+    Odometry and ground truth (unless GROUND_TRUTH is false) are recorded per robot, keyed by
+    stamp; `odometry_count` counts every odometry message per stamp, re-sent ones included.
     """
 
-    def __init__(self, probe, commands, rogue=(), answer_until_step=None, frames=None):
+    def __init__(self, probe, commands, rogue=(), answer_until_step=None, frames=None,
+                 script=None, ground_truth=True):
         self._probe = probe
         self._commands = commands
         self._frames = frames or {}
         self._rogue = rogue
-        self._answer_until_ns = (
-            None if answer_until_step is None
-            else round(answer_until_step * HEADON2.dt * 1e9))
+        self._script = script
+        if not isinstance(answer_until_step, dict):
+            answer_until_step = dict.fromkeys(ROBOTS, answer_until_step)
+        self._answer_until_step = answer_until_step
         self.lock = threading.Lock()
         self.odometry = {robot: {} for robot in ROBOTS}
+        self.odometry_count = {robot: {} for robot in ROBOTS}
         self.ground_truth = {robot: {} for robot in ROBOTS}
         self.arrival_times = {robot: {} for robot in ROBOTS}
         self._subscriptions = []
@@ -60,9 +70,14 @@ class Planners:
             self._subscriptions.append(probe.node.create_subscription(
                 Odometry, f'/{robot}/odom',
                 lambda msg, robot=robot: self._on_odometry(robot, msg), ODOM_QOS))
-            self._subscriptions.append(probe.node.create_subscription(
-                Odometry, f'/{robot}/ground_truth',
-                lambda msg, robot=robot: self._keep(self.ground_truth[robot], msg), ODOM_QOS))
+            if ground_truth:
+                self.subscribe_ground_truth(robot)
+
+    def subscribe_ground_truth(self, robot):
+        """Record ROBOT's ground truth from now on."""
+        self._subscriptions.append(self._probe.node.create_subscription(
+            Odometry, f'/{robot}/ground_truth',
+            lambda msg: self._keep(self.ground_truth[robot], msg), ODOM_QOS))
 
     def _keep(self, by_stamp, msg):
         with self.lock:
@@ -70,21 +85,30 @@ class Planners:
 
     def _on_odometry(self, robot, msg):
         stamp = stamp_ns(msg.header.stamp)
+        step = round(stamp / (HEADON2.dt * 1e9))
         with self.lock:
             self.arrival_times[robot].setdefault(stamp, time.monotonic())
+            counts = self.odometry_count[robot]
+            counts[stamp] = counts.get(stamp, 0) + 1
         self._keep(self.odometry[robot], msg)
-        if self._answer_until_ns is not None and stamp > self._answer_until_ns:
+        last_step = self._answer_until_step.get(robot)
+        if last_step is not None and step > last_step:
             return
-        if robot in self._rogue:
-            velocity = (float('nan'), 0.0)
+        scripted = self._script(robot, step) if self._script else None
+        if scripted is not None:
+            answers = scripted
+        elif robot in self._rogue:
+            answers = [((float('nan'), 0.0), 0.0)]
         elif robot in self._commands:
-            velocity = self._commands[robot]
+            answers = [(self._commands[robot], 0.0)]
         else:
             return
-        answer = TwistStamped(twist=make_twist(velocity))
-        answer.header.stamp = msg.header.stamp
-        answer.header.frame_id = self._frames.get(robot, 'map')
-        self._publishers[robot].publish(answer)
+        for velocity, stamp_offset in answers:
+            answer = TwistStamped(twist=make_twist(velocity))
+            answer.header.stamp = msg.header.stamp if not stamp_offset else seconds_to_stamp(
+                stamp_to_seconds(msg.header.stamp) + stamp_offset)
+            answer.header.frame_id = self._frames.get(robot, 'map')
+            self._publishers[robot].publish(answer)
 
     def steps(self, robot, what='odometry'):
         """Return the step indices recorded so far for ROBOT, sorted."""
@@ -174,15 +198,14 @@ def test_silent_robot_times_out_and_bad_command_is_skipped(probe, children, ros2
     diagnostics = probe.record(DiagnosticArray, '/diagnostics', DIAGNOSTICS_QOS)
     # robot_0 answers every odometry; robot_1 only ever sends NaN, which must not count.
     planners = Planners(probe, {'robot_0': HEAD_ON['robot_0']}, rogue=('robot_1',))
-    step_timeout = 0.5
-    # The first step waits longer: the probe's subscriptions may match after t_0 went out, and
-    # robot_0 answers the re-sent t_0.
+    step_timeout = 1.0
+    # The first step waits for robot_0's answer to the (re-sent) t_0, robot_1's never comes.
     sim = start_sim(children, ros2_executable, 'sim', step_timeout=step_timeout,
-                    startup_timeout=3.0)
+                    startup_timeout=5.0)
 
     def stepped_four_times():
         return int(latest_statuses(diagnostics).get('prvo_sim', {}).get('step', 0)) >= 4
-    probe.wait_until(stepped_four_times, 20.0, 'four steps')
+    probe.wait_until(stepped_four_times, 30.0, 'four steps')
     probe.wait_until(lambda: 'skipping /robot_1/cmd_vel: twist.linear contains NaN'
                      in children.output(sim), 5.0, 'the NaN warning')
     assert sim.poll() is None
@@ -195,47 +218,191 @@ def test_silent_robot_times_out_and_bad_command_is_skipped(probe, children, ros2
     with planners.lock:
         # A loaded probe can miss a message; the steps it saw are enough.
         received = planners.arrival_times['robot_0']
-        arrivals = [received[round(k * HEADON2.dt * 1e9)] for k in range(1, step + 1)
-                    if round(k * HEADON2.dt * 1e9) in received]
-    assert len(arrivals) >= 2
-    # Each step waited for robot_1 until the timeout (less a little receive jitter).
-    assert min(np.diff(arrivals)) > 0.8 * step_timeout
+        arrivals = {k: received[round(k * HEADON2.dt * 1e9)] for k in range(1, step + 1)
+                    if round(k * HEADON2.dt * 1e9) in received}
+    first, last = min(arrivals), max(arrivals)
+    assert last - first >= 2
+    # Each step waited for robot_1 until the timeout, however fast robot_0 answered: a lower
+    # bound that a slow host only widens (one timeout of slack for the probe's receive delays).
+    assert arrivals[last] - arrivals[first] >= (last - first - 1) * step_timeout
     # robot_0's last good command stands: it keeps moving at its commanded speed.
     x = float(statuses['prvo_sim/robot_0']['x'])
-    assert x == pytest.approx(-4.0 + step * HEADON2.dt, abs=0.05)
+    assert x == pytest.approx(-4.0 + step * HEADON2.dt,
+                              abs=5 * 0.05 * HEADON2.dt * np.sqrt(step))
     assert children.interrupt(sim) == 0
 
 
 def test_realtime_steps_on_the_wall_clock(probe, children, ros2_executable):
     diagnostics = probe.record(DiagnosticArray, '/diagnostics', DIAGNOSTICS_QOS)
     # robot_1 starts facing its goal at -x: "forward" in its base_link is -x in the world.
-    planners = Planners(probe, {'robot_1': (1.0, 0.0)}, frames={'robot_1': 'robot_1/base_link'})
-    # robot_0 never answers: the first step waits startup_timeout for it, then the timer runs.
-    sim = start_sim(children, ros2_executable, 'sim', mode='realtime', rate=20.0,
-                    startup_timeout=1.0)
+    # robot_0 answers the t_0 odometry only, so that the first step need not wait long.
+    planners = Planners(probe, {'robot_0': (0.0, 0.0), 'robot_1': (1.0, 0.0)},
+                        frames={'robot_1': 'robot_1/base_link'},
+                        answer_until_step={'robot_0': 0, 'robot_1': None})
+    rate = 20.0
+    # Lockstep would wait an hour for robot_0 at every step: steps come from the wall timer.
+    sim = start_sim(children, ros2_executable, 'sim', mode='realtime', rate=rate,
+                    step_timeout=3600.0, startup_timeout=60.0)
 
     def stepped(count):
         return int(latest_statuses(diagnostics).get('prvo_sim', {}).get('step', 0)) >= count
-    probe.wait_until(lambda: stepped(10), 20.0, 'ten realtime steps')
+    probe.wait_until(lambda: stepped(30), 60.0, 'thirty realtime steps')
     statuses = latest_statuses(diagnostics)
     assert children.interrupt(sim) == 0
 
     step = int(statuses['prvo_sim']['step'])
     assert statuses['prvo_sim']['mode'] == 'realtime'
-    # robot_0 never answers: every tick is a deadline miss for it, not for robot_1.
-    assert statuses['prvo_sim/robot_0']['deadline_misses'] == str(step)
+    # The first step waited for every answer to t_0; robot_0 misses every tick after it.
+    assert statuses['prvo_sim/robot_0']['deadline_misses'] == str(step - 1)
     misses = int(statuses['prvo_sim/robot_1']['deadline_misses'])
     assert misses < step
-    # robot_1 moves at 1 m/s on every step it answered in time, and on a late one too once it
-    # has a command to reuse; only the steps before its first command leave it standing (a
-    # loaded host can delay the probe's first answers).
+    # robot_1 moves at 1 m/s on every step it answered in time (the first one at least); a
+    # late one reuses its command, or executes zero once it was silent beyond cmd_timeout.
     travelled = 4.0 - float(statuses['prvo_sim/robot_1']['x'])
     tolerance = 5 * 0.05 * HEADON2.dt * np.sqrt(step)
     assert (step - misses) * HEADON2.dt - tolerance <= travelled <= step * HEADON2.dt + tolerance
     with planners.lock:
-        arrivals = sorted(planners.arrival_times['robot_1'].values())
-    # 20 Hz wall rate: ticks 50 ms apart on average (not lockstep's as-fast-as-answered).
-    assert np.mean(np.diff(arrivals[1:])) == pytest.approx(0.05, rel=0.3)
+        received = planners.arrival_times['robot_1']
+        arrivals = {round(stamp / (HEADON2.dt * 1e9)): at for stamp, at in received.items()}
+    # Ticks at most 20 per second, however fast the answers: a lower bound on the wall time
+    # from tick 1 to the last, with half a second of slack for the probe's receive delays.
+    first, last = min(k for k in arrivals if k >= 1), max(arrivals)
+    assert last - first >= 20
+    assert arrivals[last] - arrivals[first] >= (last - first) / rate - 0.5
+
+
+def ground_truth_positions(planners, robot, steps):
+    """Return {step: ground truth position} of ROBOT for the recorded STEPS."""
+    with planners.lock:
+        received = dict(planners.ground_truth[robot])
+    return {step: odometry_to_measurement(received[round(step * HEADON2.dt * 1e9)]).position
+            for step in steps if round(step * HEADON2.dt * 1e9) in received}
+
+
+def test_observer_sees_every_step_from_t0(probe, children, ros2_executable):
+    observer = probe.node.get_fully_qualified_name()
+    diagnostics = probe.record(DiagnosticArray, '/diagnostics', DIAGNOSTICS_QOS)
+    # Both robots answer every odometry; the observer's ground truth subscriptions come late.
+    planners = Planners(probe, HEAD_ON, ground_truth=False)
+    sim = start_sim(children, ros2_executable, 'sim', observers=f"['{observer}']")
+
+    probe.wait_until(
+        lambda: any(status.message == f'waiting for observers: {observer}'
+                    for array in diagnostics for status in array.status), 20.0,
+        'a status saying whom the sim waits for')
+    # Both robots have answered the t_0 odometry and had it re-sent: a sim that did not wait
+    # for the observer would have stepped on their first answers.
+    probe.wait_until(
+        lambda: all(planners.odometry_count[robot].get(0, 0) >= 3 for robot in ROBOTS), 20.0,
+        't_0 odometry re-sent to answering robots')
+    probe.wait_until(
+        lambda: f'{observer} has no subscription on /robot_0/ground_truth' in
+        children.output(sim), 5.0, 'the log naming the missing observer topics')
+    assert all(planners.steps(robot) == [0] for robot in ROBOTS)
+    for robot in ROBOTS:
+        planners.subscribe_ground_truth(robot)
+    probe.wait_until(
+        lambda: all(len(planners.steps(robot, 'ground_truth')) > 5 for robot in ROBOTS),
+        30.0, 'five steps once the observer subscribed')
+    assert children.interrupt(sim) == 0
+    for robot in ROBOTS:
+        # Every step from t_0 on, t_0 included.
+        steps = planners.steps(robot, 'ground_truth')
+        assert steps == list(range(len(steps)))
+        start = HEADON2.robots[ROBOTS.index(robot)].start
+        np.testing.assert_array_equal(ground_truth_positions(planners, robot, [0])[0], start)
+
+
+def test_realtime_robot_stops_when_its_commands_stop(probe, children, ros2_executable):
+    # Each robot answers the t_0 odometry only, then its planner is gone.
+    planners = Planners(probe, HEAD_ON, answer_until_step=0)
+    cmd_timeout = 0.3
+    sim = start_sim(children, ros2_executable, 'sim', mode='realtime', rate=20.0,
+                    cmd_timeout=cmd_timeout, startup_timeout=60.0)
+    last_step = 40
+    probe.wait_until(
+        lambda: all(last_step in planners.steps(robot, 'ground_truth') for robot in ROBOTS),
+        60.0, f'{last_step} realtime steps')
+    assert children.interrupt(sim) == 0
+    output = children.output(sim)
+    # Ticks are at least 1 / 20 s apart: from tick 7 on the last command is older than 0.3 s.
+    first_stopped = 10
+    noise_walk = 5 * 0.05 * HEADON2.dt * np.sqrt(last_step - first_stopped)
+    for robot, command in HEAD_ON.items():
+        positions = ground_truth_positions(planners, robot, range(1, last_step + 1))
+        start = HEADON2.robots[ROBOTS.index(robot)].start
+        # The first step executes the robot's one command.
+        np.testing.assert_allclose(positions[1] - start, np.array(command) * HEADON2.dt,
+                                   atol=5 * 0.05 * HEADON2.dt)
+        # Then it stops: it moves only by its actuation noise (1 m/s would be 3 m).
+        assert np.linalg.norm(positions[last_step] - positions[first_stopped]) < noise_walk
+        assert f'no cmd_vel from {robot} for' in output
+
+
+def test_lockstep_robot_that_stays_silent_is_stopped(probe, children, ros2_executable):
+    # robot_0 answers until step 3, then is silent; robot_1 answers every step.
+    planners = Planners(probe, HEAD_ON, answer_until_step={'robot_0': 3, 'robot_1': None})
+    sim = start_sim(children, ros2_executable, 'sim', step_timeout=0.2, cmd_timeout=0.5)
+    last_step = 20
+    probe.wait_until(
+        lambda: all(last_step in planners.steps(robot, 'ground_truth') for robot in ROBOTS),
+        60.0, f'{last_step} steps')
+    assert children.interrupt(sim) == 0
+    positions = ground_truth_positions(planners, 'robot_0', range(1, last_step + 1))
+    # Its misses start at step 4 (the step to t_5); 0.2 s apart, the silence exceeds 0.5 s at
+    # the fourth one: from t_8 on it executes zero velocity.
+    first_stopped = 8
+    noise_walk = 5 * 0.05 * HEADON2.dt * np.sqrt(last_step - first_stopped)
+    assert np.linalg.norm(positions[last_step] - positions[first_stopped]) < noise_walk
+    # An isolated miss still reuses the last command: it moved on at t_5.
+    assert positions[5][0] - positions[4][0] > HEADON2.dt - 5 * 0.05 * HEADON2.dt
+    assert 'no cmd_vel from robot_0 for' in children.output(sim)
+    # robot_1 answered throughout: it kept its speed.
+    robot_1 = ground_truth_positions(planners, 'robot_1', [1, last_step])
+    assert robot_1[1][0] - robot_1[last_step][0] == pytest.approx(
+        (last_step - 1) * HEADON2.dt, abs=5 * 0.05 * HEADON2.dt * np.sqrt(last_step))
+
+
+def test_bad_and_duplicate_commands_are_skipped(probe, children, ros2_executable):
+    def robot_0_script(robot, step):
+        if robot != 'robot_0':
+            return None
+        bad = {3: [((0.0, 5000.0), 0.0)], 5: [((float('inf'), 0.0), 0.0)],
+               7: [((0.0, 1.0), 1000.0)],
+               # Stamped 0.04 s: t_0's, 35 steps before the odometry it comes after.
+               35: [((0.0, 1.0), 0.04 - 35 * HEADON2.dt)]}
+        # Every good answer is sent twice.
+        return bad.get(step, [(HEAD_ON['robot_0'], 0.0)] * 2)
+    diagnostics = probe.record(DiagnosticArray, '/diagnostics', DIAGNOSTICS_QOS)
+    planners = Planners(probe, HEAD_ON, script=robot_0_script)
+    sim = start_sim(children, ros2_executable, 'sim', step_timeout=2.0, startup_timeout=30.0)
+    last_step = 37
+    probe.wait_until(
+        lambda: all(last_step in planners.steps(robot, 'ground_truth') for robot in ROBOTS),
+        60.0, f'{last_step} steps')
+    probe.wait_until(lambda: int(latest_statuses(diagnostics).get('prvo_sim', {}).get(
+        'step', 0)) >= last_step, 10.0, 'the status of the last step')
+    assert sim.poll() is None
+    statuses = latest_statuses(diagnostics)
+    assert children.interrupt(sim) == 0
+    output = children.output(sim)
+    assert 'skipping /robot_0/cmd_vel: speed 5000.000 m/s' in output
+    assert 'skipping /robot_0/cmd_vel: twist.linear contains NaN or inf' in output
+    assert 'skipping /robot_0/cmd_vel: stamp 1000.700 s is after' in output
+    assert 'skipping /robot_0/cmd_vel: stamp 0.040 s is' in output
+    # Steps 3, 5, 7 and 35 got no usable answer from robot_0: four misses, each reusing (1, 0);
+    # the duplicates did not step twice (every step published once, none skipped).
+    step = int(statuses['prvo_sim']['step'])
+    assert statuses['prvo_sim/robot_0']['deadline_misses'] == '4'
+    assert statuses['prvo_sim/robot_1']['deadline_misses'] == '0'
+    for robot in ROBOTS:
+        steps = planners.steps(robot)
+        assert steps == list(range(len(steps)))
+    positions = ground_truth_positions(planners, 'robot_0', range(1, step + 1))
+    start = HEADON2.robots[0].start
+    np.testing.assert_allclose(
+        positions[step], start + np.array(HEAD_ON['robot_0']) * step * HEADON2.dt,
+        atol=5 * 0.05 * HEADON2.dt * np.sqrt(step))
 
 
 def run_for_steps(probe, children, ros2_executable, label, seed, steps):
@@ -266,10 +433,37 @@ def test_same_seed_gives_the_same_run(probe, children, ros2_executable):
     assert np.abs(first - other_seed).min() > 0.0
 
 
+def test_lockstep_run_is_the_kinematics_replay_of_its_commands(probe, children, ros2_executable):
+    steps = 15
+    planners = Planners(probe, HEAD_ON, answer_until_step=steps)
+    sim = start_sim(children, ros2_executable, 'sim', seed=7)
+    probe.wait_until(
+        lambda: all(len(planners.steps(robot, 'ground_truth')) > steps for robot in ROBOTS),
+        60.0, f'{steps} steps')
+    assert children.interrupt(sim) == 0
+
+    # The node's draws, step by step, in the order it made them before TeamWorld existed.
+    expected = replay(HEADON2, 7, [[HEAD_ON[robot] for robot in ROBOTS]] * steps)
+    for index, robot in enumerate(ROBOTS):
+        # From t_1: t_0 can go out before the probe's subscriptions have matched.
+        for step in range(1, steps + 1):
+            stamp = round(step * HEADON2.dt * 1e9)
+            truth = odometry_to_measurement(planners.ground_truth[robot][stamp])
+            noisy = odometry_to_measurement(planners.odometry[robot][stamp])
+            for value, name in ((truth.position, 'positions'), (truth.velocity, 'velocities'),
+                                (noisy.position, 'measured_positions'),
+                                (noisy.velocity, 'measured_velocities'),
+                                (truth.yaw, 'yaws'), (noisy.yaw, 'yaws')):
+                np.testing.assert_allclose(value, expected[name][step, index], rtol=0,
+                                           atol=1e-12, err_msg=f'{name} of {robot} at {step}')
+
+
 @pytest.mark.parametrize(('parameters', 'expected'), [
     ({'scenario': 'BAD_FILE'}, ['BAD_FILE', 'robots[1].radius', 'must be in (0, 100]']),
     ({'mode': 'fast'}, ['mode', 'fast', 'lockstep, realtime']),
     ({'scenario': 'no_such_scenario'}, ['no_such_scenario', 'no such scenario']),
+    ({'observers': "['prvo_run_recorder']"}, ["observers: 'prvo_run_recorder' does not start"]),
+    ({'cmd_timeout': '0.0'}, ['cmd_timeout']),
 ])
 def test_bad_input_exits_non_zero_naming_it(children, ros2_executable, tmp_path, parameters,
                                             expected):
@@ -286,3 +480,35 @@ def test_bad_input_exits_non_zero_naming_it(children, ros2_executable, tmp_path,
     for text in expected:
         assert text in output
     assert 'Traceback' not in output
+
+
+def loaded_library(process, name):
+    """Whether PROCESS has a shared library whose path contains NAME mapped."""
+    try:
+        with open(f'/proc/{process.pid}/maps') as maps:
+            return name in maps.read()
+    except OSError:
+        return False
+
+
+@pytest.mark.parametrize('moment', ['importing', 'waiting', 'stepping'])
+@pytest.mark.parametrize('signal_name', ['SIGINT', 'SIGTERM'])
+def test_shutdown_at_any_moment_is_quiet(probe, children, ros2_executable, moment, signal_name):
+    diagnostics = probe.record(DiagnosticArray, '/diagnostics', DIAGNOSTICS_QOS)
+    if moment != 'waiting':
+        Planners(probe, HEAD_ON)
+    sim = start_sim(children, ros2_executable, 'sim', mode='realtime')
+    if moment == 'importing':
+        # rclpy's C library is in: the interpreter runs the executable's imports (or later).
+        probe.wait_until(lambda: loaded_library(sim, 'librcl'), 30.0, 'rclpy loaded by the sim')
+    else:
+        status = 'running' if moment == 'stepping' else 'waiting for'
+        probe.wait_until(lambda: any(
+            s.name == 'prvo_sim' and s.message.startswith(status)
+            for array in diagnostics for s in array.status), 30.0, f'the sim {moment}')
+    sim.send_signal(getattr(signal, signal_name))
+    # Exit 0, or killed by SIGTERM itself before Python has a handler for it.
+    assert sim.wait(timeout=15.0) in (0, -signal.SIGTERM)
+    output = children.output(sim)
+    for bad in ('Traceback', 'FATAL', 'Error', 'KeyboardInterrupt'):
+        assert bad not in output

@@ -1,0 +1,49 @@
+"""A simulated robot's cmd_vel as the world-frame velocity it executes, or why it is refused."""
+
+import math
+
+from geometry_msgs.msg import TwistStamped
+import numpy as np
+
+from prvo_msgs_util import MessageFault, stamp_to_seconds, twist_to_velocity
+from prvo_sim.world import YAW_HISTORY
+
+WORLD_FRAME = 'map'
+# A commanded speed above this [m/s] is a corrupt message, not a fast robot.
+MAX_COMMAND_SPEED = 1e3
+
+
+def command_velocity(msg, index, base_frame, world):
+    """Return cmd_vel MSG of robot INDEX of WORLD as a world-frame velocity (2,).
+
+    A TwistStamped is in its header's frame, `map` (or empty) or BASE_FRAME, rotated by the
+    robot's heading at the step of its stamp; a plain Twist is in BASE_FRAME, as cmd_vel
+    conventionally is. Raises MessageFault naming the fault: a NaN or infinite component, a
+    speed above MAX_COMMAND_SPEED, another frame, or a stamp after the world's time or
+    YAW_HISTORY steps or more before it.
+    """
+    velocity = twist_to_velocity(msg)
+    speed = math.hypot(*velocity)
+    if speed > MAX_COMMAND_SPEED:
+        raise MessageFault(f'speed {speed:.3f} m/s is above {MAX_COMMAND_SPEED:g} m/s')
+    if not isinstance(msg, TwistStamped):
+        return _to_world_frame(velocity, world.yaws[index])
+    stamp = stamp_to_seconds(msg.header.stamp)
+    step = round(stamp / world.scenario.dt)
+    if not world.step_count - YAW_HISTORY < step <= world.step_count:
+        relation = 'after' if step > world.step_count else (
+            f'{YAW_HISTORY} steps or more before')
+        raise MessageFault(f'stamp {stamp:.3f} s is {relation} the sim time {world.time:.3f} s')
+    frame_id = msg.header.frame_id
+    if frame_id in ('', WORLD_FRAME):
+        return velocity
+    if frame_id != base_frame:
+        raise MessageFault(
+            f'header.frame_id is {frame_id!r}, expected {WORLD_FRAME!r} or {base_frame!r}')
+    return _to_world_frame(velocity, world.yaws_at(step)[index])
+
+
+def _to_world_frame(velocity, yaw):
+    cos_yaw, sin_yaw = math.cos(yaw), math.sin(yaw)
+    return np.array([cos_yaw * velocity[0] - sin_yaw * velocity[1],
+                     sin_yaw * velocity[0] + cos_yaw * velocity[1]])

@@ -1,0 +1,26 @@
+"""Entry point of the `sim` executable: a Ctrl-C while it starts exits quietly.
+
+Importing rclpy, numpy and the node takes a moment; a SIGINT then (a runner stopping a run as it
+starts) would end the process with a KeyboardInterrupt traceback. The handler set here holds
+until the node's main installs its own, just before rclpy starts.
+"""
+
+import signal
+import sys
+
+
+def _exit_quietly(signum, frame):
+    sys.exit(0)
+
+
+def main(args=None):
+    """Run `prvo_sim.sim_node.main`, exiting with 0 on a SIGINT during its imports."""
+    signal.signal(signal.SIGINT, _exit_quietly)
+    # Imported only now, under the handler: this import is the slow part of starting.
+    from prvo_sim import sim_node
+
+    return sim_node.main(args)
+
+
+if __name__ == '__main__':
+    sys.exit(main())

@@ -1,0 +1,58 @@
+"""The simulator's messages built from a TeamWorld: odometry, ground truth, diagnostics."""
+
+from diagnostic_msgs.msg import DiagnosticStatus
+import numpy as np
+
+from prvo_msgs_util import make_diagnostic_array, make_diagnostic_status, serialize_odometry
+from prvo_sim.commands import WORLD_FRAME
+
+
+def serialized_odometry(world):
+    """Return [(noisy odometry, ground truth)] of every robot of WORLD, serialized.
+
+    Serialized messages are sent as they are, without rclpy converting a Python message.
+    """
+    messages = []
+    for index, name in enumerate(world.names):
+        frames = {'frame_id': WORLD_FRAME, 'child_frame_id': f'{name}/base_link',
+                  'yaw': float(world.yaws[index])}
+        odometry = serialize_odometry(
+            world.time, world.measured_positions[index], world.measured_velocities[index],
+            world.position_std[index] ** 2 * np.eye(2),
+            world.velocity_std[index] ** 2 * np.eye(2), **frames)
+        ground_truth = serialize_odometry(
+            world.time, world.positions[index], world.velocities[index], np.zeros((2, 2)),
+            np.zeros((2, 2)), **frames)
+        messages.append((odometry, ground_truth))
+    return messages
+
+
+def status_array(world, message, mode, deadline_misses):
+    """Return the DiagnosticArray of statuses `prvo_sim` (MESSAGE) and `prvo_sim/<robot>`.
+
+    DEADLINE_MISSES gives each robot's count; the keys are those of docs/interfaces.md.
+    """
+    total_misses = sum(deadline_misses)
+    warn = world.contact_count or total_misses
+    statuses = [make_diagnostic_status(
+        'prvo_sim', message,
+        {'sim_time': world.time, 'step': world.step_count, 'finished': world.finished,
+         'contacts': world.contact_count, 'deadline_misses': total_misses, 'mode': mode},
+        level=DiagnosticStatus.WARN if warn else DiagnosticStatus.OK)]
+    arrived = world.arrived()
+    for index, name in enumerate(world.names):
+        statuses.append(make_diagnostic_status(
+            f'prvo_sim/{name}', 'arrived' if arrived[index] else 'driving',
+            {'deadline_misses': deadline_misses[index], 'arrived': bool(arrived[index]),
+             'x': float(world.positions[index, 0]), 'y': float(world.positions[index, 1])},
+            level=DiagnosticStatus.WARN if deadline_misses[index] else DiagnosticStatus.OK))
+    return make_diagnostic_array(world.time, statuses)
+
+
+def contact_array(world, contact):
+    """Return the DiagnosticArray of one `contact` status for CONTACT (a world.Contact)."""
+    first, second = world.names[contact.first], world.names[contact.second]
+    return make_diagnostic_array(contact.time, [make_diagnostic_status(
+        'contact', f'{first} and {second} in contact',
+        {'robot_a': first, 'robot_b': second, 'time': contact.time,
+         'distance': contact.distance}, level=DiagnosticStatus.WARN)])
