@@ -16,6 +16,10 @@ import numpy as np
 _MEASUREMENT_VARIANCE_FLOOR = 1e-8
 
 
+class TrackFault(ValueError):  # noqa: N818 (names the fault like MessageFault)
+    """A measurement the filter cannot fuse; the track is left as it was."""
+
+
 # Both models are cached by `dt`: odometry arrives at a fixed period, so a few values recur on
 # every message of every robot. The cached arrays are read-only.
 @functools.lru_cache(maxsize=64)
@@ -84,6 +88,9 @@ class ConstantVelocityTracker:
         ------
         ValueError
             If `stamp` is not later than the last accepted measurement.
+        TrackFault
+            If fusing the measurement would make the state non-finite (for example an innovation
+            covariance that is not positive definite); the filter keeps its previous state.
 
         """
         measurement = np.concatenate([position, velocity]).astype(float)
@@ -101,8 +108,20 @@ class ConstantVelocityTracker:
                 f'stamp {stamp:.3f} s is not after the last measurement {self._stamp:.3f} s')
         # ROS stamps have nanosecond resolution: rounding there makes recurring periods equal.
         dt = round(dt, 9)
+        state, covariance = self._filter.x.copy(), self._filter.P.copy()
         self._filter.predict(F=_transition(dt), Q=_process_noise(dt, self.acceleration_std))
-        self._filter.update(measurement, R=noise)
+        try:
+            # H is the identity: the innovation covariance is P + R.
+            np.linalg.cholesky(self._filter.P + noise)
+            self._filter.update(measurement, R=noise)
+        except np.linalg.LinAlgError as error:
+            self._filter.x, self._filter.P = state, covariance
+            raise TrackFault(
+                f'innovation covariance after {dt:g} s is not positive definite ({error})'
+            ) from None
+        if not (np.isfinite(self._filter.x).all() and np.isfinite(self._filter.P).all()):
+            self._filter.x, self._filter.P = state, covariance
+            raise TrackFault(f'fusing the measurement after {dt:g} s gives a non-finite state')
         self._stamp = float(stamp)
 
     def belief_at(self, stamp):
