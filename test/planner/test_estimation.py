@@ -93,7 +93,7 @@ def test_an_unfusable_measurement_leaves_the_track_as_it_was(far_stamp):
     for stamp, position, velocity in measurements[:3]:
         tracker.update(stamp, position, velocity, covariance)
         reference.update(stamp, position, velocity, covariance)
-    with pytest.raises(TrackFault, match='not positive definite'):
+    with pytest.raises(TrackFault, match='fails'):
         tracker.update(far_stamp, [0.0, 0.0], [0.0, 0.0], covariance)
     assert tracker.stamp == reference.stamp
     # The track goes on exactly as one that never saw the fault.
