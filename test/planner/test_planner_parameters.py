@@ -6,13 +6,12 @@ import math
 import numpy as np
 import pytest
 
+from prvo_planner.agent import goal_horizon, preferred_velocity
 from prvo_planner.core import AgentBelief, plan_velocity
 from prvo_planner.planner_node import (
     _PARAMETERS,
     ParameterError,
-    goal_horizon,
     planner_config_from,
-    preferred_velocity,
 )
 
 DEFAULTS = {name: default for name, (default, _) in _PARAMETERS.items()}
