@@ -49,11 +49,11 @@ class FedPlanner:
         with self._lock:
             return sum(1 for answer in self.answers if abs(answer - stamp) < 1e-6)
 
-    def send(self, robot, stamp, position=(0.0, 0.0), velocity=(0.5, 0.0), **fields):
-        """Publish ROBOT's odometry at STAMP; FIELDS override message fields after building."""
+    def send(self, robot, stamp, position=(0.0, 0.0), velocity=(0.5, 0.0), change=None):
+        """Publish ROBOT's odometry at STAMP; CHANGE(msg) breaks it before it goes."""
         msg = make_odometry(stamp, position, velocity, NOISE, NOISE)
-        for setter in fields.values():
-            setter(msg)
+        if change is not None:
+            change(msg)
         self.publishers[robot].publish(msg)
 
     def send_step(self, stamp, robots=ROBOTS):
@@ -86,32 +86,41 @@ def _set_stamp(sec, nanosec=0):
     return setter
 
 
+# name: (how the odometry is broken, what the planner logs about it, naming the topic after
+# "odometry on "). Warnings are throttled per topic and kind: the wall-clock stamp is refused
+# like the first one, within the same period, so it leaves no line of its own.
 BAD_ODOMETRY = {
-    'stamp at sec 2^31-1': {'stamp': _set_stamp(2 ** 31 - 1, 999_999_999)},
-    'wall-clock stamp': {'stamp': _set_stamp(1_700_000_000)},
-    'stamp 0': {'stamp': _set_stamp(0, 1)},
-    'position 1e308': {'position': lambda m: setattr(m.pose.pose.position, 'x', 1.0e308)},
-    'velocity 1e4': {'velocity': lambda m: setattr(m.twist.twist.linear, 'y', 1.0e4)},
-    'variance 1e7': {'variance': lambda m: m.pose.covariance.__setitem__(0, 1.0e7)},
+    'stamp at sec 2^31-1': (_set_stamp(2 ** 31 - 1, 999_999_999),
+                            ': stamp 2147483648.000 s is more than 10 s after'),
+    'wall-clock stamp': (_set_stamp(1_700_000_000), None),
+    'position 1e308': (lambda m: setattr(m.pose.pose.position, 'x', 1.0e308),
+                       ': pose.position is beyond 1e+06'),
+    'velocity 1e4': (lambda m: setattr(m.twist.twist.linear, 'y', 1.0e4),
+                     ': twist.linear is beyond 1000'),
+    'variance 1e7': (lambda m: m.pose.covariance.__setitem__(0, 1.0e7),
+                     ': pose.covariance has an x variance beyond 1e+06'),
+    'stamp 0': (_set_stamp(0, 1), ': time jumped back from'),
 }
 
 
 @pytest.mark.parametrize('robot', ['robot_0', 'robot_1'])
-def test_planner_survives_bad_odometry_and_keeps_answering(fed_planner, children, robot):
+def test_planner_survives_bad_odometry_and_keeps_answering(fed_planner, children, probe, robot):
     planner = fed_planner()
+    topic = robot_topic(robot, 'odom')
     stamp = 100.0
     planner.send_step(stamp)
     planner.wait_answer(stamp)
-    for name, fields in BAD_ODOMETRY.items():
-        planner.send(robot, stamp + 0.05, **fields)
+    for name, (change, logged) in BAD_ODOMETRY.items():
+        planner.send(robot, stamp + 0.05, change=change)
+        if logged is not None:
+            # Seen before the next odometry replaces it in the planner's queue of one.
+            probe.wait_until(lambda logged=logged: f'on {topic}{logged}' in children.output(
+                planner.process) or planner.process.poll() is not None, timeout=20.0,
+                what=f'the planner handling {name}')
         stamp += 0.1
         planner.send_step(stamp)
         planner.wait_answer(stamp)
-        assert planner.process.poll() is None, name
     output = children.output(planner.process)
-    topic = robot_topic(robot, 'odom')
-    assert f'skipping odometry on {topic}: stamp 2147483648.000 s is more than' in output, output
-    assert f'skipping odometry on {topic}: pose.position is beyond' in output, output
     assert 'Traceback' not in output and 'Singular matrix' not in output, output
 
 

@@ -10,7 +10,9 @@ neighbours and publishes the agent's commands.
 """
 
 import math
+import signal
 import sys
+import threading
 import time
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
@@ -43,7 +45,6 @@ from prvo_msgs_util import (
     ODOM_LATEST_QOS,
     MessageFault,
     QosWatch,
-    SigintRecorder,
     freeze_startup_objects,
     make_belief_markers,
     make_diagnostic_array,
@@ -310,7 +311,7 @@ class PlannerNode(Node):
     def _report(self, fusion, topic):
         """Log what a fused measurement's outcome tells: faults throttled, restarts once."""
         if fusion.status == 'restarted':
-            self.get_logger().info(f'{topic}: {fusion.detail}')
+            self.get_logger().info(f'odometry on {topic}: {fusion.detail}')
         elif fusion.status in ('stale', 'refused'):
             self._warn((topic, fusion.status), f'skipping odometry on {topic}: {fusion.detail}')
 
@@ -450,22 +451,43 @@ class PlannerNode(Node):
         self._diagnostics_publisher.publish(make_diagnostic_array(command.stamp, [status]))
 
 
+def _record_stop_signals():
+    """Make SIGINT and SIGTERM only set the returned Event; install before rclpy.init().
+
+    rclpy's handlers, installed by init(), shut the context down (which ends spinning) and then
+    call these. Python's default, a KeyboardInterrupt, would land inside whatever callback is
+    running, which the events executor reports as a FATAL exception with a traceback.
+    """
+    received = threading.Event()
+    for signal_number in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(signal_number, lambda signal_number, frame: received.set())
+    return received
+
+
 def main(args=None):
     """Run one planner until Ctrl-C; exit 2 with a clear message on an invalid parameter."""
-    sigint = SigintRecorder().install()
-    rclpy.init(args=args)
+    stop = _record_stop_signals()
+    try:
+        rclpy.init(args=args)
+    except RuntimeError as error:
+        # rcl parses --ros-args here (rclpy's RCLError): a malformed -p value, such as
+        # goal:="[nan, 0]" (a list of mixed types), fails before any parameter exists.
+        rclpy.logging.get_logger('planner').fatal(
+            f'invalid parameter: {str(error).split(", at ")[0]}')
+        return 2
     node = None
     try:
         node = PlannerNode()
-        node.warm_up()
-        freeze_startup_objects()
-        spin_events(node)
+        if not stop.is_set():
+            node.warm_up()
+            freeze_startup_objects()
+            spin_events(node)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     except RuntimeError:
-        # A message take in flight when Ctrl-C lands can fail with a RuntimeError. That is the
-        # shutdown asked for; anything else is not.
-        if rclpy.ok() and not sigint.received:
+        # A message take in flight when the context shuts down can fail with a RuntimeError.
+        # That is the shutdown asked for; anything else is not.
+        if rclpy.ok() and not stop.is_set():
             raise
     except (ParameterError, InvalidParameterTypeException,
             InvalidParameterValueException) as error:
