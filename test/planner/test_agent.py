@@ -1,6 +1,7 @@
 """The ROS-free PlannerAgent: plans as the core does, refuses bad stamps, waits for neighbours."""
 
 import dataclasses
+import subprocess
 
 import numpy as np
 import pytest
@@ -182,3 +183,11 @@ def test_no_goal_or_arrived_stands_still_without_a_plan():
     assert command.arrived and command.result is None
     with pytest.raises(RuntimeError, match='pending'):
         agent.plan()
+
+
+def test_the_agent_imports_no_ros(python_executable):
+    probe = ('import sys, prvo_planner.agent; print(sorted(m for m in sys.modules '
+             'if m.split(".")[0] in ("rclpy", "rcl_interfaces", "prvo_msgs_util")))')
+    output = subprocess.run([python_executable, '-c', probe], capture_output=True, text=True,
+                            check=True).stdout
+    assert output.strip() == '[]', output
