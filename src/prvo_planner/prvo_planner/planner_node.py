@@ -9,6 +9,7 @@ converts messages through prvo_msgs_util, feeds the agent, waits at most `sync_t
 neighbours and publishes the agent's commands.
 """
 
+import functools
 import math
 import signal
 import sys
@@ -198,6 +199,23 @@ def planner_config_from(values):
         raise ParameterError(str(error)) from error
 
 
+def _quiet_after_shutdown(callback):
+    """Wrap the node's CALLBACK so that a ROS error once the context is shut down ends it.
+
+    A stop signal shuts the context down whenever it lands, also while a callback runs; the
+    callback's next publish then fails, and the executor would report that as FATAL.
+    """
+    @functools.wraps(callback)
+    def guarded(node, *args):
+        try:
+            return callback(node, *args)
+        except RuntimeError:
+            if node.context.ok():
+                raise
+            return None
+    return guarded
+
+
 class PlannerNode(Node):
     """PRVO planner of one robot: feeds a `PlannerAgent` odometry, publishes its `cmd_vel`."""
 
@@ -315,6 +333,7 @@ class PlannerNode(Node):
         elif fusion.status in ('stale', 'refused'):
             self._warn((topic, fusion.status), f'skipping odometry on {topic}: {fusion.detail}')
 
+    @_quiet_after_shutdown
     def _on_own_odometry(self, data):
         measurement = self._measure(data, self._own_odom_topic)
         if measurement is None:
@@ -337,6 +356,7 @@ class PlannerNode(Node):
             # for as long as odometry comes faster than sync_timeout and a neighbour is silent.
             self._sync_timer.reset()
 
+    @_quiet_after_shutdown
     def _on_neighbour_odometry(self, data, robot, topic):
         measurement = self._measure(data, topic)
         if measurement is None:
@@ -345,6 +365,7 @@ class PlannerNode(Node):
         if self._agent.ready(time.monotonic()):
             self._plan()
 
+    @_quiet_after_shutdown
     def _on_goal_pose(self, msg):
         try:
             goal = pose_stamped_to_goal(msg, expected_frame=self._values['frame_id'])
@@ -354,6 +375,7 @@ class PlannerNode(Node):
         self._agent.set_goal(goal)
         self.get_logger().info(f'new goal {goal.tolist()}')
 
+    @_quiet_after_shutdown
     def _on_sync_timeout(self):
         # While a listed neighbour may still turn up, the timer keeps firing: plan then.
         if self._agent.pending_stamp is None or self._agent.awaiting_listed(time.monotonic()):
@@ -374,6 +396,7 @@ class PlannerNode(Node):
                 names.add(robot)
         return names
 
+    @_quiet_after_shutdown
     def _maintain_neighbours(self):
         """Subscribe to robots that appeared, forget robots that went silent or vanished."""
         wanted = self._neighbour_names()
