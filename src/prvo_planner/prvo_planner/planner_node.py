@@ -13,7 +13,6 @@ import functools
 import math
 import signal
 import sys
-import threading
 import time
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
@@ -64,6 +63,7 @@ from prvo_planner.agent import AgentSettings, PlannerAgent, body_velocity
 from prvo_planner.core import PlannerConfig
 
 _WARN_PERIOD_SECONDS = 2.0
+_STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
 _ODOMETRY_TYPE = 'nav_msgs/msg/Odometry'
 
 
@@ -474,48 +474,52 @@ class PlannerNode(Node):
         self._diagnostics_publisher.publish(make_diagnostic_array(command.stamp, [status]))
 
 
-def _record_stop_signals():
-    """Make SIGINT and SIGTERM only set the returned Event; install before rclpy.init().
+def _quiet_python_stop_handlers():
+    """Make the Python handlers of SIGINT and SIGTERM do nothing; call before rclpy.init().
 
     rclpy's handlers, installed by init(), shut the context down (which ends spinning) and then
     call these. Python's default, a KeyboardInterrupt, would land inside whatever callback is
     running, which the events executor reports as a FATAL exception with a traceback.
     """
-    received = threading.Event()
-    for signal_number in (signal.SIGINT, signal.SIGTERM):
-        signal.signal(signal_number, lambda signal_number, frame: received.set())
-    return received
+    for signal_number in _STOP_SIGNALS:
+        signal.signal(signal_number, lambda signal_number, frame: None)
 
 
 def main(args=None):
     """Run one planner until Ctrl-C; exit 2 with a clear message on an invalid parameter."""
-    stop = _record_stop_signals()
-    try:
-        rclpy.init(args=args)
-    except RuntimeError as error:
-        # rcl parses --ros-args here (rclpy's RCLError): a malformed -p value, such as
-        # goal:="[nan, 0]" (a list of mixed types), fails before any parameter exists.
-        rclpy.logging.get_logger('planner').fatal(
-            f'invalid parameter: {str(error).split(", at ")[0]}')
-        return 2
+    _quiet_python_stop_handlers()
+    # Stop signals are held back until the node is ready to spin: one landing while rcl
+    # initialises, or just after rclpy installed its handlers, was lost now and then, leaving a
+    # planner that ignored it. Threads started meanwhile (DDS) inherit the mask, so afterwards
+    # the main thread receives every stop signal.
+    signal.pthread_sigmask(signal.SIG_BLOCK, _STOP_SIGNALS)
     node = None
     try:
+        rclpy.init(args=args)
         node = PlannerNode()
-        if not stop.is_set():
-            node.warm_up()
-            freeze_startup_objects()
+        node.warm_up()
+        freeze_startup_objects()
+        # One that came meanwhile is taken here, without a handler: then there is nothing to do.
+        if signal.sigtimedwait(_STOP_SIGNALS, 0) is None:
+            signal.pthread_sigmask(signal.SIG_UNBLOCK, _STOP_SIGNALS)
             spin_events(node)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
-    except RuntimeError:
-        # A message take in flight when the context shuts down can fail with a RuntimeError.
-        # That is the shutdown asked for; anything else is not.
-        if rclpy.ok() and not stop.is_set():
-            raise
     except (ParameterError, InvalidParameterTypeException,
             InvalidParameterValueException) as error:
         rclpy.logging.get_logger('planner').fatal(f'invalid parameter: {error}')
         return 2
+    except RuntimeError as error:
+        if node is None and not rclpy.ok():
+            # rcl parses --ros-args in init (rclpy's RCLError): a malformed -p value, such as
+            # goal:="[nan, 0]" (a list of mixed types), fails before any parameter exists.
+            rclpy.logging.get_logger('planner').fatal(
+                f'invalid parameter: {str(error).split(", at ")[0]}')
+            return 2
+        # A message take in flight when the context shuts down can fail with a RuntimeError.
+        # That is the shutdown asked for; anything else is not.
+        if rclpy.ok():
+            raise
     finally:
         if node is not None:
             node.destroy_node()
