@@ -15,6 +15,8 @@ pytestmark = pytest.mark.integration
 @pytest.mark.parametrize('argument, named', [
     ('eta:=1.5', 'eta'), ('radius:=-1.0', 'radius'), ('model:=magic', 'model'),
     ('goal:=[1.0, 2.0, 3.0]', 'goal'),
+    # A list of mixed types fails in rcl's argument parser, before any parameter exists.
+    ('goal:=[nan, 0]', 'goal'), ('goal:=[nan, 0.0]', 'goal'),
 ])
 def test_invalid_parameter_at_startup_exits_non_zero_naming_it(children, ros2_executable,
                                                                argument, named):

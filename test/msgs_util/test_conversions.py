@@ -10,7 +10,9 @@ import pytest
 from rclpy.serialization import deserialize_message, serialize_message
 
 from prvo_msgs_util import (
+    MAX_WORLD_COORDINATE,
     MessageFault,
+    check_world_point,
     make_odometry,
     make_pose_stamped,
     make_twist,
@@ -121,6 +123,12 @@ def set_item(sequence, index, value):
     (lambda m: set_item(m.pose.covariance, 1, 0.001), 'pose.covariance xy block is not symm'),
     (lambda m: setattr(m.pose.pose.orientation, 'w', 0.0), 'pose.orientation has norm 0'),
     (lambda m: setattr(m.header, 'frame_id', 'odom'), "header.frame_id is 'odom'"),
+    # Finite but beyond physical sense: such values once reached the tracker and the planner.
+    (lambda m: setattr(m.pose.pose.position, 'y', -1.0e308), 'pose.position is beyond 1e'),
+    (lambda m: setattr(m.pose.pose.position, 'x', 1.5e6), 'pose.position is beyond 1e'),
+    (lambda m: setattr(m.twist.twist.linear, 'x', 2.0e3), 'twist.linear is beyond 1000'),
+    (lambda m: set_item(m.pose.covariance, 0, 1.0e7), 'pose.covariance has an x variance bey'),
+    (lambda m: set_item(m.twist.covariance, 7, 1.0e300), 'twist.covariance has an y variance'),
 ])
 @pytest.mark.parametrize('serialized', [False, True])
 def test_odometry_faults_are_named(change, fault, serialized):
@@ -256,6 +264,18 @@ def test_goal_conversions():
     msg.pose.position.y = math.nan
     with pytest.raises(MessageFault, match='pose.position contains NaN'):
         pose_stamped_to_goal(msg)
+    msg.pose.position.y = 1.0e308
+    with pytest.raises(MessageFault, match=r'pose\.position is beyond 1e\+06'):
+        pose_stamped_to_goal(msg)
+
+
+def test_world_point_check_accepts_the_bound_and_refuses_beyond_it():
+    check_world_point((MAX_WORLD_COORDINATE, -MAX_WORLD_COORDINATE), 'goal')
+    for point in ((0.0, MAX_WORLD_COORDINATE * (1.0 + 1e-9)), (-1.0e308, 0.0)):
+        with pytest.raises(MessageFault, match='goal is beyond'):
+            check_world_point(point, 'goal')
+    with pytest.raises(MessageFault, match='goal contains NaN'):
+        check_world_point((math.nan, 0.0), 'goal')
 
 
 def test_odometry_is_a_nav_msgs_odometry_with_frames():

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from prvo_planner.estimation import ConstantVelocityTracker
+from prvo_planner.estimation import ConstantVelocityTracker, TrackFault
 
 
 def _hand_prediction(mean, covariance, dt, acceleration_std):
@@ -81,3 +81,25 @@ def test_filter_is_consistent_on_simulated_targets():
 def test_rejects_a_non_positive_process_noise():
     with pytest.raises(ValueError, match='acceleration_std'):
         ConstantVelocityTracker(0.0)
+
+
+@pytest.mark.parametrize('far_stamp', [2.0 ** 31 - 1.0, 1.7e9])
+def test_an_unfusable_measurement_leaves_the_track_as_it_was(far_stamp):
+    """A jump of years makes the innovation covariance numerically singular: refused, kept."""
+    rng = np.random.default_rng(5)
+    measurements = [(0.1 * step, rng.normal(size=2), rng.normal(size=2)) for step in range(4)]
+    covariance = np.eye(4) * 0.0025
+    tracker, reference = ConstantVelocityTracker(1.0), ConstantVelocityTracker(1.0)
+    for stamp, position, velocity in measurements[:3]:
+        tracker.update(stamp, position, velocity, covariance)
+        reference.update(stamp, position, velocity, covariance)
+    with pytest.raises(TrackFault, match='fails'):
+        tracker.update(far_stamp, [0.0, 0.0], [0.0, 0.0], covariance)
+    assert tracker.stamp == reference.stamp
+    # The track goes on exactly as one that never saw the fault.
+    stamp, position, velocity = measurements[3]
+    tracker.update(stamp, position, velocity, covariance)
+    reference.update(stamp, position, velocity, covariance)
+    expected, actual = reference.belief_at(0.35), tracker.belief_at(0.35)
+    np.testing.assert_array_equal(actual.mean, expected.mean)
+    np.testing.assert_array_equal(actual.covariance, expected.covariance)

@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 from rclpy.parameter import Parameter
 
+from prvo_planner.agent import goal_horizon, preferred_velocity
 from prvo_planner.core import AgentBelief, plan_velocity
 from prvo_planner.parameters import (
     DEFAULTS,
@@ -21,8 +22,6 @@ from prvo_planner.planner_node import (
     _PARAMETERS,
     _goal_from_parameter,
     _neighbour_list,
-    goal_horizon,
-    preferred_velocity,
 )
 
 

@@ -1,8 +1,12 @@
 """Conversions between ROS 2 messages and numpy arrays for the PRVO stack."""
 
 from prvo_msgs_util.conversions import (
+    MAX_SPEED_COMPONENT,
+    MAX_VARIANCE,
+    MAX_WORLD_COORDINATE,
     MessageFault,
     OdometryMeasurement,
+    check_world_point,
     make_odometry,
     make_pose_stamped,
     make_twist,
@@ -53,9 +57,10 @@ from prvo_msgs_util.topics import (
 __all__ = [
     'CLOCK', 'CLOCK_QOS', 'CMD_VEL', 'CMD_VEL_QOS', 'CONTACTS', 'CONTACT_QOS', 'DIAGNOSTICS',
     'DIAGNOSTICS_QOS', 'GOAL_POSE', 'GOAL_QOS', 'GROUND_TRUTH', 'MARKERS', 'MARKER_QOS',
+    'MAX_SPEED_COMPONENT', 'MAX_VARIANCE', 'MAX_WORLD_COORDINATE',
     'MessageFault', 'ODOM', 'ODOM_LATEST_QOS', 'ODOM_QOS', 'OdometryMeasurement',
     'QosWatch', 'quiet_publisher_events', 'quiet_subscription_events',
-    'SigintRecorder',
+    'SigintRecorder', 'check_world_point',
     'diagnostic_values', 'freeze_startup_objects', 'spin_events',
     'make_belief_markers', 'make_diagnostic_array', 'make_diagnostic_status', 'make_odometry',
     'make_pose_stamped', 'make_twist', 'make_twist_stamped', 'odometry_to_measurement',

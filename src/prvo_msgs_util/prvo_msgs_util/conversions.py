@@ -16,6 +16,12 @@ _XY_FLAT_INDICES = (0, 1, 6, 7)
 _PSD_RELATIVE_TOLERANCE = 1e-12
 # A quaternion shorter than this has no direction to normalise to.
 _MIN_QUATERNION_NORM = 1e-6
+# Bounds of physical sense for a planar robot: beyond them a value is a fault, not a state.
+# Finite but huge values would pass the NaN checks and then overflow or swamp the planner's
+# arithmetic (squared distances, Kalman gains).
+MAX_WORLD_COORDINATE = 1.0e6  # m
+MAX_SPEED_COMPONENT = 1.0e3  # m/s
+MAX_VARIANCE = 1.0e6  # m^2 or (m/s)^2
 # Serialized (CDR) nav_msgs/Odometry: a 4-byte encapsulation header (0, 1: little-endian;
 # 0, 0: big-endian), the header's stamp (int32 sec, uint32 nanosec) and frame_id, the
 # child_frame_id, then 85 float64 aligned to 8 bytes from the end of the encapsulation header:
@@ -70,6 +76,19 @@ def _require_finite(values, field):
         raise MessageFault(f'{field} contains NaN or inf ({[float(value) for value in values]})')
 
 
+def check_world_point(values, field):
+    """Raise MessageFault unless VALUES (x, y) are finite and within MAX_WORLD_COORDINATE [m]."""
+    _require_finite(values, field)
+    _require_bounded(values, MAX_WORLD_COORDINATE, field)
+
+
+def _require_bounded(values, bound, field):
+    """Raise MessageFault unless every |value| of VALUES is at most BOUND."""
+    if any(abs(value) > bound for value in values):
+        raise MessageFault(
+            f'{field} is beyond {bound:g} ({[float(value) for value in values]})')
+
+
 def _check_frame(frame_id, expected_frame, field):
     if expected_frame is not None and frame_id != expected_frame:
         raise MessageFault(f'{field} is {frame_id!r}, expected {expected_frame!r}')
@@ -87,6 +106,9 @@ def _xy_covariance(covariance, field):
     for axis, variance in (('x', xx), ('y', yy)):
         if variance < -tolerance:
             raise MessageFault(f'{field} has a negative {axis} variance ({variance})')
+        if variance > MAX_VARIANCE:
+            raise MessageFault(
+                f'{field} has an {axis} variance beyond {MAX_VARIANCE:g} ({variance})')
     xy = 0.5 * (xy + yx)
     # The smaller eigenvalue of a symmetric 2x2 matrix, in closed form.
     smallest = 0.5 * (xx + yy) - math.hypot(0.5 * (xx - yy), xy)
@@ -174,8 +196,9 @@ def _measurement(stamp, frame_id, child_frame_id, position, orientation, pose_co
                  body_velocity, twist_covariance, expected_frame):
     """Return the checked OdometryMeasurement of odometry fields (plain floats and sequences)."""
     _check_frame(frame_id, expected_frame, 'header.frame_id')
-    _require_finite(position, 'pose.position')
+    check_world_point(position, 'pose.position')
     _require_finite(body_velocity, 'twist.linear')
+    _require_bounded(body_velocity, MAX_SPEED_COMPONENT, 'twist.linear')
     yaw = _yaw_from_quaternion(orientation)
     pxx, pxy, pyy = _xy_covariance(pose_covariance, 'pose.covariance')
     # The twist into the world frame: rotated by yaw.
@@ -291,11 +314,13 @@ def twist_to_velocity(msg):
 
 
 def pose_stamped_to_goal(msg, expected_frame='map'):
-    """Return the x, y position of a PoseStamped goal; MessageFault on NaN/inf or bad frame."""
+    """Return the x, y position of a PoseStamped goal.
+
+    Raises MessageFault on NaN/inf, a coordinate beyond MAX_WORLD_COORDINATE or a bad frame.
+    """
     _check_frame(msg.header.frame_id, expected_frame, 'header.frame_id')
-    goal = np.array([msg.pose.position.x, msg.pose.position.y])
-    _require_finite(goal, 'pose.position')
-    return goal
+    check_world_point((msg.pose.position.x, msg.pose.position.y), 'pose.position')
+    return np.array([msg.pose.position.x, msg.pose.position.y])
 
 
 def make_pose_stamped(stamp_seconds, position, frame_id='map'):

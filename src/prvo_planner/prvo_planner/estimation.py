@@ -14,6 +14,12 @@ import numpy as np
 # Measurement covariances are floored so that an exact (zero-variance) odometry source does not
 # make the innovation covariance singular.
 _MEASUREMENT_VARIANCE_FLOOR = 1e-8
+# Relative rounding allowed when checking that a posterior variance is at most the measurement's.
+_POSTERIOR_SLACK = 1.0 + 1e-6
+
+
+class TrackFault(ValueError):  # noqa: N818 (names the fault like MessageFault)
+    """A measurement the filter cannot fuse; the track is left as it was."""
 
 
 # Both models are cached by `dt`: odometry arrives at a fixed period, so a few values recur on
@@ -84,6 +90,9 @@ class ConstantVelocityTracker:
         ------
         ValueError
             If `stamp` is not later than the last accepted measurement.
+        TrackFault
+            If fusing the measurement fails numerically (an innovation or posterior covariance
+            that is not positive definite, a non-finite state); the filter keeps its state.
 
         """
         measurement = np.concatenate([position, velocity]).astype(float)
@@ -101,8 +110,23 @@ class ConstantVelocityTracker:
                 f'stamp {stamp:.3f} s is not after the last measurement {self._stamp:.3f} s')
         # ROS stamps have nanosecond resolution: rounding there makes recurring periods equal.
         dt = round(dt, 9)
+        state, covariance = self._filter.x.copy(), self._filter.P.copy()
         self._filter.predict(F=_transition(dt), Q=_process_noise(dt, self.acceleration_std))
-        self._filter.update(measurement, R=noise)
+        try:
+            # H is the identity: the innovation covariance is P + R.
+            np.linalg.cholesky(self._filter.P + noise)
+            self._filter.update(measurement, R=noise)
+            if not np.isfinite(self._filter.x).all():
+                raise np.linalg.LinAlgError('non-finite state')
+            # A full-state measurement bounds the posterior: no variance can exceed the
+            # measurement's. Rounding in a huge prediction breaks that (variances of 1e34 after
+            # a jump of 1.7e9 s), and the result is no belief at all.
+            if not (np.diag(self._filter.P) <= _POSTERIOR_SLACK * np.diag(noise)).all():
+                raise np.linalg.LinAlgError('posterior variance beyond the measurement variance')
+        except np.linalg.LinAlgError as error:
+            self._filter.x, self._filter.P = state, covariance
+            raise TrackFault(
+                f'fusing a measurement {dt:g} s after the last one fails: {error}') from None
         self._stamp = float(stamp)
 
     def belief_at(self, stamp):

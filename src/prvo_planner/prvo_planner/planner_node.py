@@ -4,13 +4,14 @@ Run one per robot, in the robot's namespace:
 
     ros2 run prvo_planner planner --ros-args -r __ns:=/robot_0 -p goal:="[4.0, 0.0]"
 
-The node is a thin shell: it declares parameters, converts messages through prvo_msgs_util,
-tracks every robot with `prvo_planner.estimation`, plans with `prvo_planner.core.plan_velocity`
-and publishes.
+The node is a thin shell around `prvo_planner.agent.PlannerAgent`: it declares parameters,
+converts messages through prvo_msgs_util, feeds the agent, waits at most `sync_timeout` for
+neighbours and publishes the agent's commands.
 """
 
-import dataclasses
+import functools
 import math
+import signal
 import sys
 import time
 
@@ -45,7 +46,6 @@ from prvo_msgs_util import (
     ODOM_LATEST_QOS,
     MessageFault,
     QosWatch,
-    SigintRecorder,
     freeze_startup_objects,
     make_belief_markers,
     make_diagnostic_array,
@@ -61,8 +61,7 @@ from prvo_msgs_util import (
     spin_events,
     validate_robot_name,
 )
-from prvo_planner.core import AgentBelief, plan_velocity
-from prvo_planner.estimation import ConstantVelocityTracker
+from prvo_planner.agent import AgentSettings, PlannerAgent, body_velocity
 from prvo_planner.parameters import (
     BOOL,
     FLOAT,
@@ -77,12 +76,8 @@ from prvo_planner.parameters import (
     planner_config_from,
 )
 
-# A stamp this far behind a track's last one means its source restarted (e.g. the simulator):
-# the track starts over instead of rejecting every message from then on.
-_TIME_RESET_SECONDS = 1.0
-# Plans for a made-up encounter before spinning (see PlannerNode.warm_up).
-_WARM_UP_PLANS = 3
 _WARN_PERIOD_SECONDS = 2.0
+_STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
 _ODOMETRY_TYPE = 'nav_msgs/msg/Odometry'
 
 
@@ -133,38 +128,25 @@ def _neighbour_list(value):
     return [name for name in names if name]
 
 
-def preferred_velocity(position, goal, max_speed, approach_time, goal_tolerance):
-    """Return (v_pref (2,), arrived): straight to the goal, slowing over the last stretch."""
-    if goal is None:
-        return np.zeros(2), False
-    offset = goal - position
-    distance = float(np.hypot(*offset))
-    if distance <= goal_tolerance:
-        return np.zeros(2), True
-    speed = min(max_speed, distance / approach_time)
-    return offset * (speed / distance), False
+def _quiet_after_shutdown(callback):
+    """Wrap the node's CALLBACK so that a ROS error once the context is shut down ends it.
 
-
-def goal_horizon(distance_to_goal, max_speed, approach_time, time_horizon):
-    """Return the time horizon of one plan [s]: no longer than the way to the goal takes.
-
-    A robot that stops at its goal in about distance / max_speed, plus approach_time of slowing
-    down, cannot collide later on the straight line it is planned on; without this cap, robots
-    standing beyond a goal would forbid approaching it.
+    A stop signal shuts the context down whenever it lands, also while a callback runs; the
+    callback's next publish then fails, and the executor would report that as FATAL.
     """
-    return min(time_horizon, distance_to_goal / max_speed + approach_time)
-
-
-class _Track:
-    """One tracked robot: its filter and when (wall time) it last spoke."""
-
-    def __init__(self, acceleration_std):
-        self.tracker = ConstantVelocityTracker(acceleration_std)
-        self.last_heard = time.monotonic()
+    @functools.wraps(callback)
+    def guarded(node, *args):
+        try:
+            return callback(node, *args)
+        except RuntimeError:
+            if node.context.ok():
+                raise
+            return None
+    return guarded
 
 
 class PlannerNode(Node):
-    """PRVO planner of one robot: tracks itself and its neighbours, publishes `cmd_vel`."""
+    """PRVO planner of one robot: feeds a `PlannerAgent` odometry, publishes its `cmd_vel`."""
 
     def __init__(self):
         super().__init__('planner')
@@ -182,22 +164,17 @@ class PlannerNode(Node):
             raise ParameterError(
                 '__ns', f'run the planner in a robot namespace (-r __ns:=/robot_0), '
                 f'got namespace {self.get_namespace()!r}')
+        self._agent = PlannerAgent(
+            self._robot, self._config, AgentSettings.from_parameters(self._values), self._goal,
+            self._neighbours_listed)
         self._steady_clock = Clock(clock_type=ClockType.STEADY_TIME)
-        self._own_track = None
-        self._neighbour_tracks = {}
         self._neighbour_subscriptions = {}
-        self._pending_stamp = None
-        self._own_yaw = 0.0
-        self._arrived = False
         self._last_command = None
         self._last_command_stamp = None
-        # The last planned velocity in the world frame, for the inertia term; None after a stop.
-        self._previous_velocity = None
+        # The stamp whose command was re-sent: once per stamp is enough for a lost answer.
+        self._resent_stamp = None
         self._warned_at = {}
         self._status_published_at = -math.inf
-        # Listed neighbours are waited for from the first own odometry on, not from start-up:
-        # a team's processes start at different speeds, and a run begins with all of them.
-        self._first_odometry_at = None
 
         self._stamped = self._values['stamped_cmd_vel']
         # Endpoints without rclpy's QoS event handlers (each would cost every executor wake-up);
@@ -250,25 +227,14 @@ class PlannerNode(Node):
         except ParameterError as error:
             return SetParametersResult(successful=False, reason=str(error))
         self._values, self._config, self._goal = values, config, goal
+        self._agent.reconfigure(config, AgentSettings.from_parameters(values), goal)
         if any(parameter.name == 'sync_timeout' for parameter in parameters):
             self._sync_timer.timer_period_ns = int(max(values['sync_timeout'], 1e-3) * 1e9)
         return SetParametersResult(successful=True)
 
     def warm_up(self):
-        """Plan for a made-up encounter a few times, before the first real plan.
-
-        A process's first plans pay one-off costs (numpy's first calls into its linear algebra,
-        the planner's caches). When a team starts together on few cores, that is enough to
-        miss the first realtime deadlines. The planner is pure: nothing here reaches a real plan.
-        """
-        radius = self._values['radius']
-        own = AgentBelief([0.0, 0.0], [0.5, 0.0], 0.01 * np.eye(4), radius)
-        neighbours = [AgentBelief([2.0, 0.2], [-0.5, 0.0], 0.01 * np.eye(4), radius),
-                      AgentBelief([1.0, -1.5], [0.0, 0.5], 0.01 * np.eye(4), radius)]
-        previous = None
-        for _ in range(_WARM_UP_PLANS):
-            previous = plan_velocity(own, neighbours, np.array([1.0, 0.0]), self._config,
-                                     previous=previous).velocity
+        """Pay the first plans' one-off costs before spinning (see PlannerAgent.warm_up)."""
+        self._agent.warm_up()
 
     # Inputs -----------------------------------------------------------------------------------
 
@@ -290,88 +256,60 @@ class PlannerNode(Node):
                        f'skipping odometry on {topic}: {fault}')
             return None
 
-    def _fuse(self, track, measurement, topic):
-        """Feed MEASUREMENT to TRACK (None: a new one).
+    def _report(self, fusion, topic):
+        """Log what a fused measurement's outcome tells: faults throttled, restarts once."""
+        if fusion.status == 'restarted':
+            self.get_logger().info(f'odometry on {topic}: {fusion.detail}')
+        elif fusion.status in ('stale', 'refused'):
+            self._warn((topic, fusion.status), f'skipping odometry on {topic}: {fusion.detail}')
 
-        Returns (the track to keep, 'fused' | 'duplicate' | 'stale'). A stamp far behind the
-        last one starts a new track: its source restarted.
-        """
-        if track is None:
-            track = _Track(self._values['acceleration_std'])
-        last = track.tracker.stamp
-        if last is not None and measurement.stamp == last:
-            return track, 'duplicate'
-        if last is not None and measurement.stamp < last:
-            if last - measurement.stamp <= _TIME_RESET_SECONDS:
-                self._warn((topic, 'stale'),
-                           f'skipping odometry on {topic}: stamp {measurement.stamp:.3f} s '
-                           f'is not after the last one ({last:.3f} s)')
-                return track, 'stale'
-            self.get_logger().info(
-                f'time on {topic} jumped back from {last:.3f} s to {measurement.stamp:.3f} s: '
-                f'restarting its track')
-            track = _Track(self._values['acceleration_std'])
-        track.tracker.update(measurement.stamp, measurement.position, measurement.velocity,
-                             measurement.covariance)
-        track.last_heard = time.monotonic()
-        return track, 'fused'
-
+    @_quiet_after_shutdown
     def _on_own_odometry(self, data):
         measurement = self._measure(data, self._own_odom_topic)
         if measurement is None:
             return
-        self._own_track, outcome = self._fuse(
-            self._own_track, measurement, self._own_odom_topic)
-        if outcome == 'duplicate' and self._last_command_stamp == measurement.stamp:
-            # The simulator re-sends odometry it has no answer to: the answer may have been lost.
-            self._cmd_vel_publisher.publish(self._last_command)
-        if outcome != 'fused':
+        fusion = self._agent.receive_own(measurement, time.monotonic())
+        self._report(fusion, self._own_odom_topic)
+        if fusion.status == 'duplicate':
+            if (self._last_command_stamp == measurement.stamp
+                    and self._resent_stamp != measurement.stamp):
+                # The simulator re-sends odometry it has no answer to: the answer may be lost.
+                self._resent_stamp = measurement.stamp
+                self._cmd_vel_publisher.publish(self._last_command)
             return
-        if self._first_odometry_at is None:
-            self._first_odometry_at = time.monotonic()
-        self._pending_stamp = measurement.stamp
-        self._own_yaw = measurement.yaw
-        if self._neighbours_caught_up():
+        if not fusion.accepted:
+            return
+        if self._agent.ready(time.monotonic()):
             self._plan()
-        else:
+        elif self._sync_timer.is_canceled():
+            # Armed once per wait: re-arming it on every own odometry would postpone the plan
+            # for as long as odometry comes faster than sync_timeout and a neighbour is silent.
             self._sync_timer.reset()
 
+    @_quiet_after_shutdown
     def _on_neighbour_odometry(self, data, robot, topic):
         measurement = self._measure(data, topic)
         if measurement is None:
             return
-        self._neighbour_tracks[robot], _ = self._fuse(
-            self._neighbour_tracks.get(robot), measurement, topic)
-        if self._pending_stamp is not None and self._neighbours_caught_up():
+        self._report(self._agent.receive_neighbour(robot, measurement, time.monotonic()), topic)
+        if self._agent.ready(time.monotonic()):
             self._plan()
 
+    @_quiet_after_shutdown
     def _on_goal_pose(self, msg):
         try:
             goal = pose_stamped_to_goal(msg, expected_frame=self._values['frame_id'])
         except MessageFault as fault:
             self._warn('goal', f'ignoring goal on {robot_topic(self._robot, GOAL_POSE)}: {fault}')
             return
-        self._goal = goal
-        self._arrived = False
-        self._previous_velocity = None
+        self._agent.set_goal(goal)
         self.get_logger().info(f'new goal {goal.tolist()}')
 
-    def _awaiting_listed_neighbours(self):
-        """Whether a listed neighbour has not been heard yet and may still turn up."""
-        if (self._neighbours_listed is None or self._first_odometry_at is None
-                or time.monotonic() - self._first_odometry_at > self._values['neighbor_timeout']):
-            return False
-        return any(name not in self._neighbour_tracks for name in self._neighbour_names())
-
-    def _neighbours_caught_up(self):
-        return not self._awaiting_listed_neighbours() and all(
-            track.tracker.stamp >= self._pending_stamp
-            for track in self._neighbour_tracks.values())
-
+    @_quiet_after_shutdown
     def _on_sync_timeout(self):
-        if self._pending_stamp is None or self._awaiting_listed_neighbours():
+        # While a listed neighbour may still turn up, the timer keeps firing: plan then.
+        if self._agent.pending_stamp is None or self._agent.awaiting_listed(time.monotonic()):
             return
-        self._sync_timer.cancel()
         self._plan()
 
     # Neighbours -------------------------------------------------------------------------------
@@ -388,6 +326,7 @@ class PlannerNode(Node):
                 names.add(robot)
         return names
 
+    @_quiet_after_shutdown
     def _maintain_neighbours(self):
         """Subscribe to robots that appeared, forget robots that went silent or vanished."""
         wanted = self._neighbour_names()
@@ -405,59 +344,29 @@ class PlannerNode(Node):
             self._qos_watch.forget(subscription)
             self.destroy_subscription(subscription)
         self._qos_watch.check()
-        now = time.monotonic()
-        for robot, track in list(self._neighbour_tracks.items()):
-            silent = now - track.last_heard
-            if robot not in wanted or silent > self._values['neighbor_timeout']:
-                del self._neighbour_tracks[robot]
-                self.get_logger().info(f'dropped neighbour {robot}: silent for {silent:.1f} s')
+        for robot, silent in self._agent.forget_neighbours(time.monotonic(), wanted):
+            self.get_logger().info(f'dropped neighbour {robot}: silent for {silent:.1f} s')
 
     # Planning ---------------------------------------------------------------------------------
 
     def _plan(self):
         """Plan for the pending stamp and publish the command, diagnostics and markers."""
         self._sync_timer.cancel()
-        stamp, self._pending_stamp = self._pending_stamp, None
+        was_arrived = self._agent.arrived
         started = time.perf_counter()
-        own = self._own_track.tracker.belief_at(stamp)
-        radius = self._values['radius']
-        neighbour_radius = self._values['neighbor_radius']
-        if neighbour_radius < 0.0:
-            neighbour_radius = radius
-        v_pref, arrived = preferred_velocity(
-            own.mean[:2], self._goal, self._values['max_speed'], self._values['approach_time'],
-            self._values['goal_tolerance'])
-        if arrived and not self._arrived:
-            self.get_logger().info(f'arrived at {self._goal.tolist()}')
-        self._arrived = arrived
-        neighbour_beliefs = [
-            track.tracker.belief_at(stamp) for track in self._neighbour_tracks.values()]
-        if arrived or self._goal is None:
-            velocity, result = np.zeros(2), None
-        else:
-            horizon = goal_horizon(
-                float(np.hypot(*(self._goal - own.mean[:2]))), self._values['max_speed'],
-                self._values['approach_time'], self._config.time_horizon)
-            result = plan_velocity(
-                AgentBelief(own.mean[:2], own.mean[2:], own.covariance, radius),
-                [AgentBelief(belief.mean[:2], belief.mean[2:], belief.covariance,
-                             neighbour_radius) for belief in neighbour_beliefs],
-                v_pref, dataclasses.replace(self._config, time_horizon=horizon),
-                previous=self._previous_velocity)
-            velocity = result.velocity
-        self._previous_velocity = None if result is None else velocity
+        command = self._agent.plan()
         plan_time_ms = (time.perf_counter() - started) * 1e3
-
+        if command.arrived and not was_arrived:
+            self.get_logger().info(f'arrived at {self._agent.goal.tolist()}')
         # cmd_vel is in the body frame: rotate the world-frame plan by minus the robot's yaw.
-        cos_yaw, sin_yaw = math.cos(self._own_yaw), math.sin(self._own_yaw)
-        body_velocity = np.array([cos_yaw * velocity[0] + sin_yaw * velocity[1],
-                                  -sin_yaw * velocity[0] + cos_yaw * velocity[1]])
+        velocity = body_velocity(command.velocity, command.yaw)
         if self._stamped:
-            command = make_twist_stamped(stamp, body_velocity, f'{self._robot}/base_link')
+            message = make_twist_stamped(command.stamp, velocity, f'{self._robot}/base_link')
         else:
-            command = make_twist(body_velocity)
-        self._cmd_vel_publisher.publish(command)
-        self._last_command, self._last_command_stamp = command, stamp
+            message = make_twist(velocity)
+        self._cmd_vel_publisher.publish(message)
+        self._last_command, self._last_command_stamp = message, command.stamp
+        result = command.result
         if result is not None and not result.feasible:
             self._warn('infeasible',
                        f'no velocity meets k={self._config.effective_k:.2f}; best achieves '
@@ -467,19 +376,20 @@ class PlannerNode(Node):
         if now - self._status_published_at < self._values['status_period']:
             return
         self._status_published_at = now
-        self._publish_diagnostics(stamp, result, len(neighbour_beliefs), plan_time_ms)
+        self._publish_diagnostics(command, plan_time_ms)
         if self._marker_publisher.get_subscription_count() == 0:
             # Markers take about 0.6 ms to build: only for a listener (RViz).
             return
+        neighbours = command.neighbours
         self._marker_publisher.publish(make_belief_markers(
-            stamp, self._values['frame_id'], self._robot, own.mean[:2], velocity,
-            np.array([belief.mean[:2] for belief in neighbour_beliefs]).reshape(-1, 2),
-            np.array([belief.covariance[:2, :2] for belief in neighbour_beliefs]).reshape(
-                -1, 2, 2),
-            np.full(len(neighbour_beliefs), neighbour_radius),
-            confidence=self._config.eta))
+            command.stamp, self._values['frame_id'], self._robot, command.own.mean[:2],
+            command.velocity,
+            np.array([belief.mean[:2] for belief in neighbours]).reshape(-1, 2),
+            np.array([belief.covariance[:2, :2] for belief in neighbours]).reshape(-1, 2, 2),
+            np.full(len(neighbours), command.neighbour_radius), confidence=self._config.eta))
 
-    def _publish_diagnostics(self, stamp, result, neighbours_tracked, plan_time_ms):
+    def _publish_diagnostics(self, command, plan_time_ms):
+        result = command.result
         feasible = True if result is None else bool(result.feasible)
         achieved_k = math.inf if result is None else result.achieved_k
         eta_bound = 1.0 if result is None else result.eta_bound
@@ -487,34 +397,59 @@ class PlannerNode(Node):
             f'prvo_planner/{self._robot}',
             'ok' if feasible else 'no velocity meets the chance constraint',
             {'achieved_k': achieved_k, 'eta_bound': eta_bound, 'feasible': feasible,
-             'neighbours_tracked': neighbours_tracked, 'plan_time_ms': plan_time_ms,
-             'arrived': self._arrived, 'model': self._config.model},
+             'neighbours_tracked': len(command.neighbours), 'plan_time_ms': plan_time_ms,
+             'arrived': command.arrived, 'model': self._config.model},
             level=DiagnosticStatus.OK if feasible else DiagnosticStatus.WARN,
             hardware_id=self._robot)
-        self._diagnostics_publisher.publish(make_diagnostic_array(stamp, [status]))
+        self._diagnostics_publisher.publish(make_diagnostic_array(command.stamp, [status]))
+
+
+def _quiet_python_stop_handlers():
+    """Make the Python handlers of SIGINT and SIGTERM do nothing; call before rclpy.init().
+
+    rclpy's handlers, installed by init(), shut the context down (which ends spinning) and then
+    call these. Python's default, a KeyboardInterrupt, would land inside whatever callback is
+    running, which the events executor reports as a FATAL exception with a traceback.
+    """
+    for signal_number in _STOP_SIGNALS:
+        signal.signal(signal_number, lambda signal_number, frame: None)
 
 
 def main(args=None):
     """Run one planner until Ctrl-C; exit 2 with a clear message on an invalid parameter."""
-    sigint = SigintRecorder().install()
-    rclpy.init(args=args)
+    _quiet_python_stop_handlers()
+    # Stop signals are held back until the node is ready to spin: one landing while rcl
+    # initialises, or just after rclpy installed its handlers, was lost now and then, leaving a
+    # planner that ignored it. Threads started meanwhile (DDS) inherit the mask, so afterwards
+    # the main thread receives every stop signal.
+    signal.pthread_sigmask(signal.SIG_BLOCK, _STOP_SIGNALS)
     node = None
     try:
+        rclpy.init(args=args)
         node = PlannerNode()
         node.warm_up()
         freeze_startup_objects()
-        spin_events(node)
+        # One that came meanwhile is taken here, without a handler: then there is nothing to do.
+        if signal.sigtimedwait(_STOP_SIGNALS, 0) is None:
+            signal.pthread_sigmask(signal.SIG_UNBLOCK, _STOP_SIGNALS)
+            spin_events(node)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
-    except RuntimeError:
-        # A message take in flight when Ctrl-C lands can fail with a RuntimeError. That is the
-        # shutdown asked for; anything else is not.
-        if rclpy.ok() and not sigint.received:
-            raise
     except (ParameterError, InvalidParameterTypeException,
             InvalidParameterValueException) as error:
         rclpy.logging.get_logger('planner').fatal(f'invalid parameter: {error}')
         return 2
+    except RuntimeError as error:
+        if node is None and not rclpy.ok():
+            # rcl parses --ros-args in init (rclpy's RCLError): a malformed -p value, such as
+            # goal:="[nan, 0]" (a list of mixed types), fails before any parameter exists.
+            rclpy.logging.get_logger('planner').fatal(
+                f'invalid parameter: {str(error).split(", at ")[0]}')
+            return 2
+        # A message take in flight when the context shuts down can fail with a RuntimeError.
+        # That is the shutdown asked for; anything else is not.
+        if rclpy.ok():
+            raise
     finally:
         if node is not None:
             node.destroy_node()
