@@ -6,6 +6,7 @@ from prvo_msgs_util.conversions import (
     MAX_WORLD_COORDINATE,
     MessageFault,
     OdometryMeasurement,
+    body_to_world,
     check_world_point,
     make_odometry,
     make_pose_stamped,
@@ -18,6 +19,7 @@ from prvo_msgs_util.conversions import (
     serialized_odometry_to_measurement,
     stamp_to_seconds,
     twist_to_velocity,
+    world_to_body,
 )
 from prvo_msgs_util.diagnostics import (
     diagnostic_values,
@@ -60,11 +62,11 @@ __all__ = [
     'MAX_SPEED_COMPONENT', 'MAX_VARIANCE', 'MAX_WORLD_COORDINATE',
     'MessageFault', 'ODOM', 'ODOM_LATEST_QOS', 'ODOM_QOS', 'OdometryMeasurement',
     'QosWatch', 'quiet_publisher_events', 'quiet_subscription_events',
-    'SigintRecorder', 'check_world_point',
+    'SigintRecorder', 'body_to_world', 'check_world_point',
     'diagnostic_values', 'freeze_startup_objects', 'spin_events',
     'make_belief_markers', 'make_diagnostic_array', 'make_diagnostic_status', 'make_odometry',
     'make_pose_stamped', 'make_twist', 'make_twist_stamped', 'odometry_to_measurement',
     'pose_stamped_to_goal', 'robot_from_topic', 'robot_topic', 'seconds_to_stamp',
     'serialize_odometry', 'serialized_odometry_to_measurement', 'stamp_to_seconds',
-    'twist_to_velocity', 'validate_robot_name',
+    'twist_to_velocity', 'validate_robot_name', 'world_to_body',
 ]

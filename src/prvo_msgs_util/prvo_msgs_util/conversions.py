@@ -222,6 +222,16 @@ def _rotated_vector(cos, sin, x, y):
     return cos * x - sin * y, sin * x + cos * y
 
 
+def world_to_body(velocity, yaw):
+    """Return the world-frame VELOCITY (2,) in the frame of a robot heading YAW [rad], (2,)."""
+    return np.array(_rotated_vector(math.cos(yaw), -math.sin(yaw), velocity[0], velocity[1]))
+
+
+def body_to_world(velocity, yaw):
+    """Return VELOCITY (2,) in the frame of a robot heading YAW [rad] in the world frame (2,)."""
+    return np.array(_rotated_vector(math.cos(yaw), math.sin(yaw), velocity[0], velocity[1]))
+
+
 def _rotated_covariance(cos, sin, xx, xy, yy):
     """Return R C R^T as (xx, xy, yy), C = [[XX, XY], [XY, YY]], symmetric by construction."""
     cross = cos * sin

@@ -9,7 +9,6 @@ endpoints; an in-process engine can feed it step by step.
 """
 
 import dataclasses
-import math
 
 import numpy as np
 
@@ -340,9 +339,3 @@ class PlannerAgent:
             previous = plan_velocity(own, neighbours, np.array([1.0, 0.0]), self.config,
                                      previous=previous).velocity
 
-
-def body_velocity(velocity, yaw):
-    """Return the world-frame VELOCITY (2,) in the body frame of a robot at YAW."""
-    cos_yaw, sin_yaw = math.cos(yaw), math.sin(yaw)
-    return np.array([cos_yaw * velocity[0] + sin_yaw * velocity[1],
-                     -sin_yaw * velocity[0] + cos_yaw * velocity[1]])

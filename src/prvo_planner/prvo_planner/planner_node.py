@@ -60,8 +60,9 @@ from prvo_msgs_util import (
     serialized_odometry_to_measurement,
     spin_events,
     validate_robot_name,
+    world_to_body,
 )
-from prvo_planner.agent import AgentSettings, PlannerAgent, body_velocity
+from prvo_planner.agent import AgentSettings, PlannerAgent
 from prvo_planner.parameters import (
     BOOL,
     FLOAT,
@@ -359,7 +360,7 @@ class PlannerNode(Node):
         if command.arrived and not was_arrived:
             self.get_logger().info(f'arrived at {self._agent.goal.tolist()}')
         # cmd_vel is in the body frame: rotate the world-frame plan by minus the robot's yaw.
-        velocity = body_velocity(command.velocity, command.yaw)
+        velocity = world_to_body(command.velocity, command.yaw)
         if self._stamped:
             message = make_twist_stamped(command.stamp, velocity, f'{self._robot}/base_link')
         else:

@@ -3,9 +3,8 @@
 import math
 
 from geometry_msgs.msg import TwistStamped
-import numpy as np
 
-from prvo_msgs_util import MessageFault, stamp_to_seconds, twist_to_velocity
+from prvo_msgs_util import MessageFault, body_to_world, stamp_to_seconds, twist_to_velocity
 from prvo_sim.world import YAW_HISTORY
 
 WORLD_FRAME = 'map'
@@ -27,7 +26,7 @@ def command_velocity(msg, index, base_frame, world):
     if speed > MAX_COMMAND_SPEED:
         raise MessageFault(f'speed {speed:.3f} m/s is above {MAX_COMMAND_SPEED:g} m/s')
     if not isinstance(msg, TwistStamped):
-        return _to_world_frame(velocity, world.yaws[index])
+        return body_to_world(velocity, world.yaws[index])
     stamp = stamp_to_seconds(msg.header.stamp)
     step = round(stamp / world.scenario.dt)
     if not world.step_count - YAW_HISTORY < step <= world.step_count:
@@ -40,10 +39,5 @@ def command_velocity(msg, index, base_frame, world):
     if frame_id != base_frame:
         raise MessageFault(
             f'header.frame_id is {frame_id!r}, expected {WORLD_FRAME!r} or {base_frame!r}')
-    return _to_world_frame(velocity, world.yaws_at(step)[index])
+    return body_to_world(velocity, world.yaws_at(step)[index])
 
-
-def _to_world_frame(velocity, yaw):
-    cos_yaw, sin_yaw = math.cos(yaw), math.sin(yaw)
-    return np.array([cos_yaw * velocity[0] - sin_yaw * velocity[1],
-                     sin_yaw * velocity[0] + cos_yaw * velocity[1]])
