@@ -1,6 +1,7 @@
 """
-The PRVO velocity planner and its baselines: ``plan_velocity`` for one robot,
-``plan_velocities`` for a team at once.
+The PRVO velocity planner and its baselines: ``plan_velocity``, and ``plan_velocities``.
+
+``plan_velocity`` plans one robot, ``plan_velocities`` a team at once.
 
 One plan builds, for every (neighbour, candidate direction) pair, the mean and variance
 polynomials of every condition in the ray parameter ``t`` (speed ``t v_max``), finds each pair's
@@ -21,27 +22,27 @@ import numpy as np
 
 from .beliefs import AgentBelief, as_finite_array
 from .choice import (
+    INTERIOR,
+    CostTerms,
     best_ranked,
     best_speeds,
-    CostTerms,
     grid_scores,
-    INTERIOR,
     speed_grid,
 )
 from .config import PlannerConfig, PlanResult
 from .encounter import (
+    ConditionLayout,
+    Encounter,
     build_encounter,
     candidate_directions,
     condition_layout,
-    ConditionLayout,
-    Encounter,
     model_moments,
 )
-from .feasibility import achieved_margins, monte_carlo_probabilities, RayRows, team_ray_gaps
+from .feasibility import RayRows, achieved_margins, monte_carlo_probabilities, team_ray_gaps
 from .moments import (
+    NODES,
     bivariate_polynomials,
     condition_moments,
-    NODES,
     poly_eval,
     polynomials_on_rays,
 )
@@ -204,7 +205,7 @@ def _prepared_plan(ego, neighbours, v_pref, config, previous):
 
 
 def _monte_carlo_plan(plan):
-    """The sampling baseline: probabilities estimated at a grid of candidate speeds."""
+    """Plan by the sampling baseline: probabilities estimated at a grid of candidate speeds."""
     encounter, config, directions = plan.encounter, plan.config, plan.directions
     speeds, grid_costs = speed_grid(directions, plan.preferred, plan.v_pref, plan.previous,
                                     config)
