@@ -310,9 +310,12 @@ def ray_polynomials(origin, cov, combined_radius, directions, scale, time_horizo
         Shape (N, M, C, 5), laid out coefficient-major in memory.
 
     """
-    fitted = bivariate_polynomials(origin, cov, combined_radius, scale * NODES, time_horizon,
-                                   receding_gate)
-    return polynomials_on_rays(*fitted, directions)
+    mean_fit, variance_fit = bivariate_polynomials(origin, cov, combined_radius,
+                                                   scale * NODES, time_horizon, receding_gate)
+    count, conditions = mean_fit.shape[:2]
+    return tuple(_coefficient_major(rows.reshape(count, conditions, -1, length))
+                 for rows, length in zip(ray_rows(mean_fit[None], variance_fit[None],
+                                                  directions[None]), (3, 5), strict=True))
 
 
 def bivariate_polynomials(origin, cov, combined_radius, node_velocities, time_horizon,
@@ -345,36 +348,38 @@ def bivariate_polynomials(origin, cov, combined_radius, node_velocities, time_ho
             (_FIT @ variances).swapaxes(-1, -2))
 
 
-def polynomials_on_rays(mean_fit, variance_fit, directions):
+def ray_rows(mean_fit, variance_fit, directions):
     """
-    Restrict bivariate polynomials of one plan to its rays: polynomials in ``t``.
+    Restrict bivariate polynomials to rays, for a stack of plans of one shape.
 
     Parameters
     ----------
     mean_fit, variance_fit : numpy.ndarray
-        As :func:`bivariate_polynomials` returns them, shapes (N, C, 6) and (N, C, 15).
+        As :func:`bivariate_polynomials` returns them, per plan: shapes (B, N, C, 6) and
+        (B, N, C, 15).
     directions : numpy.ndarray
-        Unit directions ``e``, shape (M, 2).
+        Unit directions ``e`` per plan, shape (B, M, 2).
 
     Returns
     -------
-    means, variances : numpy.ndarray
-        As for :func:`ray_polynomials`.
+    mean_rows, variance_rows : numpy.ndarray
+        Shapes (B, N C, M 3) and (B, N C, M 5): per (neighbour, condition) row, the ascending
+        coefficients in ``t`` on each ray. Each plan's are one matrix product of its own.
 
     """
     # Bivariate coefficient k multiplies t^(i+j) e_x^i e_y^j along the ray: a (15, 5 M) map
-    # from bivariate to ray coefficients, applied in one product to every (neighbour,
-    # condition), then laid out coefficient-major for the ray solver.
-    count, conditions = mean_fit.shape[:2]
-    powers = directions[:, :, None] ** np.arange(5)
-    direction_monomials = powers[:, 0, _EXPONENTS[:, 0]] * powers[:, 1, _EXPONENTS[:, 1]]
-    to_ray = (direction_monomials.T[:, :, None] * _DEGREE_MASK[:, None, :]).reshape(
-        _EXPONENTS.shape[0], -1)
-    mean_rows = mean_fit.reshape(-1, _QUADRATIC_TERMS) @ to_ray.reshape(
-        -1, directions.shape[0], 5)[:_QUADRATIC_TERMS, :, :3].reshape(_QUADRATIC_TERMS, -1)
-    variance_rows = variance_fit.reshape(-1, _EXPONENTS.shape[0]) @ to_ray
-    return tuple(_coefficient_major(rows.reshape(count, conditions, -1, length))
-                 for rows, length in ((mean_rows, 3), (variance_rows, 5)))
+    # per plan from bivariate to ray coefficients, applied in one product to every
+    # (neighbour, condition).
+    robots, rays = directions.shape[:2]
+    powers = directions[..., None] ** np.arange(5)
+    direction_monomials = (powers[:, :, 0, _EXPONENTS[:, 0]]
+                           * powers[:, :, 1, _EXPONENTS[:, 1]])
+    to_ray = (direction_monomials.swapaxes(1, 2)[..., None] * _DEGREE_MASK[:, None, :]).reshape(
+        robots, _EXPONENTS.shape[0], -1)
+    mean_rows = mean_fit.reshape(robots, -1, _QUADRATIC_TERMS) @ to_ray.reshape(
+        robots, -1, rays, 5)[:, :_QUADRATIC_TERMS, :, :3].reshape(robots, _QUADRATIC_TERMS, -1)
+    variance_rows = variance_fit.reshape(robots, -1, _EXPONENTS.shape[0]) @ to_ray
+    return mean_rows, variance_rows
 
 
 def _coefficient_major(polynomials):

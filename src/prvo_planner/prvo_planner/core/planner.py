@@ -44,7 +44,7 @@ from .moments import (
     bivariate_polynomials,
     condition_moments,
     poly_eval,
-    polynomials_on_rays,
+    ray_rows,
 )
 from .probability import eta_from_k
 
@@ -186,9 +186,10 @@ class _Plan:
 
     @property
     def structure(self):
-        """What plans solved together must share."""
+        """What plans solved together must share: the kind of problem and its shape."""
         return (self.config.model, self.config.method, self.config.time_horizon,
-                self.layout.has_receding, self.deterministic)
+                self.layout.has_receding, self.deterministic, self.encounter.origin.shape[0],
+                self.directions.shape[0])
 
 
 def _prepared_plan(ego, neighbours, v_pref, config, previous):
@@ -238,64 +239,56 @@ def _result(plan, velocity, candidates_feasible, achieved):
 
 
 def _solve_group(plans):
-    """Plan robots of one structure together; return their results in order."""
+    """Plan robots of one structure and shape together; return their results in order."""
     first = plans[0]
     layout, config = first.layout, first.config
-    pair_counts = np.array([plan.encounter.origin.shape[0] for plan in plans])
-    ray_counts = np.array([plan.directions.shape[0] for plan in plans])
-    pair_robot = np.repeat(np.arange(len(plans)), pair_counts)
-    nodes = np.stack([plan.config.max_speed * NODES for plan in plans])[pair_robot]
+    robots = len(plans)
+    pairs, rays = first.encounter.origin.shape[0], first.directions.shape[0]
+    nodes = np.stack([plan.config.max_speed * NODES for plan in plans])
     mean_fit, variance_fit = bivariate_polynomials(
         np.concatenate([plan.encounter.origin for plan in plans]),
         np.concatenate([plan.cov for plan in plans]),
-        np.concatenate([plan.radius for plan in plans]), nodes, config.time_horizon,
-        layout.has_receding)
+        np.concatenate([plan.radius for plan in plans]), np.repeat(nodes, pairs, axis=0),
+        config.time_horizon, layout.has_receding)
     conditions = mean_fit.shape[1]
-    link_counts = pair_counts * ray_counts
-    links = int(link_counts.sum())
-    means = np.empty((3, links, conditions))
-    variances = np.empty((5, links, conditions))
-    margins = np.empty((links, conditions))
-    link_ray = np.empty(links, dtype=int)
-    link_enabled = np.empty(links, dtype=bool)
-    per_robot = []
-    pair_start, link_start, ray_start = 0, 0, 0
-    for plan, pairs, rays in zip(plans, pair_counts, ray_counts, strict=True):
-        stop = link_start + pairs * rays
-        robot_means, robot_variances = polynomials_on_rays(
-            mean_fit[pair_start:pair_start + pairs],
-            variance_fit[pair_start:pair_start + pairs], plan.directions)
-        means[:, link_start:stop] = robot_means.reshape(-1, conditions, 3).transpose(2, 0, 1)
-        variances[:, link_start:stop] = robot_variances.reshape(
-            -1, conditions, 5).transpose(2, 0, 1)
-        margins[link_start:stop] = plan.layout.margins(plan.encounter)
-        link_ray[link_start:stop] = np.tile(np.arange(ray_start, ray_start + rays), pairs)
-        link_enabled[link_start:stop] = np.repeat(plan.layout.receding_enabled, rays)
-        per_robot.append((robot_means, robot_variances))
-        pair_start, link_start, ray_start = pair_start + pairs, stop, ray_start + rays
-    ray_robot = np.repeat(np.arange(len(plans)), ray_counts)
-    ray_local = np.arange(ray_robot.size) - np.repeat(np.cumsum(ray_counts) - ray_counts,
-                                                      ray_counts)
-    rows = RayRows(means=means.transpose(1, 2, 0), variances=variances.transpose(1, 2, 0),
-                   margins=margins, link_ray=link_ray, link_enabled=link_enabled,
-                   ray_local=ray_local, ray_robot=ray_robot,
-                   preferred=np.concatenate([plan.preferred for plan in plans]))
+    directions = np.stack([plan.directions for plan in plans])
+    # Polynomials (L, B, N, M, C): every link's coefficients, coefficient-major.
+    means, variances = (rows.reshape(robots, pairs, conditions, rays, length).transpose(
+        4, 0, 1, 3, 2).copy() for rows, length in zip(
+            ray_rows(mean_fit.reshape(robots, pairs, conditions, -1),
+                     variance_fit.reshape(robots, pairs, conditions, -1), directions),
+            (3, 5), strict=True))
+    links = robots * pairs * rays
+    margins = np.stack([plan.layout.margins(plan.encounter) for plan in plans])
+    enabled = np.stack([plan.layout.receding_enabled for plan in plans])
+    link_ray = (np.arange(robots)[:, None, None] * rays
+                + np.arange(rays)[None, None, :]).repeat(pairs, axis=1).reshape(links)
+    rows = RayRows(
+        means=means.reshape(3, links, conditions).transpose(1, 2, 0),
+        variances=variances.reshape(5, links, conditions).transpose(1, 2, 0),
+        margins=np.repeat(margins, pairs * rays, axis=0), link_ray=link_ray,
+        link_enabled=np.repeat(enabled.reshape(-1), rays),
+        ray_local=np.tile(np.arange(rays), robots),
+        ray_robot=np.repeat(np.arange(robots), rays),
+        preferred=np.concatenate([plan.preferred for plan in plans]))
     gap_ray, lower, upper = team_ray_gaps(rows, layout, config.method, first.deterministic)
-    feasible_rays = np.bincount(gap_ray, minlength=ray_robot.size) > 0
-    candidates_feasible = np.bincount(ray_robot, weights=feasible_rays,
-                                      minlength=len(plans)).astype(int)
+    feasible_rays = np.bincount(gap_ray, minlength=robots * rays) > 0
+    candidates_feasible = np.count_nonzero(feasible_rays.reshape(robots, rays), axis=1)
     chosen = _choose_on_gaps(plans, rows, gap_ray, lower, upper)
-    results = []
+    # Each robot's polynomials, (N, M, C, L) views.
+    per_robot = [(means[:, robot].transpose(1, 2, 3, 0), variances[:, robot].transpose(1, 2, 3, 0))
+                 for robot in range(robots)]
+    direction_index = np.empty(robots, dtype=int)
+    chosen_t = np.empty(robots)
     for robot, plan in enumerate(plans):
-        if candidates_feasible[robot]:
-            direction_index, chosen_t = chosen[robot]
-        else:
-            direction_index, chosen_t = _fallback_choice(plan, *per_robot[robot])
-        velocity = plan.config.max_speed * chosen_t * plan.directions[direction_index]
-        results.append((direction_index, chosen_t, velocity))
-    achieved = _achieved(plans, per_robot, results)
-    return [_result(plan, velocity, int(candidates_feasible[robot]), achieved[robot])
-            for robot, (plan, (_, _, velocity)) in enumerate(zip(plans, results, strict=True))]
+        direction_index[robot], chosen_t[robot] = (
+            chosen[robot] if candidates_feasible[robot]
+            else _fallback_choice(plan, *per_robot[robot]))
+    max_speed = np.array([plan.config.max_speed for plan in plans])
+    velocities = (max_speed * chosen_t)[:, None] * directions[np.arange(robots), direction_index]
+    achieved = _achieved(plans, means, variances, direction_index, chosen_t, velocities)
+    return [_result(plan, velocities[robot], int(candidates_feasible[robot]),
+                    float(achieved[robot])) for robot, plan in enumerate(plans)]
 
 
 def _choose_on_gaps(plans, rows, gap_ray, lower, upper):
@@ -333,20 +326,23 @@ def _fallback_choice(plan, means, variances):
     return direction_index, speeds[direction_index, speed_index]
 
 
-def _achieved(plans, per_robot, chosen):
+def _achieved(plans, means, variances, direction_index, chosen_t, velocities):
     """Per robot, the smallest over neighbours of the k met at its chosen velocity."""
-    achieved = []
-    for plan, (means, variances), (direction_index, chosen_t, velocity) in zip(
-            plans, per_robot, chosen, strict=True):
-        if plan.config.model == 'prvo':
-            # The planning moments are the beliefs' own: evaluate the ray polynomials.
-            at_velocity = [poly_eval(polynomial[:, direction_index], chosen_t)
-                           for polynomial in (means, variances)]
-        else:
-            encounter = plan.encounter
-            at_velocity = [moment[:, 0] for moment in condition_moments(
-                encounter.origin, encounter.cov, encounter.combined_radius,
-                velocity[None, :], plan.config.time_horizon, plan.layout.has_receding)]
-        achieved.append(float(achieved_margins(*at_velocity, plan.layout,
-                                               plan.layout.receding_enabled).min()))
-    return achieved
+    first = plans[0]
+    robots = len(plans)
+    enabled = np.stack([plan.layout.receding_enabled for plan in plans])
+    if first.config.model == 'prvo':
+        # The planning moments are the beliefs' own: evaluate the ray polynomials, (B, N, C).
+        # Advanced indices apart put the robot axis first: (B, L, N, C).
+        at_velocity = [poly_eval(polynomial[:, np.arange(robots), :, direction_index]
+                                 .transpose(0, 2, 3, 1), chosen_t[:, None, None])
+                       for polynomial in (means, variances)]
+    else:
+        pairs = first.encounter.origin.shape[0]
+        at_velocity = [moment[:, 0].reshape(robots, pairs, -1) for moment in condition_moments(
+            np.concatenate([plan.encounter.origin for plan in plans]),
+            np.concatenate([plan.encounter.cov for plan in plans]),
+            np.concatenate([plan.encounter.combined_radius for plan in plans]),
+            np.repeat(velocities, pairs, axis=0)[:, None, :], first.config.time_horizon,
+            first.layout.has_receding)]
+    return achieved_margins(*at_velocity, first.layout, enabled).min(axis=1)
