@@ -108,7 +108,8 @@ def plan_velocities(egos, neighbours_per_ego, v_prefs, configs, previous=None):
 
     Result ``i`` is bit for bit ``plan_velocity(egos[i], neighbours_per_ego[i], v_prefs[i],
     configs[i], previous[i])``. Robots whose plans share their structure (model, method, time
-    horizon, conditions) are solved together; ``model='mc'`` plans one robot at a time.
+    horizon, conditions) and shape (neighbours in range, directions) are solved together, as
+    in a team of one configuration; ``model='mc'`` plans one robot at a time.
 
     Parameters
     ----------
