@@ -129,24 +129,15 @@ def best_speeds(directions, lower, upper, preferred, terms, max_speed, robot):
     extra = np.broadcast_to(terms.extra, projected.shape)
     if not extra.any():
         return projected
-    # The full cost at a projected t bounds the plan's optimum from above; each term's own
-    # minimum over an interval (the plain term's at the projected t, the inertia term's at the
-    # point nearest the previous command, the bias term's at an end) bounds the interval's
-    # cost from below. An interval whose bound exceeds the optimum's (with a margin for
-    # rounding) cannot hold the optimum.
+    # The plain term alone, smallest at the projected t, bounds an interval's cost from below
+    # (the extra terms are >= 0); the full cost at a projected t bounds the plan's optimum from
+    # above.
     at_projected = max_speed[:, None] * projected[:, None] * directions
+    plain = _distances(at_projected, terms.v_pref)
     full = terms.costs(at_projected)
     starts = np.flatnonzero(np.diff(robot, prepend=-1))
     bound = np.repeat(np.minimum.reduceat(full, starts), np.diff(np.append(starts, robot.size)))
-    nearest = np.clip(np.einsum('ij,ij->i', np.broadcast_to(terms.previous, directions.shape),
-                                directions) / max_speed, lower, upper)
-    left = (terms.v_pref[..., 0] * directions[:, 1]
-            - terms.v_pref[..., 1] * directions[:, 0]) * max_speed / terms.norm
-    least = (_distances(at_projected, terms.v_pref)
-             + terms.inertia * _distances(max_speed[:, None] * nearest[:, None] * directions,
-                                          terms.previous)
-             + terms.bias * np.maximum(np.minimum(left * lower, left * upper), 0.0))
-    searched = (extra & (least <= bound + 1e-9 * (1.0 + bound))).nonzero()[0]
+    searched = (extra & (plain <= bound)).nonzero()[0]
     best = projected.copy()
     best[searched] = _zoomed_speeds(directions[searched], lower[searched], upper[searched],
                                     projected[searched], terms.take(searched),
