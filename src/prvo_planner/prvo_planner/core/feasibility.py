@@ -280,6 +280,41 @@ class RayRows:
     preferred: np.ndarray
 
 
+def _unit_cuts(unit_segment, values, slots):
+    """
+    Order every open unit's cuts: its segment's start, its roots ascending, its segment's end.
+
+    A root lies in ``[start, end)`` of its segment (``t SEGMENTS`` is exact), so the order is
+    that of sorting all of them by (unit, value), the segment's start first among equal values;
+    only the roots need sorting.
+
+    Parameters
+    ----------
+    unit_segment : numpy.ndarray
+        Segment of each open unit, shape (U,).
+    values, slots : numpy.ndarray
+        The roots that cut units and the unit of each, shape (R,).
+
+    Returns
+    -------
+    values, slots : numpy.ndarray
+        Shape (2 U + R,): the cuts of unit 0, then of unit 1, ...
+
+    """
+    order = np.lexsort((values, slots))
+    values, slots = values[order], slots[order]
+    units = unit_segment.size
+    roots_per_unit = np.bincount(slots, minlength=units)
+    ends = np.cumsum(roots_per_unit + 2) - 1
+    starts = ends - roots_per_unit - 1
+    cut_values = np.empty(2 * units + values.size)
+    cut_values[starts] = unit_segment / SEGMENTS
+    cut_values[ends] = (unit_segment + 1) / SEGMENTS
+    first_root = np.cumsum(roots_per_unit) - roots_per_unit
+    cut_values[starts[slots] + 1 + np.arange(values.size) - first_root[slots]] = values
+    return cut_values, np.repeat(np.arange(units), roots_per_unit + 2)
+
+
 def team_ray_gaps(rows, layout, method, deterministic):
     """
     Feasible speed intervals on every ray: the intersection over neighbours of accepted sets.
@@ -347,11 +382,9 @@ def team_ray_gaps(rows, layout, method, deterministic):
     # g's quartic is a quadratic: its mean is linear and its variance quadratic in t.
     quadratic_condition = np.zeros(conditions, dtype=bool)
     quadratic_condition[1:2] = layout.has_receding
-    # Every open unit's cuts, flat, with its segment's ends as the ends of its first and last
-    # pieces: cut values and the open unit (slot) each belongs to.
-    unit_segment = open_index // links
-    cut_values = [unit_segment / SEGMENTS, (unit_segment + 1) / SEGMENTS]
-    cut_slots = [np.arange(open_index.size)] * 2
+    # Every open unit's cuts inside its segment, flat: cut values and the open unit (slot)
+    # each belongs to.
+    cut_values, cut_slots = [np.empty(0)], [np.empty(0, dtype=int)]
     for (test, test_variances), (nonnegative, negative) in zip(tests, certificates,
                                                                strict=True):
         undecided = splitting & ~(nonnegative | negative).reshape(SEGMENTS, links, conditions)
@@ -376,10 +409,8 @@ def team_ray_gaps(rows, layout, method, deterministic):
             cuts = undecided.reshape(SEGMENTS, -1)[segment, root_row]
             cut_values.append(values[cuts])
             cut_slots.append(unit_slot[segment[cuts] * links + root_row[cuts] // conditions])
-    cut_values = np.concatenate(cut_values)
-    cut_slots = np.concatenate(cut_slots)
-    order = np.lexsort((cut_values, cut_slots))
-    cut_values, cut_slots = cut_values[order], cut_slots[order]
+    cut_values, cut_slots = _unit_cuts(open_index // links, np.concatenate(cut_values),
+                                       np.concatenate(cut_slots))
     piece = cut_slots[1:] == cut_slots[:-1]
     piece_start, piece_end = cut_values[:-1][piece], cut_values[1:][piece]
     piece_link = open_index[cut_slots[:-1][piece]] % links
