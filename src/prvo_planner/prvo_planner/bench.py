@@ -1,10 +1,15 @@
 """
-Benchmark of ``plan_velocity``: median and p95 time per call.
+Benchmark of ``plan_velocity`` and ``plan_velocities``: time per call and per robot-step.
 
 Usage: ``python -m prvo_planner.bench [--json PATH] [--repeats R] [--clock wall|cpu]``. Every
 model is timed on the same seeded random encounters for N neighbours in {1, 5, 10, 20, 50} and
 M directions in {16, 64, 128}. ``--clock cpu`` times with the process CPU clock, which is
 insensitive to other processes competing for the cores.
+
+``python -m prvo_planner.bench --team [--robots 10 20] [--json PATH] [--clock wall|cpu]``: teams
+swap sides of a circle in a noise-free closed loop of the core alone; every step is planned once
+by ``plan_velocities`` for the whole team and once by ``plan_velocity`` per robot (the two must
+agree bit for bit), and both are timed per robot-step.
 """
 
 import argparse
@@ -14,7 +19,7 @@ import time
 
 import numpy as np
 
-from prvo_planner.core import AgentBelief, PlannerConfig, plan_velocity
+from prvo_planner.core import AgentBelief, PlannerConfig, plan_velocities, plan_velocity
 
 NEIGHBOURS = (1, 5, 10, 20, 50)
 DIRECTIONS = (16, 64, 128)
@@ -90,6 +95,116 @@ def table(rows):
     return '\n'.join(lines)
 
 
+# The circle swap of --team: node defaults, noise stds 0.05 (m, m/s) in every belief and in the
+# actuation model, 0.1 s steps.
+TEAM_SIZES = (10, 20)
+TEAM_DT = 0.1
+TEAM_STD = 0.05
+TEAM_GOAL_TOLERANCE = 0.2
+TEAM_MAX_STEPS = 600
+
+
+def team_config():
+    """Return the planner configuration of every robot of the circle swap (node defaults)."""
+    return PlannerConfig(eta=0.8, max_speed=1.0, actuation_cov=TEAM_STD ** 2 * np.eye(2),
+                         inertia=0.5, passing_bias=0.1)
+
+
+def circle_swap(count, config, seed=0, planner=None):
+    """
+    Run a noise-free circle swap of ``count`` robots and yield every step's planning inputs.
+
+    Robots of radius 0.2-0.3 m (seeded) start evenly on a circle of radius ``max(4, N / 4)`` m
+    and head for the opposite point at up to ``config.max_speed``, slowing over the last metre
+    and wanting to stay once within the goal tolerance. Beliefs are the true states with a
+    fixed covariance. Each step's commands come from
+    ``planner(egos, neighbours_per_ego, v_prefs, previous)`` (``plan_velocities`` by default);
+    the loop ends when every robot has reached its goal or after ``TEAM_MAX_STEPS``.
+
+    Yields
+    ------
+    tuple
+        ``(egos, neighbours_per_ego, v_prefs, previous)`` of the step, before it is planned.
+
+    """
+    if planner is None:
+        def planner(egos, neighbours, v_prefs, previous):
+            return plan_velocities(egos, neighbours, v_prefs, config, previous)
+    rng = np.random.default_rng(seed)
+    angles = 2.0 * np.pi * np.arange(count) / count
+    positions = max(4.0, count / 4.0) * np.stack([np.cos(angles), np.sin(angles)], axis=1)
+    goals = -positions
+    radii = rng.uniform(0.2, 0.3, size=count)
+    velocities = np.zeros((count, 2))
+    covariance = TEAM_STD ** 2 * np.eye(4)
+    arrived = np.zeros(count, dtype=bool)
+    for _ in range(TEAM_MAX_STEPS):
+        to_goal = goals - positions
+        distance = np.hypot(to_goal[:, 0], to_goal[:, 1])
+        # A robot that has reached its goal once wants to stay (as the node does).
+        arrived |= distance < TEAM_GOAL_TOLERANCE
+        if arrived.all():
+            return
+        speed = np.where(arrived, 0.0, np.minimum(config.max_speed, distance))
+        v_prefs = to_goal * (speed / np.maximum(distance, 1e-12))[:, None]
+        egos = [AgentBelief(positions[i], velocities[i], covariance, radii[i])
+                for i in range(count)]
+        neighbours = [egos[:i] + egos[i + 1:] for i in range(count)]
+        previous = list(velocities)
+        yield egos, neighbours, list(v_prefs), previous
+        velocities = np.array([result.velocity
+                               for result in planner(egos, neighbours, list(v_prefs), previous)])
+        positions = positions + TEAM_DT * velocities
+
+
+def same_plan(first, second):
+    """Whether two PlanResults are equal bit for bit."""
+    return (np.array_equal(first.velocity, second.velocity)
+            and np.array_equal(first.achieved_k, second.achieved_k)
+            and np.array_equal(first.eta_bound, second.eta_bound)
+            and (first.feasible, first.num_constraints, first.candidates_feasible)
+            == (second.feasible, second.num_constraints, second.candidates_feasible))
+
+
+def run_team(count, clock=time.perf_counter):
+    """Time both calls on every step of a circle swap of ``count`` robots; return a row."""
+    config = team_config()
+    batched, single, steps, different = [], [], 0, 0
+
+    def timed_planner(egos, neighbours, v_prefs, previous):
+        nonlocal different
+        start = clock()
+        team = plan_velocities(egos, neighbours, v_prefs, config, previous)
+        batched.append(clock() - start)
+        start = clock()
+        alone = [plan_velocity(egos[i], neighbours[i], v_prefs[i], config, previous[i])
+                 for i in range(count)]
+        single.append(clock() - start)
+        different += sum(not same_plan(a, b) for a, b in zip(team, alone, strict=True))
+        return team
+
+    for _ in circle_swap(count, config, planner=timed_planner):
+        steps += 1
+    batched, single = 1e3 * np.array(batched) / count, 1e3 * np.array(single) / count
+    return {'robots': count, 'steps': steps,
+            'batched_median_ms': float(np.median(batched)),
+            'batched_mean_ms': float(np.mean(batched)),
+            'single_median_ms': float(np.median(single)),
+            'single_mean_ms': float(np.mean(single)), 'different_plans': int(different)}
+
+
+def team_table(rows):
+    """Markdown table: ms per robot-step, batched and one robot at a time."""
+    lines = ['| robots | steps | plan_velocities ms/robot-step median / mean '
+             '| plan_velocity ms/robot-step median / mean | different plans |',
+             '|---|---|---|---|---|']
+    for row in rows:
+        lines.append(f"| {row['robots']} | {row['steps']} | {row['batched_median_ms']:.3f} / "
+                     f"{row['batched_mean_ms']:.3f} | {row['single_median_ms']:.3f} / "
+                     f"{row['single_mean_ms']:.3f} | {row['different_plans']} |")
+    return '\n'.join(lines)
+
+
 def main(argv=None):
     """Run the benchmark, print a Markdown table, optionally write JSON."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[1])
@@ -98,11 +213,22 @@ def main(argv=None):
     parser.add_argument('--mc-repeats', type=int, default=5, help='timed calls per mc cell')
     parser.add_argument('--clock', choices=('wall', 'cpu'), default='wall',
                         help='wall time (default) or process CPU time')
+    parser.add_argument('--team', action='store_true',
+                        help='time plan_velocities per robot-step on circle swaps instead')
+    parser.add_argument('--robots', type=int, nargs='+', default=list(TEAM_SIZES),
+                        help='team sizes of --team')
     arguments = parser.parse_args(argv)
     clock = time.perf_counter if arguments.clock == 'wall' else time.process_time
-    rows = run(arguments.repeats, arguments.mc_repeats, clock)
-    print(f'median / p95 ms per plan_velocity call ({arguments.clock} clock)')
-    print(table(rows))
+    if arguments.team:
+        if min(arguments.robots) < 2:
+            parser.error(f'--robots must all be >= 2, got {arguments.robots}')
+        rows = [run_team(count, clock) for count in arguments.robots]
+        print(f'ms per robot-step on circle swaps ({arguments.clock} clock)')
+        print(team_table(rows))
+    else:
+        rows = run(arguments.repeats, arguments.mc_repeats, clock)
+        print(f'median / p95 ms per plan_velocity call ({arguments.clock} clock)')
+        print(table(rows))
     if arguments.json:
         with open(arguments.json, 'w', encoding='utf-8') as stream:
             json.dump({'results': rows}, stream, indent=2)

@@ -5,6 +5,7 @@ The cost of a velocity is ``|v - v_pref| + inertia |v - previous| + passing_bias
 left(v))``; the extra terms only rank velocities that the constraints already admit.
 """
 
+from dataclasses import dataclass
 import math
 
 import numpy as np
@@ -32,65 +33,133 @@ def _distances(points, point):
     return np.sqrt(offset[..., 0] * offset[..., 0] + offset[..., 1] * offset[..., 1])
 
 
+@dataclass(frozen=True)
+class CostTerms:
+    """
+    The terms of the choice cost of one or several plans, broadcastable against velocities.
+
+    Attributes
+    ----------
+    v_pref : numpy.ndarray
+        Preferred velocity, shape (..., 2).
+    previous : numpy.ndarray
+        Previous command, shape (..., 2) (any value where ``inertia`` is 0).
+    inertia : numpy.ndarray or float
+        Weight of ``|v - previous|``: 0 without a previous command.
+    bias : numpy.ndarray or float
+        Weight of ``max(0, left(v))``: 0 when ``v_pref`` has no direction.
+    norm : numpy.ndarray or float
+        ``|v_pref|`` (1 where ``bias`` is 0).
+    extra : numpy.ndarray or bool
+        Whether either extra term is on.
+
+    """
+
+    v_pref: np.ndarray
+    previous: np.ndarray
+    inertia: np.ndarray
+    bias: np.ndarray
+    norm: np.ndarray
+    extra: np.ndarray
+
+    @classmethod
+    def of_plan(cls, v_pref, previous, config):
+        """Return the terms of one plan."""
+        inertia = config.inertia if previous is not None else 0.0
+        norm = math.hypot(v_pref[0], v_pref[1])
+        bias = config.passing_bias if norm > 1e-9 else 0.0
+        return cls(v_pref=v_pref, previous=v_pref if previous is None else previous,
+                   inertia=inertia, bias=bias, norm=norm if bias > 0.0 else 1.0,
+                   extra=inertia > 0.0 or bias > 0.0)
+
+    def take(self, index):
+        """Return the terms of rows ``index`` (of per-row terms), one row per index."""
+        return CostTerms(*(np.asarray(value)[index] for value in (
+            self.v_pref, self.previous, self.inertia, self.bias, self.norm, self.extra)))
+
+    def costs(self, velocities):
+        """
+        Cost of commanded velocities, shape (..., 2) -> (...): smaller is better.
+
+        ``|v - v_pref|`` (docs/method.md, section 7), plus ``inertia |v - previous|`` and
+        ``bias max(0, left(v))`` with ``left`` the component of ``v`` to the left of
+        ``v_pref``'s direction. Both extra terms are convex in ``v`` and only rank velocities;
+        which ones are acceptable is decided by the constraints alone. A term of weight 0 adds
+        exactly 0.
+        """
+        costs = _distances(velocities, self.v_pref)
+        costs += self.inertia * _distances(velocities, self.previous)
+        left = (self.v_pref[..., 0] * velocities[..., 1]
+                - self.v_pref[..., 1] * velocities[..., 0]) / self.norm
+        costs += self.bias * np.maximum(left, 0.0)
+        return costs
+
+
 def choice_costs(velocities, v_pref, previous, config):
-    """
-    Cost of commanded velocities, shape (..., 2) -> (...): smaller is better.
-
-    ``|v - v_pref|`` (docs/method.md, section 7), plus ``inertia |v - previous|`` when a previous
-    command is given and ``passing_bias max(0, left(v))`` with ``left`` the component of ``v``
-    to the left of ``v_pref``'s direction. Both extra terms are convex in ``v`` and only rank
-    velocities; which ones are acceptable is decided by the constraints alone.
-    """
-    costs = _distances(velocities, v_pref)
-    if previous is not None and config.inertia > 0.0:
-        costs += config.inertia * _distances(velocities, previous)
-    norm = math.hypot(v_pref[0], v_pref[1])
-    if config.passing_bias > 0.0 and norm > 1e-9:
-        left = (v_pref[0] * velocities[..., 1] - v_pref[1] * velocities[..., 0]) / norm
-        costs += config.passing_bias * np.maximum(left, 0.0)
-    return costs
+    """Cost of commanded velocities of one plan, shape (..., 2) -> (...) (``CostTerms``)."""
+    return CostTerms.of_plan(v_pref, previous, config).costs(velocities)
 
 
-def best_speeds(directions, lower, upper, preferred, v_pref, previous, config):
+def best_speeds(directions, lower, upper, preferred, terms, max_speed, robot):
     """
     Best ``t`` in ``[lower, upper]`` on each ray ``t v_max e``, shape (G,).
 
     Under the plain cost it is the preferred ``t`` projected onto the interval. The extra terms
-    of :func:`choice_costs` keep the cost convex along the ray, so its minimum lies within a
+    of :class:`CostTerms` keep the cost convex along the ray, so its minimum lies within a
     cell of the best point of a grid; zooming a grid onto those two cells a few times finds it
     (the interval ends and the plain optimum are candidates too: a flat or kinked minimum).
-    Only intervals that can hold the overall optimum are searched; the others keep the
+    Only intervals that can hold their plan's optimum are searched; the others keep the
     projected ``t``, whose cost cannot be the smallest.
+
+    Parameters
+    ----------
+    directions : numpy.ndarray
+        Ray directions, shape (G, 2).
+    lower, upper, preferred : numpy.ndarray
+        Interval ends and preferred ``t``, shape (G,).
+    terms : CostTerms
+        Per interval, shape (G, ...).
+    max_speed : numpy.ndarray
+        ``v_max`` per interval, shape (G,).
+    robot : numpy.ndarray
+        Plan of each interval, non-decreasing, shape (G,).
+
     """
     projected = np.clip(preferred, lower, upper)
-    if not ((previous is not None and config.inertia > 0.0) or config.passing_bias > 0.0):
+    extra = np.broadcast_to(terms.extra, projected.shape)
+    if not extra.any():
         return projected
     # The plain term alone, smallest at the projected t, bounds an interval's cost from below
-    # (the extra terms are >= 0); the full cost at a projected t bounds the optimum from above.
-    at_projected = config.max_speed * projected[:, None] * directions
-    plain = _distances(at_projected, v_pref)
-    searched = (plain <= choice_costs(at_projected, v_pref, previous, config).min()).nonzero()[0]
+    # (the extra terms are >= 0); the full cost at a projected t bounds the plan's optimum from
+    # above.
+    at_projected = max_speed[:, None] * projected[:, None] * directions
+    plain = _distances(at_projected, terms.v_pref)
+    full = terms.costs(at_projected)
+    starts = np.flatnonzero(np.diff(robot, prepend=-1))
+    bound = np.repeat(np.minimum.reduceat(full, starts), np.diff(np.append(starts, robot.size)))
+    searched = (extra & (plain <= bound)).nonzero()[0]
     best = projected.copy()
     best[searched] = _zoomed_speeds(directions[searched], lower[searched], upper[searched],
-                                    projected[searched], v_pref, previous, config)
+                                    projected[searched], terms.take(searched),
+                                    max_speed[searched])
     return best
 
 
-def _zoomed_speeds(directions, lower, upper, projected, v_pref, previous, config):
-    """Minimise :func:`choice_costs` on each ray's interval by a zoomed grid, shape (G,)."""
-    velocity_directions = config.max_speed * directions[:, None, :]
+def _zoomed_speeds(directions, lower, upper, projected, terms, max_speed):
+    """Minimise the cost on each ray's interval by a zoomed grid, shape (G,)."""
+    velocity_directions = max_speed[:, None, None] * directions[:, None, :]
+    row_terms = CostTerms(*(np.asarray(value)[:, None] for value in (
+        terms.v_pref, terms.previous, terms.inertia, terms.bias, terms.norm, terms.extra)))
     low, high = lower, upper
     for _ in range(_ZOOM_LEVELS):
         grid = low[:, None] + (high - low)[:, None] * _ZOOM_GRID
-        best = np.argmin(choice_costs(grid[..., None] * velocity_directions, v_pref, previous,
-                                       config), axis=1)
+        best = np.argmin(row_terms.costs(grid[..., None] * velocity_directions), axis=1)
         rows = np.arange(grid.shape[0])
         # The minimum of a convex function lies within one cell of the best grid point.
         low = grid[rows, np.maximum(best - 1, 0)]
         high = grid[rows, np.minimum(best + 1, _ZOOM_GRID.size - 1)]
     options = np.stack([0.5 * (low + high), projected, lower, upper], axis=1)
-    option_costs = choice_costs(options[..., None] * velocity_directions, v_pref, previous,
-                                 config)
+    option_costs = row_terms.costs(options[..., None] * velocity_directions)
     return options[np.arange(options.shape[0]), np.argmin(option_costs, axis=1)]
 
 

@@ -8,6 +8,8 @@ sorted sweep over the rejected pieces. ``achieved_margins`` gives the ``k`` a ve
 (the fallback when nothing is feasible), ``monte_carlo_probabilities`` the sampled baseline.
 """
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from .probability import rvo_condition_of
@@ -119,7 +121,7 @@ def horner_coefficient_major(coefficients, t):
     return value
 
 
-def _row_tests(means, variances, margins, method, deterministic, preferred):
+def _row_tests(mean_rows, variance_rows, margins_sq, method, deterministic, taylor_inputs):
     """
     Build the acceptance tests of every (neighbour, direction, condition) row.
 
@@ -131,27 +133,30 @@ def _row_tests(means, variances, margins, method, deterministic, preferred):
 
     Parameters
     ----------
-    means, variances, margins, method, deterministic, preferred
+    mean_rows, variance_rows : numpy.ndarray
+        Coefficient-major polynomials of the K rows, shapes (3, K) and (5, K).
+    margins_sq : numpy.ndarray
+        ``k^2`` per row, shape (K,).
+    method, deterministic
         As for :func:`ray_gaps`.
+    taylor_inputs : tuple
+        ``(means, variances, margins, preferred)`` for :func:`taylor_quadratics` (rows last but
+        one), used by the Taylor method only.
 
     Returns
     -------
     list of (numpy.ndarray, numpy.ndarray or None)
-        Each test's coefficients, coefficient-major: shape (L, K) over the K = N M C rows in
-        (neighbour, direction, condition) order (acceptance needs every test ``>= 0``), with
-        ``None``, or the variance polynomials (5, K) where a row's roots need not bound pieces
-        if its variance is certified positive.
+        Each test's coefficients, coefficient-major: shape (L, K) (acceptance needs every test
+        ``>= 0``), with ``None``, or the variance polynomials (5, K) where a row's roots need
+        not bound pieces if its variance is certified positive.
 
     """
-    rows = means.shape[0] * means.shape[1] * means.shape[2]
-    # Free reshapes when the polynomials are laid out coefficient-major (ray_polynomials).
-    mean_rows = means.transpose(3, 0, 1, 2).reshape(3, rows)
+    rows = mean_rows.shape[1]
     if deterministic:
         return [(mean_rows, None)]
     if method == 'taylor':
-        quadratic = taylor_quadratics(means, variances, margins, preferred[None, :, None])
+        quadratic = taylor_quadratics(*taylor_inputs)
         return [(np.moveaxis(quadratic, -1, 0).reshape(3, rows), None)]
-    variance_rows = variances.transpose(3, 0, 1, 2).reshape(5, rows)
     constant, linear, square = mean_rows
     quartic = np.empty((5, rows))
     np.multiply(constant, constant, out=quartic[0])
@@ -163,9 +168,7 @@ def _row_tests(means, variances, margins, method, deterministic, preferred):
     np.multiply(linear, square, out=quartic[3])
     quartic[3] *= 2.0
     np.multiply(square, square, out=quartic[4])
-    # Rows cycle through the conditions fastest: k^2 broadcasts over (5, rows / C, C).
-    quartic.reshape(5, -1, margins.size)[...] -= (
-        margins ** 2 * variance_rows.reshape(5, -1, margins.size))
+    quartic -= margins_sq * variance_rows
     return [(quartic, None), (mean_rows, variance_rows)]
 
 
@@ -202,18 +205,13 @@ def _relevant_conditions(reject_all, layout, receding_enabled):
 
 def ray_gaps(means, variances, margins, layout, method, deterministic, preferred):
     """
-    Feasible speed intervals on every ray: the intersection over neighbours of accepted sets.
-
-    Rays are split into ``SEGMENTS`` equal segments of ``t``. A segment that some neighbour
-    rejects entirely (a Bernstein certificate) is closed; on every other segment, each
-    (neighbour, direction) pair whose acceptance is not certified there is cut at the roots of
-    its tests that fall in the segment; each piece is accepted or not by its midpoint, and the
-    rejected pieces and closed segments of each direction are swept in one sort.
+    Feasible speed intervals on every ray of one plan (:func:`team_ray_gaps` for one robot).
 
     Parameters
     ----------
     means, variances : numpy.ndarray
-        Condition polynomials, shapes (N, M, C, 3) and (N, M, C, 5).
+        Condition polynomials, shapes (N, M, C, 3) and (N, M, C, 5), laid out
+        coefficient-major (as :func:`prvo_planner.core.moments.ray_polynomials` returns them).
     margins : numpy.ndarray
         ``k`` per condition column, shape (C,).
     layout : ConditionLayout
@@ -234,47 +232,170 @@ def ray_gaps(means, variances, margins, layout, method, deterministic, preferred
 
     """
     count, directions, conditions = means.shape[:3]
-    pairs = count * directions
-    tests = _row_tests(means, variances, margins, method, deterministic, preferred)
+    rows = RayRows(
+        means=means.reshape(count * directions, conditions, 3),
+        variances=variances.reshape(count * directions, conditions, 5),
+        margins=np.broadcast_to(margins, (count * directions, conditions)),
+        link_ray=np.tile(np.arange(directions), count),
+        link_enabled=np.repeat(layout.receding_enabled, directions),
+        ray_local=np.arange(directions), ray_robot=np.zeros(directions, dtype=int),
+        preferred=preferred)
+    return team_ray_gaps(rows, layout, method, deterministic)
+
+
+@dataclass(frozen=True)
+class RayRows:
+    """
+    The (neighbour, direction) links of one or several plans, and the rays they lie on.
+
+    Links of one robot are contiguous and ordered (neighbour, direction), the robots' rays in
+    order; the polynomials are views of coefficient-major memory.
+
+    Attributes
+    ----------
+    means, variances : numpy.ndarray
+        Condition polynomials per link, shapes (P, C, 3) and (P, C, 5).
+    margins : numpy.ndarray
+        ``k`` per link and condition column, shape (P, C).
+    link_ray : numpy.ndarray
+        Ray of each link, shape (P,).
+    link_enabled : numpy.ndarray
+        Whether ``g`` counts for each link's neighbour, shape (P,).
+    ray_local : numpy.ndarray
+        Index of each ray among its robot's directions, shape (R,).
+    ray_robot : numpy.ndarray
+        Robot of each ray, non-decreasing, shape (R,).
+    preferred : numpy.ndarray
+        Preferred ``t`` per ray, shape (R,).
+
+    """
+
+    means: np.ndarray
+    variances: np.ndarray
+    margins: np.ndarray
+    link_ray: np.ndarray
+    link_enabled: np.ndarray
+    ray_local: np.ndarray
+    ray_robot: np.ndarray
+    preferred: np.ndarray
+
+
+def _unit_cuts(unit_segment, values, slots):
+    """
+    Order every open unit's cuts: its segment's start, its roots ascending, its segment's end.
+
+    A root lies in ``[start, end)`` of its segment (``t SEGMENTS`` is exact), so the order is
+    that of sorting all of them by (unit, value), the segment's start first among equal values;
+    only the roots need sorting.
+
+    Parameters
+    ----------
+    unit_segment : numpy.ndarray
+        Segment of each open unit, shape (U,).
+    values, slots : numpy.ndarray
+        The roots that cut units and the unit of each, shape (R,).
+
+    Returns
+    -------
+    values, slots : numpy.ndarray
+        Shape (2 U + R,): the cuts of unit 0, then of unit 1, ...
+
+    """
+    order = np.lexsort((values, slots))
+    values, slots = values[order], slots[order]
+    units = unit_segment.size
+    roots_per_unit = np.bincount(slots, minlength=units)
+    ends = np.cumsum(roots_per_unit + 2) - 1
+    starts = ends - roots_per_unit - 1
+    cut_values = np.empty(2 * units + values.size)
+    cut_values[starts] = unit_segment / SEGMENTS
+    cut_values[ends] = (unit_segment + 1) / SEGMENTS
+    first_root = np.cumsum(roots_per_unit) - roots_per_unit
+    cut_values[starts[slots] + 1 + np.arange(values.size) - first_root[slots]] = values
+    return cut_values, np.repeat(np.arange(units), roots_per_unit + 2)
+
+
+def team_ray_gaps(rows, layout, method, deterministic):
+    """
+    Feasible speed intervals on every ray: the intersection over neighbours of accepted sets.
+
+    Rays are split into ``SEGMENTS`` equal segments of ``t``. A segment that some neighbour
+    rejects entirely (a Bernstein certificate) is closed; on every other segment, each
+    (neighbour, direction) link whose acceptance is not certified there is cut at the roots of
+    its tests that fall in the segment; each piece is accepted or not by its midpoint, and the
+    rejected pieces and closed segments of each ray are swept in one sort. Every value of a
+    ray is computed by the same operations whatever the other rays in the call, so a robot's
+    intervals do not depend on which robots are planned with it.
+
+    Parameters
+    ----------
+    rows : RayRows
+        The links and rays.
+    layout : ConditionLayout
+        Column meaning (shared by every robot of the call).
+    method : str
+        ``'exact'`` or ``'taylor'``.
+    deterministic : bool
+        All variances are zero (the mean alone decides).
+
+    Returns
+    -------
+    ray : numpy.ndarray
+        Ray index of each feasible interval, shape (G,), non-decreasing in robot.
+    lower, upper : numpy.ndarray
+        Interval ends in ``t``, shape (G,), ``lower < upper``.
+
+    """
+    links, conditions = rows.means.shape[:2]
+    ray_count = rows.ray_local.shape[0]
+    count = links * conditions
+    # Free reshapes of coefficient-major polynomials.
+    mean_rows = rows.means.transpose(2, 0, 1).reshape(3, count)
+    variance_rows = rows.variances.transpose(2, 0, 1).reshape(5, count)
+    margins = np.ascontiguousarray(rows.margins)
+    tests = _row_tests(mean_rows, variance_rows, (margins ** 2).reshape(count), method,
+                       deterministic, (rows.means, rows.variances, margins,
+                                       rows.preferred[rows.link_ray][:, None]))
     # Per (segment, row): (S, K), viewed as (S, P, C).
     certificates = [segment_certificates(test) for test, _ in tests]
     accept, reject = certificates[0]
     for nonnegative, negative in certificates[1:]:
         accept, reject = accept & nonnegative, reject | negative
-    enabled = np.repeat(layout.receding_enabled, directions)
-    accept = accept.reshape(SEGMENTS, pairs, conditions)
-    reject = reject.reshape(SEGMENTS, pairs, conditions)
+    enabled = rows.link_enabled
+    accept = accept.reshape(SEGMENTS, links, conditions)
+    reject = reject.reshape(SEGMENTS, links, conditions)
     accept_pair = combine_conditions(accept, layout, enabled)
     reject_pair = ~combine_conditions(~reject, layout, enabled)
-    # A segment of a direction is open unless some neighbour rejects all of it: (S, M).
-    open_segments = ~reject_pair.reshape(SEGMENTS, count, directions).any(axis=1)
-    open_directions = open_segments.any(axis=0)
-    # Units: (segment, pair) on an open segment, not certified accepted there; flat s P + p.
-    open_unit = (~accept_pair & np.tile(open_segments, count)).ravel()
+    # A segment of a ray is open unless some neighbour rejects all of it: (S, R).
+    segment_ray = (np.arange(SEGMENTS)[:, None] * ray_count + rows.link_ray).ravel()
+    open_segments = np.bincount(segment_ray[reject_pair.ravel()],
+                                minlength=SEGMENTS * ray_count).reshape(SEGMENTS, -1) == 0
+    open_rays = open_segments.any(axis=0)
+    # Units: (segment, link) on an open segment, not certified accepted there; flat s P + p.
+    open_unit = (~accept_pair & open_segments[:, rows.link_ray]).ravel()
     open_index = open_unit.nonzero()[0]
     unit_slot = np.zeros(open_unit.size, dtype=int)
     unit_slot[open_index] = np.arange(open_index.size)
     # Only a condition undecided on a segment can split it, and only where its own test is.
     splitting = (~(accept | reject) & _relevant_conditions(reject, layout, enabled)
-                 & open_unit.reshape(SEGMENTS, pairs, 1))
+                 & open_unit.reshape(SEGMENTS, links, 1))
     # g's quartic is a quadratic: its mean is linear and its variance quadratic in t.
     quadratic_condition = np.zeros(conditions, dtype=bool)
     quadratic_condition[1:2] = layout.has_receding
-    # Every open unit's cuts, flat, with its segment's ends as the ends of its first and last
-    # pieces: cut values and the open unit (slot) each belongs to.
-    unit_segment = open_index // pairs
-    cut_values = [unit_segment / SEGMENTS, (unit_segment + 1) / SEGMENTS]
-    cut_slots = [np.arange(open_index.size)] * 2
-    for (test, variance_rows), (nonnegative, negative) in zip(tests, certificates, strict=True):
-        undecided = splitting & ~(nonnegative | negative).reshape(SEGMENTS, pairs, conditions)
+    # Every open unit's cuts inside its segment, flat: cut values and the open unit (slot)
+    # each belongs to.
+    cut_values, cut_slots = [np.empty(0)], [np.empty(0, dtype=int)]
+    for (test, test_variances), (nonnegative, negative) in zip(tests, certificates,
+                                                               strict=True):
+        undecided = splitting & ~(nonnegative | negative).reshape(SEGMENTS, links, conditions)
         needed = undecided.any(axis=0)
         quadratic_rows = needed & quadratic_condition
-        for rows, quartic in ((needed & ~quadratic_condition, test.shape[0] == 5),
-                              (quadratic_rows, False)):
-            row = rows.ravel().nonzero()[0]
-            if variance_rows is not None and row.size:
+        for selected, quartic in ((needed & ~quadratic_condition, test.shape[0] == 5),
+                                  (quadratic_rows, False)):
+            row = selected.ravel().nonzero()[0]
+            if test_variances is not None and row.size:
                 # Quiet rows: a variance certified positive needs no cuts at this test's roots.
-                row = row[bernstein_minimum(np.take(variance_rows, row, axis=1)) <= 0.0]
+                row = row[bernstein_minimum(np.take(test_variances, row, axis=1)) <= 0.0]
             if not row.size:
                 continue
             columns = np.take(test, row, axis=1)
@@ -287,43 +408,48 @@ def ray_gaps(means, variances, margins, layout, method, deterministic, preferred
             root_row = np.broadcast_to(row[:, None], roots.shape)[inside]
             cuts = undecided.reshape(SEGMENTS, -1)[segment, root_row]
             cut_values.append(values[cuts])
-            cut_slots.append(unit_slot[segment[cuts] * pairs + root_row[cuts] // conditions])
-    cut_values = np.concatenate(cut_values)
-    cut_slots = np.concatenate(cut_slots)
-    order = np.lexsort((cut_values, cut_slots))
-    cut_values, cut_slots = cut_values[order], cut_slots[order]
+            cut_slots.append(unit_slot[segment[cuts] * links + root_row[cuts] // conditions])
+    cut_values, cut_slots = _unit_cuts(open_index // links, np.concatenate(cut_values),
+                                       np.concatenate(cut_slots))
     piece = cut_slots[1:] == cut_slots[:-1]
     piece_start, piece_end = cut_values[:-1][piece], cut_values[1:][piece]
-    piece_pair = open_index[cut_slots[:-1][piece]] % pairs
+    piece_link = open_index[cut_slots[:-1][piece]] % links
     midpoints = (0.5 * (piece_start + piece_end))[:, None]
     accepted = True
     for test, _ in tests:
-        # (L, pieces, C): each piece's pair's coefficients; Horner's rule at its midpoint.
+        # (L, pieces, C): each piece's link's coefficients; Horner's rule at its midpoint.
         value = horner_coefficient_major(
-            np.take(test.reshape(test.shape[0], pairs, conditions), piece_pair, axis=1),
+            np.take(test.reshape(test.shape[0], links, conditions), piece_link, axis=1),
             midpoints)
         accepted = accepted & (value >= 0.0)
-    accepted = combine_conditions(accepted, layout, enabled[piece_pair])
-    # Sweep the rejected pieces and closed segments of each open direction, shifted by 4 per
-    # direction so that one sort handles every direction; sentinels reject t < 0 and t > 1 and
-    # end where the next direction's first sentinel starts, so no gap spans two directions.
+    accepted = combine_conditions(accepted, layout, enabled[piece_link])
+    # Sweep the rejected pieces and closed segments of each open ray, shifted by 4 per
+    # direction of its robot so that one sort handles every ray; sentinels reject t < 0 and
+    # t > 1 and end where the next ray's first sentinel starts, so no gap spans two rays.
     rejected = ~accepted
-    closed_segment, closed_direction = (~open_segments & open_directions).nonzero()
-    sentinel_direction = open_directions.nonzero()[0]
-    direction = np.concatenate([piece_pair[rejected] % directions, closed_direction,
-                                sentinel_direction, sentinel_direction])
-    shift = 4.0 * direction
-    sentinels = sentinel_direction.size
+    closed_segment, closed_ray = (~open_segments & open_rays).nonzero()
+    sentinel_ray = open_rays.nonzero()[0]
+    ray = np.concatenate([rows.link_ray[piece_link[rejected]], closed_ray, sentinel_ray,
+                          sentinel_ray])
+    shift = 4.0 * rows.ray_local[ray]
+    sentinels = sentinel_ray.size
     starts = np.concatenate([piece_start[rejected], closed_segment / SEGMENTS,
                              np.full(sentinels, -1.0), np.ones(sentinels)]) + shift
     ends = np.concatenate([piece_end[rejected], (closed_segment + 1) / SEGMENTS,
                            np.zeros(sentinels), np.full(sentinels, 3.0)]) + shift
-    order = np.argsort(starts, kind='stable')
-    starts, direction = starts[order], direction[order]
-    reach = np.maximum.accumulate(ends[order])
-    valid = (starts[1:] > reach[:-1]) & (direction[1:] == direction[:-1])
-    direction = direction[1:][valid]
-    return direction, reach[:-1][valid] - 4.0 * direction, starts[1:][valid] - 4.0 * direction
+    robot = rows.ray_robot[ray]
+    order = np.lexsort((starts, robot))
+    starts, ray, ends, robot = starts[order], ray[order], ends[order], robot[order]
+    # The running end of the rejected set, restarted for every robot.
+    reach = np.empty_like(ends)
+    bounds = np.flatnonzero(np.diff(robot)) + 1
+    for first, last in zip(np.concatenate([[0], bounds]), np.concatenate([bounds, [ray.size]]),
+                           strict=True):
+        np.maximum.accumulate(ends[first:last], out=reach[first:last])
+    valid = (starts[1:] > reach[:-1]) & (ray[1:] == ray[:-1])
+    ray = ray[1:][valid]
+    local_shift = 4.0 * rows.ray_local[ray]
+    return ray, reach[:-1][valid] - local_shift, starts[1:][valid] - local_shift
 
 
 def monte_carlo_probabilities(encounter, layout, directions, speeds, config, rng):

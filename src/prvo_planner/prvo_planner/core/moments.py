@@ -276,9 +276,9 @@ def _monomial_exponents():
 
 _EXPONENTS = _monomial_exponents()
 # Chebyshev-Lobatto nodes: the 5 x 5 tensor grid is unisolvent for bivariate quartics.
-_NODES_1D = np.cos(np.pi * np.arange(5) / 4.0)
-_NODES = np.stack(np.meshgrid(_NODES_1D, _NODES_1D, indexing='ij'), axis=-1).reshape(-1, 2)
-_FIT = np.linalg.pinv(np.prod(_NODES[:, None, :] ** _EXPONENTS[None, :, :], axis=-1))
+NODES_1D = np.cos(np.pi * np.arange(5) / 4.0)
+NODES = np.stack(np.meshgrid(NODES_1D, NODES_1D, indexing='ij'), axis=-1).reshape(-1, 2)
+_FIT = np.linalg.pinv(np.prod(NODES[:, None, :] ** _EXPONENTS[None, :, :], axis=-1))
 # Total degree of each monomial of _EXPONENTS; the first six have degree <= 2.
 _DEGREES = _EXPONENTS.sum(axis=1)
 _QUADRATIC_TERMS = 6
@@ -310,23 +310,76 @@ def ray_polynomials(origin, cov, combined_radius, directions, scale, time_horizo
         Shape (N, M, C, 5), laid out coefficient-major in memory.
 
     """
-    means, variances = condition_moments(origin, cov, combined_radius, scale * _NODES,
-                                         time_horizon, receding_gate)
-    # Bivariate coefficient k multiplies t^(i+j) e_x^i e_y^j along the ray: a (15, 5 M) map
-    # from bivariate to ray coefficients, applied in one product to every (neighbour,
-    # condition), then laid out coefficient-major for the ray solver.
-    count, conditions = origin.shape[0], means.shape[-1]
-    powers = directions[:, :, None] ** np.arange(5)
-    direction_monomials = powers[:, 0, _EXPONENTS[:, 0]] * powers[:, 1, _EXPONENTS[:, 1]]
-    to_ray = (direction_monomials.T[:, :, None] * _DEGREE_MASK[:, None, :]).reshape(
-        _EXPONENTS.shape[0], -1)
-    mean_rows = (_FIT[:_QUADRATIC_TERMS] @ means).swapaxes(-1, -2).reshape(
-        -1, _QUADRATIC_TERMS) @ to_ray.reshape(-1, directions.shape[0], 5)[
-            :_QUADRATIC_TERMS, :, :3].reshape(_QUADRATIC_TERMS, -1)
-    variance_rows = (_FIT @ variances).swapaxes(-1, -2).reshape(
-        -1, _EXPONENTS.shape[0]) @ to_ray
+    mean_fit, variance_fit = bivariate_polynomials(origin, cov, combined_radius,
+                                                   scale * NODES, time_horizon, receding_gate)
+    count, conditions = mean_fit.shape[:2]
     return tuple(_coefficient_major(rows.reshape(count, conditions, -1, length))
-                 for rows, length in ((mean_rows, 3), (variance_rows, 5)))
+                 for rows, length in zip(ray_rows(mean_fit[None], variance_fit[None],
+                                                  directions[None]), (3, 5), strict=True))
+
+
+def bivariate_polynomials(origin, cov, combined_radius, node_velocities, time_horizon,
+                          receding_gate):
+    """
+    Coefficients of the mean (quadratic) and variance (quartic) of every condition in ``v_c``.
+
+    The coefficients are of the monomials ``(v_x / v_max)^i (v_y / v_max)^j``, fitted on the
+    Chebyshev grid ``node_velocities`` = ``v_max`` times the unit grid. Every neighbour's
+    coefficients come from its own rows alone, so neighbours of several plans can be stacked.
+
+    Parameters
+    ----------
+    origin, cov, combined_radius, time_horizon, receding_gate
+        As for :func:`condition_moments`.
+    node_velocities : numpy.ndarray
+        The grid at each neighbour's plan's ``v_max``, shape (25, 2) or (N, 25, 2).
+
+    Returns
+    -------
+    means : numpy.ndarray
+        Shape (N, C, 6).
+    variances : numpy.ndarray
+        Shape (N, C, 15).
+
+    """
+    means, variances = condition_moments(origin, cov, combined_radius, node_velocities,
+                                         time_horizon, receding_gate)
+    return ((_FIT[:_QUADRATIC_TERMS] @ means).swapaxes(-1, -2),
+            (_FIT @ variances).swapaxes(-1, -2))
+
+
+def ray_rows(mean_fit, variance_fit, directions):
+    """
+    Restrict bivariate polynomials to rays, for a stack of plans of one shape.
+
+    Parameters
+    ----------
+    mean_fit, variance_fit : numpy.ndarray
+        As :func:`bivariate_polynomials` returns them, per plan: shapes (B, N, C, 6) and
+        (B, N, C, 15).
+    directions : numpy.ndarray
+        Unit directions ``e`` per plan, shape (B, M, 2).
+
+    Returns
+    -------
+    mean_rows, variance_rows : numpy.ndarray
+        Shapes (B, N C, M 3) and (B, N C, M 5): per (neighbour, condition) row, the ascending
+        coefficients in ``t`` on each ray. Each plan's are one matrix product of its own.
+
+    """
+    # Bivariate coefficient k multiplies t^(i+j) e_x^i e_y^j along the ray: a (15, 5 M) map
+    # per plan from bivariate to ray coefficients, applied in one product to every
+    # (neighbour, condition).
+    robots, rays = directions.shape[:2]
+    powers = directions[..., None] ** np.arange(5)
+    direction_monomials = (powers[:, :, 0, _EXPONENTS[:, 0]]
+                           * powers[:, :, 1, _EXPONENTS[:, 1]])
+    to_ray = (direction_monomials.swapaxes(1, 2)[..., None] * _DEGREE_MASK[:, None, :]).reshape(
+        robots, _EXPONENTS.shape[0], -1)
+    mean_rows = mean_fit.reshape(robots, -1, _QUADRATIC_TERMS) @ to_ray.reshape(
+        robots, -1, rays, 5)[:, :_QUADRATIC_TERMS, :, :3].reshape(robots, _QUADRATIC_TERMS, -1)
+    variance_rows = variance_fit.reshape(robots, -1, _EXPONENTS.shape[0]) @ to_ray
+    return mean_rows, variance_rows
 
 
 def _coefficient_major(polynomials):

@@ -1,15 +1,21 @@
 """
-The PRVO velocity planner and its baselines: one call, ``plan_velocity``.
+The PRVO velocity planner and its baselines: ``plan_velocity``, and ``plan_velocities``.
 
-One call builds, for every (neighbour, candidate direction) pair, the mean and variance
+``plan_velocity`` plans one robot, ``plan_velocities`` a team at once.
+
+One plan builds, for every (neighbour, candidate direction) pair, the mean and variance
 polynomials of every condition in the ray parameter ``t`` (speed ``t v_max``), finds each pair's
 accepted speeds in closed form, intersects them per direction by a sorted sweep over the
 rejected pieces, and picks the feasible velocity with the smallest choice cost. Everything is
-vectorised over neighbours and directions. The steps live in ``encounter`` (relative Gaussians,
-candidate directions), ``feasibility`` (accepted intervals, achieved margins) and ``choice``
-(costs, fallback ranking).
+vectorised over neighbours and directions, and ``plan_velocities`` stacks the neighbours and
+directions of every robot of a team into the same few numpy calls; a robot's values are
+computed by the same operations whatever it is planned with, so its plan is bit for bit the
+one ``plan_velocity`` returns. The steps live in ``encounter`` (relative Gaussians, candidate
+directions), ``feasibility`` (accepted intervals, achieved margins) and ``choice`` (costs,
+fallback ranking).
 """
 
+from dataclasses import dataclass
 import math
 
 import numpy as np
@@ -17,16 +23,29 @@ import numpy as np
 from .beliefs import AgentBelief, as_finite_array
 from .choice import (
     INTERIOR,
+    CostTerms,
     best_ranked,
     best_speeds,
-    choice_costs,
     grid_scores,
     speed_grid,
 )
 from .config import PlannerConfig, PlanResult
-from .encounter import build_encounter, candidate_directions, condition_layout, model_moments
-from .feasibility import achieved_margins, monte_carlo_probabilities, ray_gaps
-from .moments import condition_moments, poly_eval, ray_polynomials
+from .encounter import (
+    ConditionLayout,
+    Encounter,
+    build_encounter,
+    candidate_directions,
+    condition_layout,
+    model_moments,
+)
+from .feasibility import RayRows, achieved_margins, monte_carlo_probabilities, team_ray_gaps
+from .moments import (
+    NODES,
+    bivariate_polynomials,
+    condition_moments,
+    poly_eval,
+    ray_rows,
+)
 from .probability import eta_from_k
 
 
@@ -80,65 +99,251 @@ def plan_velocity(ego, neighbours, v_pref, config, previous=None):
         On invalid inputs.
 
     """
+    return plan_velocities([ego], [neighbours], [v_pref], [config], [previous])[0]
+
+
+def plan_velocities(egos, neighbours_per_ego, v_prefs, configs, previous=None):
+    """
+    Plan every robot of a team in few, large numpy calls.
+
+    Result ``i`` is bit for bit ``plan_velocity(egos[i], neighbours_per_ego[i], v_prefs[i],
+    configs[i], previous[i])``. Robots whose plans share their structure (model, method, time
+    horizon, conditions) and shape (neighbours in range, directions) are solved together, as
+    in a team of one configuration; ``model='mc'`` plans one robot at a time.
+
+    Parameters
+    ----------
+    egos : sequence of AgentBelief
+        The planning robots.
+    neighbours_per_ego : sequence of sequences of AgentBelief
+        Each robot's neighbours.
+    v_prefs : sequence of array_like
+        Each robot's preferred velocity, shape (2,).
+    configs : PlannerConfig or sequence of PlannerConfig
+        One configuration for every robot, or one per robot.
+    previous : None or sequence of (array_like or None)
+        Each robot's previous command; None: none for any robot.
+
+    Returns
+    -------
+    list of PlanResult
+        One per robot, in order.
+
+    Raises
+    ------
+    ValueError
+        On invalid inputs, naming the robot.
+
+    """
+    egos = list(egos)
+    count = len(egos)
+    if isinstance(configs, PlannerConfig):
+        configs = [configs] * count
+    per_robot = {'neighbours_per_ego': list(neighbours_per_ego), 'v_prefs': list(v_prefs),
+                 'configs': list(configs),
+                 'previous': [None] * count if previous is None else list(previous)}
+    for name, values in per_robot.items():
+        if len(values) != count:
+            raise ValueError(f'{name} must have one entry per ego ({count}), got {len(values)}')
+    results = [None] * count
+    groups = {}
+    for index in range(count):
+        try:
+            plan = _prepared_plan(egos[index], per_robot['neighbours_per_ego'][index],
+                                  per_robot['v_prefs'][index], per_robot['configs'][index],
+                                  per_robot['previous'][index])
+        except ValueError as error:
+            raise ValueError(f'robot {index}: {error}') from error
+        if plan.encounter.origin.shape[0] == 0:
+            results[index] = PlanResult(
+                velocity=_clip_speed(plan.v_pref, plan.config.max_speed), feasible=True,
+                achieved_k=math.inf, eta_bound=1.0, num_constraints=0,
+                candidates_feasible=plan.directions.shape[0])
+        elif plan.config.model == 'mc':
+            results[index] = _monte_carlo_plan(plan)
+        else:
+            groups.setdefault(plan.structure, []).append((index, plan))
+    for members in groups.values():
+        for index, result in zip([index for index, _ in members],
+                                 _solve_group([plan for _, plan in members]), strict=True):
+            results[index] = result
+    return results
+
+
+@dataclass(frozen=True)
+class _Plan:
+    """One robot's validated inputs and the quantities derived from them alone."""
+
+    v_pref: np.ndarray
+    config: PlannerConfig
+    previous: np.ndarray | None
+    encounter: Encounter
+    directions: np.ndarray
+    preferred: np.ndarray
+    layout: ConditionLayout
+    cov: np.ndarray
+    radius: np.ndarray
+    deterministic: bool
+
+    @property
+    def structure(self):
+        """What plans solved together must share: the kind of problem and its shape."""
+        return (self.config.model, self.config.method, self.config.time_horizon,
+                self.layout.has_receding, self.deterministic, self.encounter.origin.shape[0],
+                self.directions.shape[0])
+
+
+def _prepared_plan(ego, neighbours, v_pref, config, previous):
     neighbours, v_pref, previous = _validated_inputs(ego, neighbours, v_pref, config, previous)
     encounter = build_encounter(ego, neighbours, config)
-    count = encounter.origin.shape[0]
     directions = candidate_directions(ego, v_pref, config)
-    if count == 0:
-        return PlanResult(velocity=_clip_speed(v_pref, config.max_speed), feasible=True,
-                          achieved_k=math.inf, eta_bound=1.0, num_constraints=0,
-                          candidates_feasible=directions.shape[0])
-    layout = condition_layout(encounter, config)
-    preferred = directions @ v_pref / config.max_speed
-    if config.model == 'mc':
-        speeds, grid_costs = speed_grid(directions, preferred, v_pref, previous, config)
-        probabilities = monte_carlo_probabilities(encounter, layout, directions, speeds,
-                                                   config, np.random.default_rng(config.seed))
-        feasible_points = np.all(probabilities >= encounter.eta, axis=0)
-        candidates_feasible = int(np.count_nonzero(np.any(feasible_points, axis=1)))
-        if candidates_feasible:
-            flat = int(np.argmin(np.where(feasible_points, grid_costs, np.inf)))
-        else:
-            flat = best_ranked(np.min(probabilities, axis=0), grid_costs)
-        direction_index, speed_index = np.unravel_index(flat, speeds.shape)
-        velocity = config.max_speed * speeds[direction_index, speed_index] * \
-            directions[direction_index]
+    layout = condition_layout(encounter, config) if encounter.origin.shape[0] else None
+    cov, radius, deterministic = (model_moments(encounter, config)
+                                  if layout is not None and config.model != 'mc'
+                                  else (None, None, False))
+    return _Plan(v_pref=v_pref, config=config, previous=previous, encounter=encounter,
+                 directions=directions, preferred=directions @ v_pref / config.max_speed,
+                 layout=layout, cov=cov, radius=radius, deterministic=deterministic)
+
+
+def _monte_carlo_plan(plan):
+    """Plan by the sampling baseline: probabilities estimated at a grid of candidate speeds."""
+    encounter, config, directions = plan.encounter, plan.config, plan.directions
+    speeds, grid_costs = speed_grid(directions, plan.preferred, plan.v_pref, plan.previous,
+                                    config)
+    probabilities = monte_carlo_probabilities(encounter, plan.layout, directions, speeds,
+                                               config, np.random.default_rng(config.seed))
+    feasible_points = np.all(probabilities >= encounter.eta, axis=0)
+    candidates_feasible = int(np.count_nonzero(np.any(feasible_points, axis=1)))
+    if candidates_feasible:
+        flat = int(np.argmin(np.where(feasible_points, grid_costs, np.inf)))
     else:
-        cov, radius, deterministic = model_moments(encounter, config)
-        means, variances = ray_polynomials(encounter.origin, cov, radius, directions,
-                                           config.max_speed, config.time_horizon,
-                                           layout.has_receding)
-        gap_direction, lower, upper = ray_gaps(means, variances, layout.margins(encounter),
-                                               layout, config.method, deterministic, preferred)
-        candidates_feasible = int(np.count_nonzero(
-            np.bincount(gap_direction, minlength=directions.shape[0])))
-        if candidates_feasible:
-            # The best speed on a ray within one interval (the preferred one, projected, under
-            # the plain cost).
-            inset = np.minimum(INTERIOR, 0.5 * (upper - lower))
-            best_t = best_speeds(directions[gap_direction], lower + inset, upper - inset,
-                                  preferred[gap_direction], v_pref, previous, config)
-            candidates = config.max_speed * best_t[:, None] * directions[gap_direction]
-            best = int(np.argmin(choice_costs(candidates, v_pref, previous, config)))
-            direction_index, chosen_t = gap_direction[best], best_t[best]
-        else:
-            speeds, grid_costs = speed_grid(directions, preferred, v_pref, previous, config)
-            score = grid_scores(means, variances, speeds, layout, deterministic)
-            direction_index, speed_index = np.unravel_index(best_ranked(score, grid_costs),
-                                                            speeds.shape)
-            chosen_t = speeds[direction_index, speed_index]
-        velocity = config.max_speed * chosen_t * directions[direction_index]
-    if config.model == 'prvo':
-        # The planning moments are the beliefs' own: evaluate the ray polynomials.
-        at_velocity = [poly_eval(polynomial[:, direction_index], chosen_t)
+        flat = best_ranked(np.min(probabilities, axis=0), grid_costs)
+    direction_index, speed_index = np.unravel_index(flat, speeds.shape)
+    velocity = config.max_speed * speeds[direction_index, speed_index] * \
+        directions[direction_index]
+    at_velocity = [moment[:, 0] for moment in condition_moments(
+        encounter.origin, encounter.cov, encounter.combined_radius, velocity[None, :],
+        config.time_horizon, plan.layout.has_receding)]
+    return _result(plan, velocity, candidates_feasible,
+                   float(achieved_margins(*at_velocity, plan.layout,
+                                          plan.layout.receding_enabled).min()))
+
+
+def _result(plan, velocity, candidates_feasible, achieved):
+    return PlanResult(velocity=_clip_speed(velocity, plan.config.max_speed),
+                      feasible=bool(candidates_feasible)
+                      and not plan.encounter.overlapping.any(),
+                      achieved_k=achieved, eta_bound=eta_from_k(max(achieved, 0.0)),
+                      num_constraints=plan.encounter.origin.shape[0],
+                      candidates_feasible=candidates_feasible)
+
+
+def _solve_group(plans):
+    """Plan robots of one structure and shape together; return their results in order."""
+    first = plans[0]
+    layout, config = first.layout, first.config
+    robots = len(plans)
+    pairs, rays = first.encounter.origin.shape[0], first.directions.shape[0]
+    nodes = np.stack([plan.config.max_speed * NODES for plan in plans])
+    mean_fit, variance_fit = bivariate_polynomials(
+        np.concatenate([plan.encounter.origin for plan in plans]),
+        np.concatenate([plan.cov for plan in plans]),
+        np.concatenate([plan.radius for plan in plans]), np.repeat(nodes, pairs, axis=0),
+        config.time_horizon, layout.has_receding)
+    conditions = mean_fit.shape[1]
+    directions = np.stack([plan.directions for plan in plans])
+    # Polynomials (L, B, N, M, C): every link's coefficients, coefficient-major.
+    means, variances = (rows.reshape(robots, pairs, conditions, rays, length).transpose(
+        4, 0, 1, 3, 2).copy() for rows, length in zip(
+            ray_rows(mean_fit.reshape(robots, pairs, conditions, -1),
+                     variance_fit.reshape(robots, pairs, conditions, -1), directions),
+            (3, 5), strict=True))
+    links = robots * pairs * rays
+    margins = np.stack([plan.layout.margins(plan.encounter) for plan in plans])
+    enabled = np.stack([plan.layout.receding_enabled for plan in plans])
+    link_ray = (np.arange(robots)[:, None, None] * rays
+                + np.arange(rays)[None, None, :]).repeat(pairs, axis=1).reshape(links)
+    rows = RayRows(
+        means=means.reshape(3, links, conditions).transpose(1, 2, 0),
+        variances=variances.reshape(5, links, conditions).transpose(1, 2, 0),
+        margins=np.repeat(margins, pairs * rays, axis=0), link_ray=link_ray,
+        link_enabled=np.repeat(enabled.reshape(-1), rays),
+        ray_local=np.tile(np.arange(rays), robots),
+        ray_robot=np.repeat(np.arange(robots), rays),
+        preferred=np.concatenate([plan.preferred for plan in plans]))
+    gap_ray, lower, upper = team_ray_gaps(rows, layout, config.method, first.deterministic)
+    feasible_rays = np.bincount(gap_ray, minlength=robots * rays) > 0
+    candidates_feasible = np.count_nonzero(feasible_rays.reshape(robots, rays), axis=1)
+    chosen = _choose_on_gaps(plans, rows, gap_ray, lower, upper)
+    # Each robot's polynomials, (N, M, C, L) views.
+    per_robot = [(means[:, robot].transpose(1, 2, 3, 0), variances[:, robot].transpose(1, 2, 3, 0))
+                 for robot in range(robots)]
+    direction_index = np.empty(robots, dtype=int)
+    chosen_t = np.empty(robots)
+    for robot, plan in enumerate(plans):
+        direction_index[robot], chosen_t[robot] = (
+            chosen[robot] if candidates_feasible[robot]
+            else _fallback_choice(plan, *per_robot[robot]))
+    max_speed = np.array([plan.config.max_speed for plan in plans])
+    velocities = (max_speed * chosen_t)[:, None] * directions[np.arange(robots), direction_index]
+    achieved = _achieved(plans, means, variances, direction_index, chosen_t, velocities)
+    return [_result(plan, velocities[robot], int(candidates_feasible[robot]),
+                    float(achieved[robot])) for robot, plan in enumerate(plans)]
+
+
+def _choose_on_gaps(plans, rows, gap_ray, lower, upper):
+    """Per robot with a feasible interval: (direction index, t) of the cheapest velocity."""
+    if not gap_ray.size:
+        return {}
+    gap_robot = rows.ray_robot[gap_ray]
+    terms = [CostTerms.of_plan(plan.v_pref, plan.previous, plan.config) for plan in plans]
+    stacked = CostTerms(*(np.array([getattr(term, name) for term in terms])[gap_robot]
+                          for name in ('v_pref', 'previous', 'inertia', 'bias', 'norm',
+                                       'extra')))
+    max_speed = np.array([plan.config.max_speed for plan in plans])[gap_robot]
+    directions = np.concatenate([plan.directions for plan in plans])[gap_ray]
+    # The best speed on a ray within one interval (the preferred one, projected, under the
+    # plain cost).
+    inset = np.minimum(INTERIOR, 0.5 * (upper - lower))
+    best_t = best_speeds(directions, lower + inset, upper - inset, rows.preferred[gap_ray],
+                         stacked, max_speed, gap_robot)
+    candidates = max_speed[:, None] * best_t[:, None] * directions
+    costs = stacked.costs(candidates)
+    # The first cheapest interval of each robot (argmin's tie rule).
+    order = np.lexsort((costs, gap_robot))
+    firsts = order[np.flatnonzero(np.diff(gap_robot[order], prepend=-1))]
+    return {int(gap_robot[best]): (int(rows.ray_local[gap_ray[best]]), best_t[best])
+            for best in firsts}
+
+
+def _fallback_choice(plan, means, variances):
+    """No feasible interval: the candidate with the largest achieved k, ties by cost."""
+    speeds, grid_costs = speed_grid(plan.directions, plan.preferred, plan.v_pref,
+                                    plan.previous, plan.config)
+    score = grid_scores(means, variances, speeds, plan.layout, plan.deterministic)
+    direction_index, speed_index = np.unravel_index(best_ranked(score, grid_costs),
+                                                    speeds.shape)
+    return direction_index, speeds[direction_index, speed_index]
+
+
+def _achieved(plans, means, variances, direction_index, chosen_t, velocities):
+    """Per robot, the smallest over neighbours of the k met at its chosen velocity."""
+    first = plans[0]
+    robots = len(plans)
+    enabled = np.stack([plan.layout.receding_enabled for plan in plans])
+    if first.config.model == 'prvo':
+        # The planning moments are the beliefs' own: evaluate the ray polynomials, (B, N, C).
+        # Advanced indices apart put the robot axis first: (B, L, N, C).
+        at_velocity = [poly_eval(polynomial[:, np.arange(robots), :, direction_index]
+                                 .transpose(0, 2, 3, 1), chosen_t[:, None, None])
                        for polynomial in (means, variances)]
     else:
-        at_velocity = [moment[:, 0] for moment in condition_moments(
-            encounter.origin, encounter.cov, encounter.combined_radius, velocity[None, :],
-            config.time_horizon, layout.has_receding)]
-    achieved = float(achieved_margins(*at_velocity, layout, layout.receding_enabled).min())
-    velocity = _clip_speed(velocity, config.max_speed)
-    return PlanResult(velocity=velocity,
-                      feasible=bool(candidates_feasible) and not encounter.overlapping.any(),
-                      achieved_k=achieved, eta_bound=eta_from_k(max(achieved, 0.0)),
-                      num_constraints=count, candidates_feasible=candidates_feasible)
+        pairs = first.encounter.origin.shape[0]
+        at_velocity = [moment[:, 0].reshape(robots, pairs, -1) for moment in condition_moments(
+            np.concatenate([plan.encounter.origin for plan in plans]),
+            np.concatenate([plan.encounter.cov for plan in plans]),
+            np.concatenate([plan.encounter.combined_radius for plan in plans]),
+            np.repeat(velocities, pairs, axis=0)[:, None, :], first.config.time_horizon,
+            first.layout.has_receding)]
+    return achieved_margins(*at_velocity, first.layout, enabled).min(axis=1)

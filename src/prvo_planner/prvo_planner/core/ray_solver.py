@@ -172,15 +172,23 @@ def _bernstein_matrix(degree):
 _BERNSTEIN = {degree: _bernstein_matrix(degree) for degree in (2, 4)}
 
 
-def _bernstein(coefficients):
-    """Bernstein coefficients on [0, 1] of coefficient-major (L, K) polynomials, (L, K)."""
-    # Coefficient-major product and reduction: reducing along a short last axis is slow.
-    return _BERNSTEIN[coefficients.shape[0] - 1].T @ coefficients
+def _product(matrix, columns):
+    """
+    ``matrix @ columns`` for coefficient-major (L, K) columns, each column's as if alone.
+
+    A product with one column takes the matrix-vector routine, whose rounding differs from the
+    matrix-matrix routine's; every column is computed by the latter, so a column's result does
+    not depend on how many others share the product.
+    """
+    if columns.shape[1] == 1:
+        return (matrix @ np.repeat(columns, 2, axis=1))[:, :1]
+    return matrix @ columns
 
 
 def bernstein_minimum(coefficients):
     """Smallest Bernstein coefficient (K,) of (L, K) polynomials: a lower bound on [0, 1]."""
-    return _bernstein(coefficients).min(axis=0)
+    # Coefficient-major product and reduction: reducing along a short last axis is slow.
+    return _product(_BERNSTEIN[coefficients.shape[0] - 1].T, coefficients).min(axis=0)
 
 
 def _segment_bernstein_matrix(degree, segments):
@@ -209,6 +217,11 @@ SEGMENTS = 4
 _SEGMENT_BERNSTEIN = {degree: _segment_bernstein_matrix(degree, SEGMENTS) for degree in (2, 4)}
 
 
+# Columns per product of segment_certificates: a block's Bernstein coefficients stay in the
+# processor's cache while they are compared.
+_CERTIFICATE_BLOCK = 4096
+
+
 def segment_certificates(coefficients):
     """
     Certify a constant sign on each of the ``SEGMENTS`` equal segments of [0, 1].
@@ -227,9 +240,23 @@ def segment_certificates(coefficients):
         Booleans, shape (SEGMENTS, K).
 
     """
-    length = coefficients.shape[0]
-    bernstein = (_SEGMENT_BERNSTEIN[length - 1] @ coefficients).reshape(SEGMENTS, length, -1)
-    return bernstein.min(axis=1) >= 0.0, bernstein.max(axis=1) < 0.0
+    length, count = coefficients.shape
+    matrix = _SEGMENT_BERNSTEIN[length - 1]
+    nonnegative = np.empty((SEGMENTS, count), dtype=bool)
+    negative = np.empty((SEGMENTS, count), dtype=bool)
+    # Blocks of at least two columns (see _product), the last one possibly longer.
+    starts = list(range(0, max(count - 1, 1), _CERTIFICATE_BLOCK))
+    for start, stop in zip(starts, starts[1:] + [count], strict=True):
+        signs = (_product(matrix, coefficients[:, start:stop]) >= 0.0).reshape(
+            SEGMENTS, length, -1)
+        # All signs nonnegative, or none: and / or over the coefficients of each segment.
+        every, some = signs[:, 0].copy(), signs[:, 0].copy()
+        for index in range(1, length):
+            every &= signs[:, index]
+            some |= signs[:, index]
+        nonnegative[:, start:stop] = every
+        np.logical_not(some, out=negative[:, start:stop])
+    return nonnegative, negative
 
 
 def polynomial_roots(columns):
