@@ -112,6 +112,21 @@ class Command:
     neighbour_radius: float
 
 
+@dataclasses.dataclass(frozen=True)
+class PlanRequest:
+    """One plan about to be made: the beliefs at `stamp` and the core's problem.
+
+    `problem` is the argument tuple of `prvo_planner.core.plan_velocity` (ego, neighbours,
+    v_pref, config, previous), or None when the robot stands still (no goal, or arrived).
+    """
+
+    stamp: float
+    own: object
+    neighbours: tuple
+    neighbour_radius: float
+    problem: tuple
+
+
 class _Track:
     """One tracked robot: its filter and when (caller's `now`) it last accepted a measurement.
 
@@ -293,11 +308,22 @@ class PlannerAgent:
 
         Raises RuntimeError when no own measurement is pending.
         """
+        request = self.plan_request()
+        result = None if request.problem is None else plan_velocity(*request.problem)
+        return self.complete(request, result)
+
+    def plan_request(self):
+        """Take the pending stamp; return the `PlanRequest` of its plan.
+
+        `plan()` is `complete(request, plan_velocity(*request.problem))`; a caller that plans
+        a whole team at once (`prvo_planner.core.plan_velocities`) solves the problems of many
+        requests together and completes each. Raises RuntimeError when no own measurement is
+        pending.
+        """
         if self._pending_stamp is None:
             raise RuntimeError('plan() without a pending own measurement')
         stamp, self._pending_stamp = self._pending_stamp, None
         own = self._own_track.tracker.belief_at(stamp)
-        radius = self.settings.radius
         neighbour_radius = self.settings.neighbour_radius_in_force
         max_speed = self.config.max_speed
         v_pref, self.arrived = preferred_velocity(
@@ -305,23 +331,27 @@ class PlannerAgent:
             self.settings.goal_tolerance)
         neighbour_beliefs = tuple(
             track.tracker.belief_at(stamp) for track in self._neighbour_tracks.values())
-        if self.arrived or self.goal is None:
-            velocity, result = np.zeros(2), None
-        else:
+        problem = None
+        if not (self.arrived or self.goal is None):
             horizon = goal_horizon(
                 float(np.hypot(*(self.goal - own.mean[:2]))), max_speed,
                 self.settings.approach_time, self.config.time_horizon)
-            result = plan_velocity(
-                AgentBelief(own.mean[:2], own.mean[2:], own.covariance, radius),
+            problem = (
+                AgentBelief(own.mean[:2], own.mean[2:], own.covariance, self.settings.radius),
                 [AgentBelief(belief.mean[:2], belief.mean[2:], belief.covariance,
                              neighbour_radius) for belief in neighbour_beliefs],
                 v_pref, dataclasses.replace(self.config, time_horizon=horizon),
-                previous=self._previous_velocity)
-            velocity = result.velocity
+                self._previous_velocity)
+        return PlanRequest(stamp=stamp, own=own, neighbours=neighbour_beliefs,
+                           neighbour_radius=neighbour_radius, problem=problem)
+
+    def complete(self, request, result):
+        """Return the `Command` of REQUEST given the core's RESULT (None: stand still)."""
+        velocity = np.zeros(2) if result is None else result.velocity
         self._previous_velocity = None if result is None else velocity
-        return Command(stamp=stamp, velocity=velocity, yaw=self._own_yaw, result=result,
-                       arrived=self.arrived, own=own, neighbours=neighbour_beliefs,
-                       neighbour_radius=neighbour_radius)
+        return Command(stamp=request.stamp, velocity=velocity, yaw=self._own_yaw, result=result,
+                       arrived=self.arrived, own=request.own, neighbours=request.neighbours,
+                       neighbour_radius=request.neighbour_radius)
 
     def warm_up(self):
         """Plan for a made-up encounter a few times; no state of the agent changes.

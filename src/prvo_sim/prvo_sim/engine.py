@@ -19,6 +19,7 @@ import numpy as np
 
 from prvo_msgs_util import body_to_world, serialized_odometry_to_measurement, world_to_body
 from prvo_planner.agent import AgentSettings, PlannerAgent
+from prvo_planner.core import plan_velocities
 from prvo_planner.parameters import planner_config_from
 from prvo_sim.commands import WORLD_FRAME
 from prvo_sim.world import TeamWorld
@@ -30,8 +31,9 @@ class StepRecord:
     """One step of a team: the state at `time` and the commands that answered it.
 
     `states` (N, 4) is every robot's ground truth [x, y, vx, vy] as a recorder reads it;
-    `commands` (N, 2) the world-frame velocities commanded for the next dt; `plan_ms` (N,) each
-    agent's planning time [ms of wall time]; `contacts` the `world.Contact`s the step made.
+    `commands` (N, 2) the world-frame velocities commanded for the next dt; `plan_ms` (N,)
+    each robot's share of the team's planning time [ms of wall time]; `contacts` the
+    `world.Contact`s the step made.
     """
 
     time: float
@@ -99,17 +101,26 @@ class InProcessTeam:
             for other, measurement in enumerate(measurements):
                 if other != index:
                     agent.receive_neighbour(names[other], measurement, now)
-        commands = np.empty((len(self.agents), 2))
-        plan_ms = np.empty(len(self.agents))
+        started = time.perf_counter()
+        requests = [agent.plan_request() for agent in self.agents]
+        moving = [index for index, request in enumerate(requests) if request.problem is not None]
+        results = [None] * len(requests)
+        if moving:
+            problems = [requests[index].problem for index in moving]
+            solved = plan_velocities(*(list(column) for column in zip(*problems, strict=True)))
+            for index, result in zip(moving, solved, strict=True):
+                results[index] = result
         yaws = world.yaws_at(world.step_count)
+        commands = np.empty((len(self.agents), 2))
         for index, agent in enumerate(self.agents):
-            started = time.perf_counter()
-            command = agent.plan()
-            plan_ms[index] = (time.perf_counter() - started) * 1e3
+            command = agent.complete(requests[index], results[index])
             # The node publishes in the body frame; the simulator turns it back by the heading
             # at the command's stamp.
             commands[index] = body_to_world(world_to_body(command.velocity, command.yaw),
                                             yaws[index])
+        # One call plans the team: each robot is charged an equal share of it.
+        plan_ms = np.full(len(self.agents), (time.perf_counter() - started) * 1e3
+                          / len(self.agents))
         contacts = world.step(commands)
         return StepRecord(time=now, states=states, commands=commands, plan_ms=plan_ms,
                           contacts=tuple(contacts))
