@@ -92,3 +92,29 @@ def test_eta_is_per_robot_unless_given(tmp_path):
     uniform = load_scenario(HEADON)
     assert run_scenario.run_eta(run_scenario.build_parser().parse_args([HEADON]),
                                 uniform) == 0.8
+
+
+def test_a_recording_with_missing_steps_or_commands_is_a_failure():
+    dt_ns = 100_000_000
+    complete = {name: {step * dt_ns: (0.0,) for step in range(5)}
+                for name in ('robot_0', 'robot_1')}
+    # Every command but the last step's (still being answered when the run ended).
+    commands = {name: {step * dt_ns: (0.0,) for step in range(4)} for name in complete}
+    names = list(complete)
+    assert run_scenario.recording_gaps(complete, commands, names, 0.1, True) is None
+    late_start = {**complete, 'robot_1': {stamp: value for stamp, value in
+                                          complete['robot_1'].items() if stamp >= 2 * dt_ns}}
+    gap = run_scenario.recording_gaps(late_start, commands, names, 0.1, True)
+    assert 'robot_1' in gap and 'ground truth' in gap and 't = 0' in gap
+    hole = {**complete, 'robot_0': {stamp: value for stamp, value in complete['robot_0'].items()
+                                    if stamp != 3 * dt_ns}}
+    gap = run_scenario.recording_gaps(hole, commands, names, 0.1, True)
+    assert 'robot_0' in gap and 't = 0.3' in gap
+    no_first_command = {**commands, 'robot_0': {stamp: value for stamp, value in
+                                                commands['robot_0'].items() if stamp}}
+    gap = run_scenario.recording_gaps(complete, no_first_command, names, 0.1, True)
+    assert 'robot_0' in gap and 'command' in gap and 't = 0' in gap
+    # In realtime a planner may miss a step's deadline: no command is not a recording fault.
+    assert run_scenario.recording_gaps(complete, no_first_command, names, 0.1, False) is None
+    assert 'no ground truth' in run_scenario.recording_gaps(
+        {'robot_0': {}, 'robot_1': {}}, commands, names, 0.1, True)

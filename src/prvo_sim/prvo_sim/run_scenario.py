@@ -48,7 +48,7 @@ from prvo_sim.runner.processes import (  # noqa: F401
     RunInterruptedError,
     package_command,
 )
-from prvo_sim.runner.recorder import Recorder, foreign_participants  # noqa: F401
+from prvo_sim.runner.recorder import Recorder, foreign_participants, recording_gaps  # noqa: F401
 from prvo_sim.runner.session import (  # noqa: F401
     DEFAULT_ETA,
     METHODS,

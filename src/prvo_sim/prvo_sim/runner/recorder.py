@@ -325,6 +325,31 @@ def _describe(found):
                      for node in _shortened(found))
 
 
+def recording_gaps(ground_truth, commands, robot_names, dt, commands_expected):
+    """Describe in one line what a recording lacks, else None.
+
+    GROUND_TRUTH and COMMANDS are {robot: {stamp ns: ...}} (Recorder.ground_truth, .commands).
+    A complete recording has every robot's ground truth at every step t = k DT from t = 0 to
+    its last, and, if COMMANDS_EXPECTED (lockstep: every step is answered), the command
+    answering each of those steps but the last.
+    """
+    for name in robot_names:
+        steps = sorted(round(stamp * 1e-9 / dt) for stamp in ground_truth[name])
+        if not steps:
+            return f'the recorder received no ground truth of {name}'
+        missing = sorted(set(range(steps[-1] + 1)) - set(steps))
+        if missing:
+            return (f'the recorder missed {len(missing)} ground truth message(s) of {name}, '
+                    f'the first at t = {missing[0] * dt:g} s')
+        if commands_expected:
+            answered = {round(stamp * 1e-9 / dt) for stamp in commands[name]}
+            unanswered = sorted(set(steps[:-1]) - answered)
+            if unanswered:
+                return (f'the recorder missed {len(unanswered)} command(s) of {name}, the first '
+                        f'answering t = {unanswered[0] * dt:g} s')
+    return None
+
+
 def foreign_participants(domain_id, robot_names, duration=None):
     """Return why DOMAIN_ID is not fit for a run of ROBOT_NAMES (strangers on it), else None.
 

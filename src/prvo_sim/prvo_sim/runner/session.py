@@ -266,7 +266,7 @@ def run_once(spec, domain_id, monitor=None):
     monitor.ending(children, recorder) once the run has ended, just before the children are
     stopped (not when the run was interrupted).
     """
-    from prvo_sim.runner.recorder import Recorder
+    from prvo_sim.runner.recorder import Recorder, recording_gaps
 
     scenario = spec.scenario
     log_dir = spec.out_dir / 'logs'
@@ -289,6 +289,9 @@ def run_once(spec, domain_id, monitor=None):
             if monitor is not None:
                 monitor.started(children, recorder)
             failure = wait_for_end(recorder, watch, spec, progress)
+        if failure is None:
+            failure = recording_gaps(recorder.ground_truth, recorder.commands,
+                                     recorder.robot_names, scenario.dt, spec.mode == 'lockstep')
         if monitor is not None:
             monitor.ending(children, recorder)
     except RunInterruptedError as interruption:
