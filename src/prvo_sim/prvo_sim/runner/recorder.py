@@ -7,6 +7,7 @@ publisher on a topic of the run, fails it. Pure observers (subscribers) are welc
 """
 
 import contextlib
+import copy
 import itertools
 import math
 import os
@@ -19,6 +20,7 @@ WORLD_FRAME = 'map'
 RECORDER_CLOSE_TIMEOUT = 5.0  # wall seconds the recorder's DDS teardown may take
 # Topics every rclpy node publishes on; publishing there says nothing about a node.
 ROS_DEFAULT_TOPICS = ('/rosout', '/parameter_events')
+RECORDER_QUEUE_DEPTH = 2000  # messages per topic held until the recorder takes them
 MAX_NAMED_INTRUDERS = 3  # in a one-line failure
 _INSTANCES = itertools.count()
 # What the graph says of an endpoint whose participant's node names have not arrived yet.
@@ -99,11 +101,11 @@ class Recorder:
                     ('commands', CMD_VEL, TwistStamped, CMD_VEL_QOS)):
                 subscription = self.node.create_subscription(
                     message_type, robot_topic(name, topic), self._serialized[kind][name].append,
-                    qos, event_callbacks=quiet_subscription_events(), raw=True)
+                    _deep(qos), event_callbacks=quiet_subscription_events(), raw=True)
                 if kind == 'commands':
                     self._command_subscriptions[name] = subscription
         self._diagnostics_subscription = self.node.create_subscription(
-            DiagnosticArray, DIAGNOSTICS, self._on_diagnostics, DIAGNOSTICS_QOS,
+            DiagnosticArray, DIAGNOSTICS, self._on_diagnostics, _deep(DIAGNOSTICS_QOS),
             event_callbacks=quiet_subscription_events())
 
     def unheard_planners(self):
@@ -302,6 +304,17 @@ class Recorder:
         return np.asarray(stamps, dtype=float) * 1e-9, states[..., :4], commands
 
 
+
+
+def _deep(qos):
+    """Return QOS with a queue of RECORDER_QUEUE_DEPTH (compatible: depth is not matched).
+
+    A lockstep team steps hundreds of times per second; between two spins of the recorder the
+    messages wait in this queue, and a shorter one would drop the oldest.
+    """
+    deep = copy.copy(qos)
+    deep.depth = RECORDER_QUEUE_DEPTH
+    return deep
 
 
 def _full_name(namespace, name):

@@ -236,6 +236,9 @@ def wait_for_end(recorder, watch, spec, progress):
             return failure
         latest = recorder.latest()
         if len(latest) < len(scenario.robots):
+            if recorder.sim_status.get('finished') == 'true':
+                return ('the simulator finished before the recorder received ground truth of '
+                        'every robot')
             if now - started > STARTUP_LIMIT:
                 return f'no ground truth from every robot within {STARTUP_LIMIT:g} s'
             continue
