@@ -58,11 +58,12 @@ def test_sigint_during_a_real_run_leaves_no_process(tmp_path, runners):
     # A long scenario: the run must still be going when the signal comes, however fast.
     long_run = tmp_path / 'long.yaml'
     text = open(HEADON).read().replace('duration: 30.0', 'duration: 100000.0')
-    long_run.write_text(text.replace('goal: [4.0, 0.0]', 'goal: [400.0, 0.0]'))
+    text = text.replace('goal: [4.0, 0.0]', 'goal: [400.0, 0.0]')
+    long_run.write_text(text.replace('goal: [-4.0, 0.0]', 'goal: [-400.0, 0.0]'))
     runner = start_runner([str(long_run), '--out', str(tmp_path / 'out')], tmp_path)
     runners.append(runner)
     # The first progress line appears with the first ground truth of every robot.
-    wait_for(lambda: 'arrived 0/2' in runner.err_path.read_text(), 120, 'the run starting')
+    wait_for(lambda: 'arrived ' in runner.err_path.read_text(), 120, 'the run starting')
     runner.send_signal(signal.SIGINT)
     assert runner.wait(timeout=60) == 128 + signal.SIGINT
     assert processes_with_token(runner.token) == []
