@@ -256,6 +256,20 @@ class Recorder:
         return (f'processes this runner did not start publish on ROS_DOMAIN_ID '
                 f'{self.domain_id}: {_describe(found)}')
 
+    def recording_gaps(self, dt, commands_expected, grace):
+        """Return what the recording lacks (see recording_gaps), after up to GRACE s more.
+
+        Messages still on their way when the run ended (the last steps' commands travel from
+        other processes than the ground truth) get GRACE s of wall time to arrive.
+        """
+        deadline = time.monotonic() + grace
+        while True:
+            gaps = recording_gaps(self.ground_truth, self.commands, self.robot_names, dt,
+                                  commands_expected)
+            if gaps is None or time.monotonic() >= deadline:
+                return gaps
+            self.spin_for(0.05)
+
     def spin_for(self, duration):
         """Handle every message that arrives in the next DURATION s."""
         self._executor.spin_until_future_complete(self._never_done, timeout_sec=duration)

@@ -38,6 +38,7 @@ STEP_TIMEOUT = 2.0  # wall seconds the sim waits for a late planner before reusi
 STARTUP_LIMIT = 60.0  # wall seconds for each start-up stage before the run counts as failed
 SETTLE_TIME = 1.0  # sim seconds every robot must stay at its goal before the run ends
 PROGRESS_PERIOD = 0.5
+RECORDING_GRACE = 2.0  # wall seconds for messages in flight when a run ends to arrive
 GRAPH_CHECK_PERIOD = 1.0  # wall seconds between looks for intruders during a run
 # Planner waits in lockstep [s]: for same-stamp odometry (under the sim's step_timeout), and
 # for every listed neighbour's first message.
@@ -269,7 +270,7 @@ def run_once(spec, domain_id, monitor=None):
     monitor.ending(children, recorder) once the run has ended, just before the children are
     stopped (not when the run was interrupted).
     """
-    from prvo_sim.runner.recorder import Recorder, recording_gaps
+    from prvo_sim.runner.recorder import Recorder
 
     scenario = spec.scenario
     log_dir = spec.out_dir / 'logs'
@@ -293,8 +294,8 @@ def run_once(spec, domain_id, monitor=None):
                 monitor.started(children, recorder)
             failure = wait_for_end(recorder, watch, spec, progress)
         if failure is None:
-            failure = recording_gaps(recorder.ground_truth, recorder.commands,
-                                     recorder.robot_names, scenario.dt, spec.mode == 'lockstep')
+            failure = recorder.recording_gaps(scenario.dt, spec.mode == 'lockstep',
+                                              RECORDING_GRACE)
         if monitor is not None:
             monitor.ending(children, recorder)
     except RunInterruptedError as interruption:
