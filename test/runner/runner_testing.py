@@ -1,16 +1,26 @@
-"""Helpers of the runner tests: finding the processes a runner started, waiting on events."""
+"""Helpers of the runner tests: starting runners, finding their processes, waiting on events."""
 
+import contextlib
+import os
 import pathlib
+import re
+import subprocess
 import sys
 import threading
 import time
+import uuid
 
 import pytest
+
+from prvo_sim.run_scenario import DOMAIN_IDS, DomainRefusedError, claimed_domain
 
 HERE = pathlib.Path(__file__).resolve().parent
 FAKE_CHILD = f'{sys.executable} {HERE / "fake_child.py"}'
 HEADON = str(HERE.parents[1] / 'src/prvo_sim/scenarios/headon2.yaml')
 TOKEN_VARIABLE = 'PRVO_RUNNER_TEST_TOKEN'
+# Two fake planners and a fake sim, each with a grandchild, and the runner's watchdog.
+FAKE_RUN_DESCENDANTS = 7
+DOMAIN_LINE = re.compile(r'run_scenario: ROS_DOMAIN_ID (\d+) \(')
 
 
 def processes_with_token(token, exclude=()):
@@ -53,3 +63,55 @@ def wait_for(condition, timeout, what):
         if time.monotonic() > deadline:
             pytest.fail(f'{what} did not happen within {timeout} s')
         threading.Event().wait(0.05)
+
+
+def start_runner(argv, tmp_path, label='runner', env=None):
+    """Start `python -m prvo_sim.run_scenario ARGV` in a session of its own.
+
+    Without ROS_DOMAIN_ID in ENV the runner chooses its own domain (tests hold claims of their
+    own). The process gets .token (inherited by every descendant), .out_path and .err_path.
+    """
+    token = uuid.uuid4().hex
+    child_env = dict(os.environ, PYTHONUNBUFFERED='1')
+    child_env.pop('ROS_DOMAIN_ID', None)
+    child_env.update(env or {})
+    child_env[TOKEN_VARIABLE] = token
+    out_path, err_path = tmp_path / f'{label}.out', tmp_path / f'{label}.err'
+    with open(out_path, 'w') as out_file, open(err_path, 'w') as err_file:
+        process = subprocess.Popen(
+            [sys.executable, '-m', 'prvo_sim.run_scenario', *argv], env=child_env,
+            stdout=out_file, stderr=err_file, stdin=subprocess.DEVNULL, start_new_session=True)
+    process.token, process.out_path, process.err_path = token, out_path, err_path
+    return process
+
+
+def runner_domain(process, timeout=60.0):
+    """Return the ROS_DOMAIN_ID a runner reports on its first line of output."""
+    def first_line():
+        lines = process.out_path.read_text().splitlines()
+        return lines[0] if lines else None
+
+    line = wait_for(first_line, timeout, 'the runner reporting its domain')
+    match = DOMAIN_LINE.match(line)
+    assert match, f'first line is not the domain: {line!r}'
+    return int(match.group(1))
+
+
+def output(process):
+    """Return what PROCESS wrote on stdout and stderr so far."""
+    return process.out_path.read_text() + process.err_path.read_text()
+
+
+def free_domain():
+    """Return a domain id no one holds now, for a runner the test starts with --domain-id.
+
+    The claim is released at once, so another claimant could take it before the runner does.
+    Searched from the top of the range down (fixtures and automatic choices search upwards),
+    from an offset of this process's own, so that test processes running at once do not meet.
+    """
+    ids = list(reversed(DOMAIN_IDS))
+    offset = os.getpid() % (len(ids) // 2)
+    for domain_id in ids[offset:] + ids[:offset]:
+        with contextlib.suppress(DomainRefusedError), claimed_domain(domain_id):
+            return domain_id
+    pytest.fail('no free ROS_DOMAIN_ID')

@@ -1,5 +1,6 @@
 """Bad input: a one-line error naming the problem, exit code 2, and no child ever started."""
 
+import pathlib
 import subprocess
 import sys
 
@@ -7,7 +8,7 @@ import pytest
 
 from prvo_sim import run_scenario
 
-SCENARIOS = run_scenario.pathlib.Path(__file__).resolve().parents[2] / 'src/prvo_sim/scenarios'
+SCENARIOS = pathlib.Path(__file__).resolve().parents[2] / 'src/prvo_sim/scenarios'
 HEADON = str(SCENARIOS / 'headon2.yaml')
 
 
@@ -24,6 +25,9 @@ def run_main(argv, marker_command, capsys):
     code = run_scenario.main([*argv, '--sim-command', command, '--planner-command', command])
     err = capsys.readouterr().err
     assert not marker.exists(), 'a child was started despite bad input'
+    # A refused run writes nothing, not even its output folder.
+    out = pathlib.Path(argv[argv.index('--out') + 1])
+    assert not out.exists(), f'{out} was created by a refused run'
     return code, err
 
 

@@ -2,33 +2,23 @@
 
 import csv
 import json
-import os
 import signal
-import subprocess
-import sys
-import uuid
 
 import numpy as np
 import pytest
-from runner_testing import HEADON, TOKEN_VARIABLE, processes_with_token, wait_for
+from runner_testing import HEADON, output, processes_with_token, start_runner, wait_for
 
 SCHEMA_KEYS = {'scenario', 'method', 'eta', 'seed', 'mode', 'robots', 'success_rate',
                'collisions', 'min_separation', 'makespan', 'mean_time_to_goal', 'planner_ms',
                'deadline_misses', 'sim_time', 'wall_time'}
 
 
-def run_headon(tmp_path, ros_domain, *extra, timeout=240):
+def test_headon2_both_arrive_without_contact(tmp_path, runners):
     out = tmp_path / 'out'
-    result = subprocess.run(
-        [sys.executable, '-m', 'prvo_sim.run_scenario', HEADON, '--out', str(out),
-         '--domain-id', str(ros_domain), *extra],
-        capture_output=True, text=True, timeout=timeout)
-    return result, out
-
-
-def test_headon2_both_arrive_without_contact(tmp_path, ros_domain):
-    result, out = run_headon(tmp_path, ros_domain)
-    assert result.returncode == 0, result.stderr + result.stdout
+    runner = start_runner([HEADON, '--out', str(out)], tmp_path)
+    runners.append(runner)
+    assert runner.wait(timeout=600) == 0, output(runner)
+    assert processes_with_token(runner.token) == []
     recorded = json.loads((out / 'metrics.json').read_text())
     assert set(recorded) == SCHEMA_KEYS
     assert (recorded['scenario'], recorded['method'], recorded['eta'], recorded['seed'],
@@ -55,28 +45,28 @@ def test_headon2_both_arrive_without_contact(tmp_path, ros_domain):
     assert np.hypot(last['robot_0'][0] - 4.0, last['robot_0'][1]) <= 0.2
     assert np.hypot(last['robot_1'][0] + 4.0, last['robot_1'][1]) <= 0.2
     assert (out / 'trajectories.png').read_bytes()[:4] == b'\x89PNG'
-    assert 'headon2' in result.stdout and str(out) in result.stdout
+    stdout = runner.out_path.read_text()
+    assert 'headon2' in stdout and str(out) in stdout
+    # Every robot has the command answering its state at every step but perhaps the last.
+    times = sorted({row['time'] for row in rows}, key=float)
+    assert times[0] == '0'
+    unanswered = {row['time'] for row in rows if row['cmd_vx'] == '' or row['cmd_vy'] == ''}
+    assert unanswered <= {times[-1]}, sorted(unanswered, key=float)[:5]
 
 
-def test_sigint_during_a_real_run_leaves_no_process(tmp_path, ros_domain):
-    token = uuid.uuid4().hex
-    env = dict(os.environ, PYTHONUNBUFFERED='1', **{TOKEN_VARIABLE: token})
-    err_path = tmp_path / 'runner.err'
-    with open(err_path, 'w') as err_file:
-        runner = subprocess.Popen(
-            [sys.executable, '-m', 'prvo_sim.run_scenario', HEADON, '--out',
-             str(tmp_path / 'out'), '--domain-id', str(ros_domain)],
-            env=env, stdout=subprocess.DEVNULL, stderr=err_file, start_new_session=True)
-    try:
-        # The first progress line appears with the first ground truth of every robot.
-        wait_for(lambda: 'arrived 0/2' in err_path.read_text(), 60, 'the run starting')
-        runner.send_signal(signal.SIGINT)
-        assert runner.wait(timeout=30) == 128 + signal.SIGINT
-    finally:
-        if runner.poll() is None:
-            os.killpg(runner.pid, signal.SIGKILL)
-            runner.wait()
-    assert processes_with_token(token) == []
+def test_sigint_during_a_real_run_leaves_no_process(tmp_path, runners):
+    # A long scenario: the run must still be going when the signal comes, however fast.
+    long_run = tmp_path / 'long.yaml'
+    text = open(HEADON).read().replace('duration: 30.0', 'duration: 100000.0')
+    text = text.replace('goal: [4.0, 0.0]', 'goal: [400.0, 0.0]')
+    long_run.write_text(text.replace('goal: [-4.0, 0.0]', 'goal: [-400.0, 0.0]'))
+    runner = start_runner([str(long_run), '--out', str(tmp_path / 'out')], tmp_path)
+    runners.append(runner)
+    # The first progress line appears with the first ground truth of every robot.
+    wait_for(lambda: 'arrived ' in runner.err_path.read_text(), 120, 'the run starting')
+    runner.send_signal(signal.SIGINT)
+    assert runner.wait(timeout=60) == 128 + signal.SIGINT
+    assert processes_with_token(runner.token) == []
     recorded = json.loads((tmp_path / 'out' / 'metrics.json').read_text())
     assert recorded['failure'] == 'interrupted by SIGINT'
     assert recorded['sim_time'] >= 0.0

@@ -398,11 +398,16 @@ def parse_arguments(argv):
     return options
 
 
+def domain_with_strangers(domain_id):
+    """Return why DOMAIN_ID is in use by processes the benchmark did not start, else None."""
+    return run_scenario.foreign_participants(domain_id, [])
+
+
 def run(options):
     """Benchmark every team size; print the table; return the exit code."""
     results = []
     interrupted = None
-    with run_scenario.claimed_domain(None) as domain_id:
+    with run_scenario.claimed_domain(None, vet=domain_with_strangers) as domain_id:
         for team_size in options.robots:
             result, interrupted = bench_team_size(team_size, options, domain_id)
             results.append(result)
@@ -410,6 +415,7 @@ def run(options):
                 break
     print(format_table(results))
     if options.json is not None:
+        options.json.parent.mkdir(parents=True, exist_ok=True)
         with open(options.json, 'w') as json_file:
             json.dump({'results': results}, json_file, indent=2)
             json_file.write('\n')

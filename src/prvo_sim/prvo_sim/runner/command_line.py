@@ -1,0 +1,196 @@
+"""The runner's command line: options, the domain claim, every seed's run and the exit code.
+
+    run_scenario SCENARIO.yaml [--out DIR] [--method M] [--eta ETA] [--seed S] [--seeds N]
+
+Exit codes: 0 the run completed (collisions are a result, not an error), 1 a child failed, the
+run timed out or processes it did not start interfered, 2 refused (bad input, a domain held by
+another runner or used by strangers: nothing was started and nothing written), 128 + signal
+number when interrupted.
+"""
+
+import argparse
+import contextlib
+import os
+import pathlib
+import shlex
+import signal
+import sys
+
+from prvo_sim.runner.domain import (
+    DOMAIN_IDS,
+    DomainRefusedError,
+    claimed_domain,
+    requested_domain,
+)
+from prvo_sim.runner.outputs import print_summary, write_summary
+from prvo_sim.runner.processes import INTERRUPT_SIGNALS, INTERRUPTS, RunInterruptedError
+from prvo_sim.runner.session import DDS_HANG, METHODS, MODES, RunSpec, run_eta, run_once
+
+PROGRAM = 'run_scenario'
+
+
+class UsageError(Exception):
+    """Bad input detected before anything started (exit code 2)."""
+
+
+class _ArgumentParser(argparse.ArgumentParser):
+    """An argument parser that reports errors as UsageError instead of exiting."""
+
+    def error(self, message):
+        raise UsageError(message)
+
+
+def build_parser():
+    """Return the command-line parser of the runner."""
+    parser = _ArgumentParser(
+        prog=PROGRAM,
+        description='Run a PRVO scenario: simulator plus one planner per robot, recorded.')
+    parser.add_argument('scenario', help='scenario YAML file (or the name of a shipped one)')
+    parser.add_argument('--out', default=None,
+                        help='output folder (default: results/<scenario name>)')
+    parser.add_argument('--method', choices=METHODS, default='prvo',
+                        help='planner variant (default: prvo)')
+    parser.add_argument('--eta', type=float, default=None,
+                        help='collision-avoidance probability in (0, 1) for every robot '
+                        "(default: each robot's planner eta)")
+    parser.add_argument('--seed', type=int, default=None,
+                        help="random seed (default: the scenario's)")
+    parser.add_argument('--seeds', type=int, default=1,
+                        help='repeat over N consecutive seeds from --seed and aggregate')
+    parser.add_argument('--mode', choices=MODES, default='lockstep',
+                        help='simulator stepping (default: lockstep)')
+    parser.add_argument('--timeout', type=float, default=None,
+                        help='wall-clock limit per run [s] (default: 10 x duration + 60)')
+    parser.add_argument('--domain-id', type=int, default=None,
+                        help='ROS_DOMAIN_ID, held exclusively (default: an exported '
+                        f'ROS_DOMAIN_ID, else a free one in {DOMAIN_IDS.start}..'
+                        f'{DOMAIN_IDS.stop - 1})')
+    parser.add_argument('--sim-command', default=None,
+                        help="command to start instead of prvo_sim's sim (ROS args appended)")
+    parser.add_argument('--planner-command', default=None,
+                        help="command to start instead of prvo_planner's planner")
+    parser.add_argument('--quiet', action='store_true', help='no progress line')
+    return parser
+
+
+def parse_arguments(argv, environment=None):
+    """Parse and check ARGV; return (options, scenario). Raise UsageError on bad input.
+
+    options.domain_id becomes the domain asked for (--domain-id, else ROS_DOMAIN_ID from
+    ENVIRONMENT, default os.environ; None for a free one) and options.domain_source says which.
+    """
+    from prvo_sim.scenario import (
+        ScenarioError,
+        check_team_memory,
+        find_scenario,
+        load_scenario,
+    )
+
+    options = build_parser().parse_args(argv)
+    if options.eta is not None and not 0.0 < options.eta < 1.0:
+        raise UsageError(f'--eta: {options.eta} is outside (0, 1)')
+    if options.seeds < 1:
+        raise UsageError(f'--seeds: {options.seeds} is not a positive count')
+    if options.timeout is not None and not options.timeout > 0.0:
+        raise UsageError(f'--timeout: {options.timeout} is not a positive time')
+    try:
+        options.domain_id, options.domain_source = requested_domain(
+            options.domain_id, os.environ if environment is None else environment)
+    except ValueError as error:
+        raise UsageError(str(error)) from None
+    for name in ('sim_command', 'planner_command'):
+        command = getattr(options, name)
+        if command is not None and not shlex.split(command):
+            raise UsageError(f"--{name.replace('_', '-')}: empty command")
+    try:
+        scenario = load_scenario(find_scenario(options.scenario), seed=options.seed)
+        check_team_memory(scenario)
+    except ScenarioError as error:
+        raise UsageError(str(error)) from None
+    except OSError as error:
+        raise UsageError(f'{options.scenario}: {error.strerror or error}') from None
+    options.out = pathlib.Path(options.out or pathlib.Path('results') / scenario.name)
+    check_writable(options.out)
+    return options, scenario
+
+
+def check_writable(folder):
+    """Raise UsageError unless FOLDER exists as a writable folder or could be created.
+
+    Nothing is created: a refused run leaves no trace.
+    """
+    folder = pathlib.Path(folder).absolute()
+    existing = folder
+    while not existing.exists() and existing != existing.parent:
+        existing = existing.parent
+    if not existing.is_dir():
+        reason = 'Not a directory'
+    elif not os.access(existing, os.W_OK | os.X_OK):
+        reason = 'Permission denied'
+    else:
+        return
+    raise UsageError(f'--out: cannot write to {folder}: {reason} ({existing})')
+
+
+def run(options, scenario):
+    """Claim the domain, run every requested seed; return the exit code."""
+    from prvo_sim.runner.recorder import foreign_participants
+
+    eta = run_eta(options, scenario)
+    seeds = [scenario.seed + offset for offset in range(options.seeds)]
+    robot_names = [robot.name for robot in scenario.robots]
+    runs = []
+    with contextlib.ExitStack() as claim:
+        try:
+            domain_id = claim.enter_context(claimed_domain(
+                options.domain_id,
+                vet=lambda domain_id: foreign_participants(domain_id, robot_names)))
+        except DomainRefusedError as error:
+            print(f'{PROGRAM}: error: {error}', file=sys.stderr)
+            return 2
+        print(f'{PROGRAM}: ROS_DOMAIN_ID {domain_id} ({options.domain_source})', flush=True)
+        for seed in seeds:
+            out_dir = options.out if options.seeds == 1 else options.out / f'seed_{seed}'
+            spec = RunSpec(options, scenario, eta, seed, out_dir)
+            run_metrics, interrupted = run_once(spec, domain_id)
+            runs.append((run_metrics, out_dir))
+            print_summary(run_metrics, out_dir)
+            if interrupted is not None:
+                return 128 + interrupted
+    if options.seeds > 1:
+        write_summary(options.out, runs)
+    return 1 if any('failure' in run_metrics for run_metrics, _ in runs) else 0
+
+
+def run_interruptibly(program, job):
+    """Return JOB()'s exit code, with the interrupt signals turned into RunInterruptedError.
+
+    A signal that arrives when no child is alive ends PROGRAM with 128 + signal.
+    """
+    previous_handlers = {signum: signal.signal(signum, INTERRUPTS.handle)
+                         for signum in INTERRUPT_SIGNALS}
+    try:
+        code = job()
+    except RunInterruptedError as interruption:
+        print(f'{program}: interrupted by {interruption}', file=sys.stderr)
+        code = 128 + interruption.signum
+    finally:
+        for signum, handler in previous_handlers.items():
+            signal.signal(signum, handler)
+    if DDS_HANG.noticed:
+        # A thread is stuck inside Fast DDS: interpreter shutdown would wait on it forever.
+        sys.stdout.flush()
+        sys.stderr.flush()
+        os._exit(code)
+    return code
+
+
+def main(argv=None):
+    """Run the scenario runner's command line; return the exit code."""
+    argv = sys.argv[1:] if argv is None else argv
+    try:
+        options, scenario = parse_arguments(argv)
+    except UsageError as error:
+        print(f'{PROGRAM}: error: {error}', file=sys.stderr)
+        return 2
+    return run_interruptibly(PROGRAM, lambda: run(options, scenario))

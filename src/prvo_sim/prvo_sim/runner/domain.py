@@ -1,0 +1,122 @@
+"""Exclusive ROS_DOMAIN_ID claims: a run owns its domain or refuses it.
+
+A claim is an flock on DOMAIN_LOCK_DIR/<id>.lock, which holds the claimant's pid and command
+line so that a refused runner can say who holds the domain. Test fixtures claim their domains
+the same way, so runs and tests on one machine never share one.
+"""
+
+import contextlib
+import fcntl
+import os
+import pathlib
+import shlex
+import sys
+import tempfile
+
+# Ids above 101 put Fast DDS's ports into Linux's ephemeral range; 0 is everyone's default.
+DOMAIN_IDS = range(1, 102)
+# What ROS 2 accepts at all (an explicit id is checked against it).
+VALID_DOMAIN_IDS = range(0, 233)
+DOMAIN_LOCK_DIR = pathlib.Path(tempfile.gettempdir()) / 'prvo-ros-domains'
+
+
+class DomainRefusedError(Exception):
+    """The domain asked for is held by another claimant or used by strangers."""
+
+
+def _command_line():
+    """Return this process's command line as typed (python -m ... rather than a path)."""
+    try:
+        arguments = pathlib.Path('/proc/self/cmdline').read_bytes().rstrip(b'\0').split(b'\0')
+        return shlex.join(argument.decode(errors='replace') for argument in arguments)
+    except OSError:
+        return shlex.join([sys.executable, *sys.argv])
+
+
+def _lock(domain_id):
+    """Claim DOMAIN_ID; return the open lock file descriptor, or (None, holder description)."""
+    DOMAIN_LOCK_DIR.mkdir(exist_ok=True)
+    path = DOMAIN_LOCK_DIR / f'{domain_id}.lock'
+    try:
+        # Not truncated on open: the holder's pid and command line are in it.
+        descriptor = os.open(path, os.O_RDWR | os.O_CREAT, 0o666)
+    except OSError as error:
+        return None, f'{path} cannot be opened ({error.strerror})'
+    try:
+        fcntl.flock(descriptor, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except OSError:
+        holder = ''
+        with contextlib.suppress(OSError):
+            holder = os.pread(descriptor, 4096, 0).decode(errors='replace').strip()
+        os.close(descriptor)
+        pid, _, command = holder.partition(' ')
+        return None, (f'pid {pid} ({command})' if pid.isdigit() else f'the holder of {path}')
+    os.ftruncate(descriptor, 0)
+    os.pwrite(descriptor, f'{os.getpid()} {_command_line()}\n'.encode(), 0)
+    return descriptor, None
+
+
+def _release(descriptor):
+    os.ftruncate(descriptor, 0)
+    fcntl.flock(descriptor, fcntl.LOCK_UN)
+    os.close(descriptor)
+
+
+@contextlib.contextmanager
+def claimed_domain(requested, vet=None):
+    """Yield a ROS_DOMAIN_ID held exclusively until the block ends.
+
+    REQUESTED (an id, or None for the first free one in DOMAIN_IDS) is claimed or refused with
+    DomainRefusedError naming its holder. VET(domain_id), if given, returns None for a domain
+    fit to use, else the reason it is not: a requested domain is then refused, an automatic
+    choice moves on to the next id.
+    """
+    if requested is not None:
+        descriptor, holder = _lock(requested)
+        if descriptor is None:
+            raise DomainRefusedError(f'ROS_DOMAIN_ID {requested} is held by {holder}')
+        try:
+            reason = vet(requested) if vet is not None else None
+            if reason is not None:
+                raise DomainRefusedError(reason)
+            yield requested
+        finally:
+            _release(descriptor)
+        return
+    for domain_id in DOMAIN_IDS:
+        descriptor, _ = _lock(domain_id)
+        if descriptor is None:
+            continue
+        try:
+            if vet is not None and vet(domain_id) is not None:
+                continue
+            yield domain_id
+            return
+        finally:
+            _release(descriptor)
+    raise DomainRefusedError(
+        f'no free ROS_DOMAIN_ID in {DOMAIN_IDS.start}..{DOMAIN_IDS.stop - 1}: every one is held '
+        f'or used by other processes')
+
+
+def requested_domain(option, environment):
+    """Return (domain id or None, where it came from): --domain-id, else ROS_DOMAIN_ID.
+
+    Raise ValueError naming the source and the value when it is not an id in 0..232.
+    """
+    if option is not None:
+        domain_id, source = option, '--domain-id'
+    else:
+        text = environment.get('ROS_DOMAIN_ID', '').strip()
+        if not text:
+            return None, f'chosen: the first free one in {DOMAIN_IDS.start}..{DOMAIN_IDS.stop - 1}'
+        source = 'ROS_DOMAIN_ID in the environment'
+        try:
+            domain_id = int(text)
+        except ValueError:
+            raise ValueError(f'ROS_DOMAIN_ID: {text!r} is not an integer') from None
+    if domain_id not in VALID_DOMAIN_IDS:
+        name = '--domain-id' if source == '--domain-id' else 'ROS_DOMAIN_ID'
+        raise ValueError(f'{name}: {domain_id} is outside {VALID_DOMAIN_IDS.start}..'
+                         f'{VALID_DOMAIN_IDS.stop - 1}')
+    return domain_id, f'from {source}'

@@ -1,0 +1,207 @@
+"""The results of a run: metrics.json, trajectories.csv and trajectories.png, and the summaries.
+
+Results are written only by a run that started children, each file through a temporary file
+in the same folder, so that a folder never mixes files of two runs or holds a half-written one.
+"""
+
+import csv
+import json
+import math
+import os
+import pathlib
+import tempfile
+
+import numpy as np
+
+from prvo_sim import metrics
+
+RUN_RESULTS = ('trajectories.csv', 'trajectories.png', 'metrics.json')
+AGGREGATED_KEYS = ('success_rate', 'collisions', 'min_separation', 'makespan',
+                   'mean_time_to_goal', 'planner_ms.median', 'planner_ms.p95', 'planner_ms.max',
+                   'deadline_misses', 'sim_time', 'wall_time')
+
+
+def write_outputs(spec, recorder, failure, wall_time):
+    """Write metrics.json, trajectories.csv and trajectories.png; return the metrics."""
+    scenario = spec.scenario
+    names = [robot.name for robot in scenario.robots]
+    if recorder is not None and all(recorder.ground_truth[name] for name in names):
+        times, states, commands = recorder.arrays()
+    else:
+        times, states, commands = np.zeros(0), np.zeros((0, len(names), 4)), np.zeros(
+            (0, len(names), 2))
+    radii = np.array([robot.radius for robot in scenario.robots], dtype=float)
+    goals = np.array([robot.goal for robot in scenario.robots], dtype=float)
+    run_metrics = {'scenario': scenario.name, 'method': spec.method, 'eta': spec.eta,
+                   'seed': spec.seed, 'mode': spec.mode}
+    if times.size:
+        measured = metrics.run_metrics(times, states[..., :2], radii, goals,
+                                       scenario.goal_tolerance, names)
+        contacts = metrics.contact_events(times, states[..., :2], radii)
+    else:
+        measured = {'robots': {name: {'arrived': False, 'time_to_goal': None,
+                                      'path_length': None} for name in names},
+                    'success_rate': 0.0, 'collisions': 0, 'min_separation': None,
+                    'makespan': None, 'mean_time_to_goal': None, 'sim_time': 0.0}
+        contacts = []
+    sim_status = recorder.sim_status if recorder is not None else {}
+    deadline_misses = sim_status.get('deadline_misses')
+    run_metrics.update({
+        'robots': measured['robots'],
+        'success_rate': measured['success_rate'],
+        'collisions': measured['collisions'],
+        'min_separation': measured['min_separation'],
+        'makespan': measured['makespan'],
+        'mean_time_to_goal': measured['mean_time_to_goal'],
+        'planner_ms': metrics.distribution_summary(
+            recorder.plan_times_ms if recorder is not None else []),
+        'deadline_misses': int(deadline_misses) if deadline_misses is not None else None,
+        'sim_time': measured['sim_time'],
+        'wall_time': round(wall_time, 3),
+    })
+    if failure is not None:
+        run_metrics['failure'] = failure
+    run_metrics = finite_or_none(run_metrics)
+    files = {'trajectories.csv': lambda path: write_trajectories_csv(
+        path, times, names, states, commands)}
+    if times.size:
+        from prvo_sim.plotting import plot_run
+
+        files['trajectories.png'] = lambda path: plot_run(
+            path, times, states[..., :2],
+            np.array([robot.start for robot in scenario.robots], dtype=float), goals, radii,
+            names, contacts, plot_title(run_metrics))
+    # Last: metrics.json says which run the folder holds.
+    files['metrics.json'] = lambda path: write_json(path, run_metrics)
+    replace_results(spec.out_dir, files, RUN_RESULTS)
+    return run_metrics
+
+
+def finite_or_none(value):
+    """Return VALUE (nested dicts and lists) with every non-finite number replaced by None."""
+    if isinstance(value, dict):
+        return {key: finite_or_none(item) for key, item in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [finite_or_none(item) for item in value]
+    if isinstance(value, (float, np.floating)):
+        return float(value) if math.isfinite(value) else None
+    return value
+
+
+def write_json(path, document):
+    """Write DOCUMENT to PATH as strict JSON (non-finite numbers as null)."""
+    with open(path, 'w') as json_file:
+        json.dump(finite_or_none(document), json_file, indent=2, allow_nan=False)
+        json_file.write('\n')
+
+
+def replace_results(folder, files, result_names=()):
+    """Write FILES ({name: write(path)}) into FOLDER, each through a temporary file.
+
+    Every file is written in full before the first replaces its old version (os.replace), so
+    the folder never holds a half-written file; a file of RESULT_NAMES that is not in FILES is
+    removed, so that no result of an earlier run stays beside the new ones.
+    """
+    temporaries = {}
+    try:
+        for name, write in files.items():
+            descriptor, temporary = tempfile.mkstemp(dir=folder, prefix='.', suffix=f'-{name}')
+            os.close(descriptor)
+            temporaries[name] = temporary
+            write(pathlib.Path(temporary))
+        for name in result_names:
+            if name not in files:
+                (pathlib.Path(folder) / name).unlink(missing_ok=True)
+        for name, temporary in temporaries.items():
+            os.replace(temporary, pathlib.Path(folder) / name)
+    finally:
+        for temporary in temporaries.values():
+            pathlib.Path(temporary).unlink(missing_ok=True)
+
+
+def write_trajectories_csv(path, times, names, states, commands):
+    """Write one row per time and robot: ground truth x, y, vx, vy and the command answering it."""
+    with open(path, 'w', newline='') as csv_file:
+        writer = csv.writer(csv_file)
+        writer.writerow(['time', 'robot', 'x', 'y', 'vx', 'vy', 'cmd_vx', 'cmd_vy'])
+        for step, time_s in enumerate(times):
+            for robot, name in enumerate(names):
+                command = ['' if math.isnan(value) else f'{value:.6g}'
+                           for value in commands[step, robot]]
+                writer.writerow([f'{time_s:.6g}', name,
+                                 *(f'{value:.6g}' for value in states[step, robot]), *command])
+
+
+def outcome(run_metrics):
+    """Return a short description of how a run ended."""
+    if 'failure' in run_metrics:
+        return 'FAILED: ' + run_metrics['failure']
+    robots = run_metrics['robots']
+    arrived = sum(robot['arrived'] for robot in robots.values())
+    collisions = run_metrics['collisions']
+    contact_text = 'no contact' if collisions == 0 else f'{collisions} contact(s)'
+    return f'{arrived}/{len(robots)} arrived, {contact_text}'
+
+
+def plot_title(run_metrics):
+    """Return the figure title: scenario, method, eta, seed and outcome."""
+    return (f"{run_metrics['scenario']}: method {run_metrics['method']}, eta "
+            f"{format_eta(run_metrics['eta'])}, seed {run_metrics['seed']}\n"
+            f'{outcome(run_metrics)}')
+
+
+def format_eta(eta):
+    """Return the run's eta for people: one number, or one per robot."""
+    if eta is None:
+        return 'n/a'
+    if isinstance(eta, list):
+        return '/'.join(f'{value:g}' for value in eta)
+    return f'{eta:g}'
+
+
+def _format(value, unit='', digits=2):
+    return 'n/a' if value is None else f'{value:.{digits}f}{unit}'
+
+
+def print_summary(run_metrics, out_dir):
+    """Print one run's results on one screen."""
+    print(f"{run_metrics['scenario']} | method {run_metrics['method']}, eta "
+          f"{format_eta(run_metrics['eta'])} | seed {run_metrics['seed']} | {run_metrics['mode']}")
+    print(f"  {'robot':<12} {'arrived':<8} {'time to goal':>12} {'path length':>12}")
+    for name, robot in run_metrics['robots'].items():
+        print(f"  {name:<12} {'yes' if robot['arrived'] else 'no':<8} "
+              f"{_format(robot['time_to_goal'], ' s', 1):>12} "
+              f"{_format(robot['path_length'], ' m'):>12}")
+    planner_ms = run_metrics['planner_ms']
+    print(f"  outcome: {outcome(run_metrics)}; success rate {run_metrics['success_rate']:.2f}, "
+          f"min separation {_format(run_metrics['min_separation'], ' m')}, "
+          f"makespan {_format(run_metrics['makespan'], ' s', 1)}")
+    print(f"  planner ms median/p95/max {_format(planner_ms['median'])}/"
+          f"{_format(planner_ms['p95'])}/{_format(planner_ms['max'])}; deadline misses "
+          f"{run_metrics['deadline_misses']}; sim {_format(run_metrics['sim_time'], '', 1)} s "
+          f"in {_format(run_metrics['wall_time'], '', 1)} s wall")
+    written = ', '.join(name for name in RUN_RESULTS if (out_dir / name).exists())
+    print(f'  results: {out_dir}/ {written} (child logs in {out_dir}/logs)')
+
+
+def write_summary(out_dir, runs):
+    """Write and print the aggregate summary.json of a multi-seed run; return its dict."""
+    first = runs[0][0]
+    summary = {
+        'scenario': first['scenario'], 'method': first['method'], 'eta': first['eta'],
+        'mode': first['mode'], 'seeds': [run_metrics['seed'] for run_metrics, _ in runs],
+        'runs': [{'seed': run_metrics['seed'], 'dir': str(run_dir),
+                  'outcome': outcome(run_metrics)} for run_metrics, run_dir in runs],
+        'failed_runs': sum('failure' in run_metrics for run_metrics, _ in runs),
+        'metrics': metrics.aggregate([run_metrics for run_metrics, _ in runs], AGGREGATED_KEYS),
+    }
+    replace_results(out_dir, {'summary.json': lambda path: write_json(path, summary)})
+    print(f"{summary['scenario']} | method {summary['method']}, eta "
+          f"{format_eta(summary['eta'])} | {len(runs)} seeds, {summary['failed_runs']} failed")
+    print(f"  {'metric':<20} {'mean':>9} {'std':>9} {'min':>9} {'max':>9} {'n':>4}")
+    for key, stats in summary['metrics'].items():
+        print(f"  {key:<20} {_format(stats['mean'], '', 3):>9} {_format(stats['std'], '', 3):>9}"
+              f" {_format(stats['min'], '', 3):>9} {_format(stats['max'], '', 3):>9}"
+              f" {stats['n']:>4}")
+    print(f'  results: {out_dir}/summary.json and seed_<n>/ folders')
+    return summary

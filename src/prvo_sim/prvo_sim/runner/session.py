@@ -1,0 +1,353 @@
+"""One run: the planners, then the simulator once the recorder hears every planner, recorded.
+
+The order makes a run complete from t_0 however fast the team is: the recorder matches every
+planner's cmd_vel and diagnostics publisher before the simulator starts, and the simulator is
+told to wait (its `observers` parameter) until the recorder is subscribed to every robot's
+ground truth and to /diagnostics before it takes its first step.
+"""
+
+import math
+import os
+import pathlib
+import shlex
+import sys
+import time
+import types
+
+import numpy as np
+
+from prvo_sim.runner.outputs import write_outputs
+from prvo_sim.runner.processes import (
+    Children,
+    RunInterruptedError,
+    child_environment,
+    package_command,
+    signals_ignored,
+)
+
+METHODS = ('prvo', 'rvo', 'inflate', 'prvo-no-ego')
+# The planner's `model` parameter for each method; prvo-no-ego is PRVO planned with S_a = 0.
+MODEL_OF_METHOD = {'prvo': 'prvo', 'rvo': 'rvo', 'inflate': 'inflate', 'prvo-no-ego': 'prvo'}
+MODES = ('lockstep', 'realtime')
+DEFAULT_ETA = 0.8
+SIM_NODE = 'prvo_sim'
+PLANNER_NODE = 'planner'
+# Set once a recorder's DDS teardown hung in this process (see Recorder.close).
+DDS_HANG = types.SimpleNamespace(noticed=False)
+STEP_TIMEOUT = 2.0  # wall seconds the sim waits for a late planner before reusing its command
+STARTUP_LIMIT = 60.0  # wall seconds for each start-up stage before the run counts as failed
+SETTLE_TIME = 1.0  # sim seconds every robot must stay at its goal before the run ends
+PROGRESS_PERIOD = 0.5
+RECORDING_GRACE = 2.0  # wall seconds for messages in flight when a run ends to arrive
+GRAPH_CHECK_PERIOD = 1.0  # wall seconds between looks for intruders during a run
+# Planner waits in lockstep [s]: for same-stamp odometry (under the sim's step_timeout), and
+# for every listed neighbour's first message.
+LOCKSTEP_SYNC = {'sync_timeout': '1.0', 'neighbor_timeout': '5.0'}
+DOMAIN_CHECK_TIME = 2.0  # wall seconds of listening for strangers on the domain before a run
+# Parameters the runner sets itself; a scenario's planner block cannot override them.
+RUNNER_PARAMETERS = ('use_sim_time', 'goal', 'radius', 'max_speed', 'actuation_std',
+                     'goal_tolerance', 'model', 'eta')
+
+
+def run_topics(robot_names):
+    """Return every topic a run of ROBOT_NAMES uses."""
+    from prvo_msgs_util import (
+        CLOCK,
+        CMD_VEL,
+        CONTACTS,
+        DIAGNOSTICS,
+        GOAL_POSE,
+        GROUND_TRUTH,
+        MARKERS,
+        ODOM,
+        robot_topic,
+    )
+
+    return [CLOCK, DIAGNOSTICS, CONTACTS, *(robot_topic(name, leaf) for name in robot_names
+                                           for leaf in (ODOM, GROUND_TRUTH, CMD_VEL, GOAL_POSE,
+                                                        MARKERS))]
+
+
+def ros_parameter(value):
+    """Format VALUE for `-p name:=value` so that ROS parses it with the same type."""
+    if isinstance(value, bool):
+        return 'true' if value else 'false'
+    if isinstance(value, (int, np.integer)):
+        return str(int(value))
+    if isinstance(value, (float, np.floating)):
+        return repr(float(value))
+    if isinstance(value, (list, tuple, np.ndarray)):
+        return '[' + ', '.join(ros_parameter(item) for item in value) + ']'
+    return str(value)
+
+
+def robot_eta(robot):
+    """Return the eta of ROBOT's own planner block, else the default."""
+    return float(robot.planner.get('eta', DEFAULT_ETA))
+
+
+def planner_parameters(robot, scenario, method, eta, mode='lockstep'):
+    """Return the planner parameters of ROBOT, in order, as a dict of ROS-formatted values.
+
+    ETA, if not None, is every planner's; None gives each robot the eta of its planner block.
+    """
+    parameters = {
+        'use_sim_time': 'true',
+        'goal': ros_parameter([float(value) for value in robot.goal]),
+        'radius': ros_parameter(float(robot.radius)),
+        'max_speed': ros_parameter(float(robot.max_speed)),
+        # The robot's known execution error; the ablation plans as if there were none.
+        'actuation_std': ros_parameter(
+            0.0 if method == 'prvo-no-ego' else float(robot.noise.actuation_std)),
+        # Half the scenario's: when the planner's estimate says it arrived, the ground truth is
+        # inside the scenario's tolerance.
+        'goal_tolerance': ros_parameter(scenario.goal_tolerance / 2.0),
+        'model': MODEL_OF_METHOD[method],
+        'eta': ros_parameter(float(eta) if eta is not None else robot_eta(robot)),
+        # Named rather than discovered: each planner waits for all of them from t_0, so a seed
+        # reproduces its run.
+        'neighbors': ros_parameter(
+            [other.name for other in scenario.robots if other.name != robot.name]),
+    }
+    if mode == 'lockstep':
+        # The simulator waits for every answer, so a planner can wait for every neighbour's
+        # odometry of the same stamp however loaded the machine: that makes runs reproducible.
+        parameters.update(LOCKSTEP_SYNC)
+    for key, value in robot.planner.items():
+        if key not in RUNNER_PARAMETERS:
+            parameters[key] = ros_parameter(value)
+    return parameters
+
+
+def run_eta(options, scenario):
+    """Return the eta of the run: --eta, else the robots' common eta, else the list of them."""
+    if options.eta is not None:
+        return options.eta
+    etas = [robot_eta(robot) for robot in scenario.robots]
+    return etas[0] if len(set(etas)) == 1 else etas
+
+
+class RunSpec:
+    """Everything one run needs: the scenario and the resolved options.
+
+    ETA is the run's eta as reported (see run_eta): a number is given to every planner, a list
+    (or None) leaves each robot the eta of its planner block.
+    """
+
+    def __init__(self, options, scenario, eta, seed, out_dir):
+        self.scenario = scenario
+        self.method = options.method
+        self.mode = options.mode
+        self.eta = eta
+        self.planner_eta = eta if isinstance(eta, (int, float)) else None
+        self.seed = seed
+        self.out_dir = pathlib.Path(out_dir)
+        self.timeout = options.timeout or 10.0 * scenario.duration + 60.0
+        self.quiet = options.quiet
+        self.sim_command = (shlex.split(options.sim_command) if options.sim_command
+                            else package_command('prvo_sim', 'sim', 'prvo_sim.sim_node'))
+        self.planner_command = (
+            shlex.split(options.planner_command) if options.planner_command
+            else package_command('prvo_planner', 'planner', 'prvo_planner.planner_node'))
+
+    def own_nodes(self):
+        """Return the fully qualified names of the nodes the run's children create."""
+        return {f'/{SIM_NODE}', *(f'/{robot.name}/{PLANNER_NODE}'
+                                   for robot in self.scenario.robots)}
+
+
+def start_planners(children, spec):
+    """Start one planner per robot."""
+    scenario = spec.scenario
+    for robot in scenario.robots:
+        argv = [*spec.planner_command, '--ros-args', '-r', f'__ns:=/{robot.name}',
+                '-r', f'__node:={PLANNER_NODE}']
+        parameters = planner_parameters(robot, scenario, spec.method, spec.planner_eta,
+                                        spec.mode)
+        for key, value in parameters.items():
+            argv += ['-p', f'{key}:={value}']
+        children.start(f'planner_{robot.name}', argv)
+
+
+def start_sim(children, spec, observer):
+    """Start the simulator, which takes no step until node OBSERVER listens to it."""
+    sim_parameters = {'scenario': str(pathlib.Path(spec.scenario.path).resolve()),
+                      'mode': spec.mode, 'seed': str(int(spec.seed)),
+                      'step_timeout': repr(STEP_TIMEOUT), 'observers': f"['{observer}']"}
+    argv = [*spec.sim_command, '--ros-args', '-r', f'__node:={SIM_NODE}']
+    for key, value in sim_parameters.items():
+        argv += ['-p', f'{key}:={value}']
+    children.start('sim', argv)
+
+
+class _Watch:
+    """What every waiting loop of a run checks: children alive, no intruder, wall-clock limit."""
+
+    def __init__(self, recorder, children, spec):
+        self._recorder = recorder
+        self._children = children
+        self._own_nodes = spec.own_nodes()
+        self._timeout = spec.timeout
+        self._started = time.monotonic()
+        self._next_graph_check = self._started
+
+    def failure(self):
+        """Return a one-line failure, or None while the run may go on."""
+        now = time.monotonic()
+        exited = self._children.first_exited()
+        if exited is not None:
+            return (f'{exited.label} exited with code {exited.returncode} '
+                    f'(log: {exited.log_path})')
+        if now - self._started > self._timeout:
+            return f'timed out after {self._timeout:g} s of wall time'
+        if now >= self._next_graph_check:
+            self._next_graph_check = now + GRAPH_CHECK_PERIOD
+            return self._recorder.intruders(self._own_nodes)
+        return None
+
+
+def wait_for_planners(recorder, watch):
+    """Spin until the recorder has matched every planner's publishers; return None, or why not."""
+    started = time.monotonic()
+    while True:
+        recorder.spin_for(0.05)
+        failure = watch.failure()
+        if failure is not None:
+            return failure
+        unheard = recorder.unheard_planners()
+        if not unheard:
+            return None
+        if time.monotonic() - started > STARTUP_LIMIT:
+            return (f'no cmd_vel and diagnostics publishers of {", ".join(unheard)} matched '
+                    f'within {STARTUP_LIMIT:g} s of starting the planners')
+
+
+def wait_for_end(recorder, watch, spec, progress):
+    """Record until the run ends; return None if it completed, else a one-line failure."""
+    scenario = spec.scenario
+    goals = np.array([robot.goal for robot in scenario.robots], dtype=float)
+    started = time.monotonic()
+    settled_since = None
+    next_progress = started
+    while True:
+        recorder.spin_for(0.05)
+        now = time.monotonic()
+        failure = watch.failure()
+        if failure is not None:
+            return failure
+        latest = recorder.latest()
+        if len(latest) < len(scenario.robots):
+            if recorder.sim_status.get('finished') == 'true':
+                return ('the simulator finished before the recorder received ground truth of '
+                        'every robot')
+            if now - started > STARTUP_LIMIT:
+                return f'no ground truth from every robot within {STARTUP_LIMIT:g} s'
+            continue
+        sim_time = min(stamp for stamp, _ in latest.values()) * 1e-9
+        positions = np.array([latest[robot.name][1] for robot in scenario.robots])
+        arrived = np.linalg.norm(positions - goals, axis=1) <= scenario.goal_tolerance
+        if now >= next_progress:
+            progress(sim_time, int(arrived.sum()), now - started)
+            next_progress = now + PROGRESS_PERIOD
+        if arrived.all():
+            settled_since = sim_time if settled_since is None else settled_since
+            if sim_time - settled_since >= SETTLE_TIME:
+                return None
+        else:
+            settled_since = None
+        if recorder.sim_status.get('finished') == 'true':
+            return None
+
+
+def run_once(spec, domain_id, monitor=None):
+    """Run SPEC once on DOMAIN_ID; write its outputs; return (metrics dict, interrupting signal).
+
+    The caller holds DOMAIN_ID (and has checked it for strangers). The metrics carry a
+    'failure' key when the run failed. The children are stopped whatever happens, including
+    SIGINT/SIGTERM/SIGHUP (returned as the interrupting signal, else None). MONITOR, if given,
+    watches the run from inside (the team benchmark measures the children with it):
+    monitor.started(children, recorder) is called once every child has been started,
+    monitor.ending(children, recorder) once the run has ended, just before the children are
+    stopped (not when the run was interrupted).
+    """
+    from prvo_sim.runner.recorder import Recorder
+
+    scenario = spec.scenario
+    log_dir = spec.out_dir / 'logs'
+    os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
+    children = Children(child_environment(domain_id), log_dir)
+    recorder = None
+    failure = None
+    interrupted = None
+    progress = ProgressLine(spec, quiet=spec.quiet)
+    started = time.monotonic()
+    try:
+        recorder = Recorder(domain_id, [robot.name for robot in scenario.robots])
+        # The first file of the run: a run that never got here leaves the folder alone.
+        log_dir.mkdir(parents=True, exist_ok=True)
+        watch = _Watch(recorder, children, spec)
+        start_planners(children, spec)
+        failure = wait_for_planners(recorder, watch)
+        if failure is None:
+            start_sim(children, spec, recorder.name)
+            if monitor is not None:
+                monitor.started(children, recorder)
+            failure = wait_for_end(recorder, watch, spec, progress)
+        if failure is None:
+            failure = recorder.recording_gaps(scenario.dt, spec.mode == 'lockstep',
+                                              RECORDING_GRACE)
+        if monitor is not None:
+            monitor.ending(children, recorder)
+    except RunInterruptedError as interruption:
+        interrupted = interruption.signum
+        failure = f'interrupted by {interruption}'
+    finally:
+        with signals_ignored():
+            try:
+                children.stop()
+                if recorder is not None and not recorder.close():
+                    DDS_HANG.noticed = True
+                    print('run_scenario: warning: the DDS layer hung while closing the recorder '
+                          '(a known Fast DDS deadlock); the results are still written, and the '
+                          'runner exits without DDS cleanup', file=sys.stderr)
+            finally:
+                progress.finish()
+    if not children.processes:
+        # Interrupted before anything started: nothing to report, nothing written.
+        raise RunInterruptedError(interrupted)
+    wall_time = time.monotonic() - started
+    run_metrics = write_outputs(spec, recorder, failure, wall_time)
+    return run_metrics, interrupted
+
+
+class ProgressLine:
+    """A one-line progress report on stderr, rewritten in place on a terminal."""
+
+    def __init__(self, spec, quiet):
+        self._spec = spec
+        self._quiet = quiet
+        self._tty = sys.stderr.isatty()
+        self._last_printed = -math.inf
+        self._written = False
+
+    def __call__(self, sim_time, arrived, wall_time):
+        """Report SIM_TIME, the number of ARRIVED robots and WALL_TIME."""
+        if self._quiet:
+            return
+        scenario = self._spec.scenario
+        line = (f'{scenario.name} seed {self._spec.seed}: sim {sim_time:5.1f}/'
+                f'{scenario.duration:g} s, arrived {arrived}/{len(scenario.robots)}, '
+                f'wall {wall_time:5.1f} s')
+        if self._tty:
+            sys.stderr.write('\r' + line + '   ')
+            sys.stderr.flush()
+            self._written = True
+        elif wall_time - self._last_printed >= 5.0:
+            print(line, file=sys.stderr, flush=True)
+            self._last_printed = wall_time
+
+    def finish(self):
+        """End the rewritten line."""
+        if self._written:
+            sys.stderr.write('\n')
+            sys.stderr.flush()
