@@ -266,7 +266,7 @@ def test_per_robot_planner_block_is_merged_typed_and_complete(tmp_path):
 
 
 def test_every_parameter_the_runner_sets_except_eta_is_refused_in_a_planner_block(tmp_path):
-    from prvo_sim.run_scenario import RUNNER_PARAMETERS
+    from prvo_sim.runner.session import RUNNER_PARAMETERS
 
     for name in set(RUNNER_PARAMETERS) - {'eta'}:
         path = write(tmp_path, VALID.replace('{eta: 0.95}', f'{{{name}: 1.0}}'))
