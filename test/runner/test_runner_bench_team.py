@@ -129,7 +129,7 @@ def test_monitor_counts_new_steps_and_this_process_cpu():
     # At least the 0.2 s burnt over the 4 steps, give or take those two ticks.
     assert ms_per_step >= (200.0 - 20.0) / 4
     assert rss_mib * 1024 == pytest.approx(bench_team.peak_rss_kib(os.getpid()), abs=1024)
-    assert monitor.sim_status['deadline_misses'] == '2'
+    assert monitor.sim_status.deadline_misses == 2 and monitor.sim_status.step == 5
 
 
 def test_miss_rate_is_per_robot_step():

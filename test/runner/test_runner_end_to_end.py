@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 from runner_testing import HEADON, output, processes_with_token, start_runner, wait_for
 
-SCHEMA_KEYS = {'scenario', 'method', 'eta', 'seed', 'mode', 'robots', 'success_rate',
+SCHEMA_KEYS = {'scenario', 'method', 'eta', 'seed', 'mode', 'engine', 'ending', 'robots',
+               'success_rate',
                'collisions', 'min_separation', 'makespan', 'mean_time_to_goal', 'planner_ms',
                'deadline_misses', 'sim_time', 'wall_time'}
 

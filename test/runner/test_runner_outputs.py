@@ -1,11 +1,13 @@
 """Results: written only by a run that started children, atomically, as strict JSON."""
 
+import dataclasses
 import json
 import math
 
 from runner_testing import FAKE_CHILD, HEADON, runner_domain, start_runner
 
 from prvo_sim import run_scenario
+from prvo_sim.runner.outputs import Ending, Recording
 from prvo_sim.scenario import load_scenario
 
 FAKE_TEAM = ['--sim-command', f'{FAKE_CHILD} run', '--planner-command', f'{FAKE_CHILD} planner']
@@ -49,19 +51,13 @@ def test_failed_run_leaves_no_stale_plot_beside_its_metrics(tmp_path, runners):
         'logs', 'metrics.json', 'trajectories.csv']
 
 
-class _NoRecorder:
-    """Stands for a recorder that heard no ground truth but odd plan times."""
-
-    ground_truth = {'robot_0': {}, 'robot_1': {}}
-    sim_status = {}
-    plan_times_ms = [1.0, math.inf]
-
-
 def test_metrics_json_is_strict_json(tmp_path):
     scenario = load_scenario(HEADON)
     options = run_scenario.build_parser().parse_args([HEADON])
     spec = run_scenario.RunSpec(options, scenario, None, scenario.seed, tmp_path)
-    run_scenario.write_outputs(spec, _NoRecorder(), 'a failure', wall_time=math.nan)
+    # No step recorded, but odd plan times.
+    recording = dataclasses.replace(Recording.empty(2), plan_times_ms=(1.0, math.inf))
+    run_scenario.write_outputs(spec, recording, Ending.FAILED, 'a failure', wall_time=math.nan)
 
     def refuse(constant):
         raise AssertionError(f'{constant} in metrics.json')
@@ -69,7 +65,7 @@ def test_metrics_json_is_strict_json(tmp_path):
     recorded = json.loads((tmp_path / 'metrics.json').read_text(), parse_constant=refuse)
     assert recorded['planner_ms']['max'] is None
     assert recorded['wall_time'] is None
-    assert recorded['failure'] == 'a failure'
+    assert recorded['failure'] == 'a failure' and recorded['ending'] == 'failed'
 
 
 def test_eta_is_per_robot_unless_given(tmp_path):

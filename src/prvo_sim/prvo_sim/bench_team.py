@@ -140,7 +140,7 @@ class TeamMonitor:
 
     def __init__(self):
         self.pids = {}
-        self.sim_status = {}
+        self.sim_status = None  # world_messages.SimStatus
         self.first_step = None  # (wall time, step, {label: CPU seconds})
         self.last_step = None  # (wall time, step)
         self.ended = None  # (wall time, {label: CPU seconds}, {label: peak RSS KiB})
@@ -156,14 +156,15 @@ class TeamMonitor:
                                           DIAGNOSTICS_QOS)
 
     def _on_diagnostics(self, msg):
-        from prvo_msgs_util import diagnostic_values
+        from prvo_sim.world_messages import sim_status_of
 
         now = time.monotonic()
         for status in msg.status:
-            if status.name != 'prvo_sim':
+            sim_status = sim_status_of(status)
+            if sim_status is None:
                 continue
-            self.sim_status = diagnostic_values(status)
-            step = int(self.sim_status['step'])
+            self.sim_status = sim_status
+            step = sim_status.step
             # Before and after stepping the simulator repeats its status: only new steps count.
             if step == 0 or (self.last_step is not None and step == self.last_step[1]):
                 continue
@@ -219,13 +220,13 @@ def run_options(mode):
 
 
 def run_measured(scenario, mode, out_dir, domain_id):
-    """Run SCENARIO once in MODE; return (run metrics, monitor, wall s to the end, signal)."""
+    """Run SCENARIO once in MODE; return (RunResult, monitor, wall s to the end)."""
     spec = run_scenario.RunSpec(run_options(mode), scenario, ETA, scenario.seed, out_dir)
     monitor = TeamMonitor()
     started_at = time.monotonic()
-    run_metrics, interrupted = run_scenario.run_once(spec, domain_id, monitor)
+    result = run_scenario.run_once(spec, domain_id, monitor)
     wall_time = monitor.ended[0] - started_at if monitor.ended is not None else None
-    return run_metrics, monitor, wall_time, interrupted
+    return result, monitor, wall_time
 
 
 def _mean(values):
@@ -246,8 +247,9 @@ def _rounded(value, digits):
     return round(value, digits) if value is not None else None
 
 
-def lockstep_result(scenario, run_metrics, monitor, wall_time):
-    """Return the lockstep fields of a result row."""
+def lockstep_result(scenario, run, monitor, wall_time):
+    """Return the lockstep fields of a result row of RUN (a RunResult)."""
+    run_metrics = run.metrics
     planner_labels = [f'planner_{robot.name}' for robot in scenario.robots]
     planners = [monitor.process_use(label) for label in planner_labels]
     sim_cpu, sim_ms_per_step, sim_rss = monitor.process_use('sim')
@@ -270,8 +272,8 @@ def lockstep_result(scenario, run_metrics, monitor, wall_time):
         'sim_cpu_ms_per_step': _rounded(sim_ms_per_step, 2),
         'sim_rss_mib': _rounded(sim_rss, 1),
     }
-    if 'failure' in run_metrics:
-        result['lockstep_failure'] = run_metrics['failure']
+    if not run.ending.completed:
+        result['lockstep_failure'] = run.failure
     return result
 
 
@@ -282,10 +284,11 @@ def deadline_miss_rate(deadline_misses, steps, team_size):
     return deadline_misses / (steps * team_size)
 
 
-def realtime_result(scenario, run_metrics, monitor):
-    """Return the realtime fields of a result row."""
-    steps = int(monitor.sim_status.get('step', 0))
-    misses = int(monitor.sim_status.get('deadline_misses', 0))
+def realtime_result(scenario, run, monitor):
+    """Return the realtime fields of a result row of RUN (a RunResult)."""
+    run_metrics = run.metrics
+    steps = monitor.sim_status.step if monitor.sim_status is not None else 0
+    misses = monitor.sim_status.deadline_misses if monitor.sim_status is not None else 0
     planner_cpu = [monitor.process_use(f'planner_{robot.name}')[0] for robot in scenario.robots]
     rate = deadline_miss_rate(misses, steps, len(scenario.robots))
     result = {
@@ -296,8 +299,8 @@ def realtime_result(scenario, run_metrics, monitor):
         'realtime_collisions': run_metrics['collisions'],
         'realtime_planner_cpu_pct_mean': _rounded(_percent(_mean(planner_cpu)), 1),
     }
-    if 'failure' in run_metrics:
-        result['realtime_failure'] = run_metrics['failure']
+    if not run.ending.completed:
+        result['realtime_failure'] = run.failure
     return result
 
 
@@ -346,23 +349,21 @@ def bench_team_size(team_size, options, domain_id):
     document = circle_document(team_size)
     scenario = write_scenario(document, folder / f'{document["name"]}.yaml')
     result = {'robots': team_size, 'circle_radius_m': circle_radius(team_size)}
-    run_metrics, monitor, wall_time, interrupted = run_measured(
-        scenario, 'lockstep', folder / 'lockstep', domain_id)
-    print(f'{team_size} robots, lockstep: {run_scenario.outcome(run_metrics)}', flush=True)
-    result.update(lockstep_result(scenario, run_metrics, monitor, wall_time))
-    if interrupted is not None:
-        return result, interrupted
+    run, monitor, wall_time = run_measured(scenario, 'lockstep', folder / 'lockstep', domain_id)
+    print(f'{team_size} robots, lockstep: {run_scenario.outcome(run.metrics)}', flush=True)
+    result.update(lockstep_result(scenario, run, monitor, wall_time))
+    if run.interrupted is not None:
+        return result, run.interrupted
     # Ends after the realtime seconds at 10 Hz, unless every robot arrived before.
     realtime_document = circle_document(
         team_size, duration=min(document['duration'], options.realtime_seconds))
     realtime_scenario = write_scenario(
         realtime_document, folder / f'{document["name"]}_realtime.yaml')
-    run_metrics, monitor, _, interrupted = run_measured(
-        realtime_scenario, 'realtime', folder / 'realtime', domain_id)
+    run, monitor, _ = run_measured(realtime_scenario, 'realtime', folder / 'realtime', domain_id)
     print(f'{team_size} robots, realtime {REALTIME_RATE:g} Hz: '
-          f'{run_scenario.outcome(run_metrics)}', flush=True)
-    result.update(realtime_result(realtime_scenario, run_metrics, monitor))
-    return result, interrupted
+          f'{run_scenario.outcome(run.metrics)}', flush=True)
+    result.update(realtime_result(realtime_scenario, run, monitor))
+    return result, run.interrupted
 
 
 def build_parser():

@@ -1,9 +1,16 @@
 """The simulator's messages built from a TeamWorld: odometry, ground truth, diagnostics."""
 
+from dataclasses import dataclass
+
 from diagnostic_msgs.msg import DiagnosticStatus
 import numpy as np
 
-from prvo_msgs_util import make_diagnostic_array, make_diagnostic_status, serialize_odometry
+from prvo_msgs_util import (
+    diagnostic_values,
+    make_diagnostic_array,
+    make_diagnostic_status,
+    serialize_odometry,
+)
 from prvo_sim.commands import WORLD_FRAME
 
 
@@ -47,6 +54,26 @@ def status_array(world, message, mode, deadline_misses):
              'x': float(world.positions[index, 0]), 'y': float(world.positions[index, 1])},
             level=DiagnosticStatus.WARN if deadline_misses[index] else DiagnosticStatus.OK))
     return make_diagnostic_array(world.time, statuses)
+
+
+@dataclass(frozen=True)
+class SimStatus:
+    """The simulator's `prvo_sim` status as a reader needs it (see `status_array`)."""
+
+    step: int
+    finished: bool
+    deadline_misses: int
+    contacts: int
+
+
+def sim_status_of(status):
+    """Return the SimStatus of a DiagnosticStatus named `prvo_sim`, None for any other."""
+    if status.name != 'prvo_sim':
+        return None
+    values = diagnostic_values(status)
+    return SimStatus(step=int(values['step']), finished=values['finished'] == 'true',
+                     deadline_misses=int(values['deadline_misses']),
+                     contacts=int(values['contacts']))
 
 
 def contact_array(world, contact):

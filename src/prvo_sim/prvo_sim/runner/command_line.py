@@ -1,6 +1,7 @@
 """The runner's command line: options, the domain claim, every seed's run and the exit code.
 
     run_scenario SCENARIO.yaml [--out DIR] [--method M] [--eta ETA] [--seed S] [--seeds N]
+                 [--engine ros|inprocess]
 
 Exit codes: 0 the run completed (collisions are a result, not an error), 1 a child failed, the
 run timed out or processes it did not start interfered, 2 refused (bad input, a domain held by
@@ -22,9 +23,17 @@ from prvo_sim.runner.domain import (
     claimed_domain,
     requested_domain,
 )
-from prvo_sim.runner.outputs import print_summary, write_summary
+from prvo_sim.runner.outputs import Ending, print_summary, write_summary
 from prvo_sim.runner.processes import INTERRUPT_SIGNALS, INTERRUPTS, RunInterruptedError
-from prvo_sim.runner.session import DDS_HANG, METHODS, MODES, RunSpec, run_eta, run_once
+from prvo_sim.runner.session import (
+    DDS_HANG,
+    ENGINES,
+    METHODS,
+    MODES,
+    RunSpec,
+    run_eta,
+    run_once,
+)
 
 PROGRAM = 'run_scenario'
 
@@ -59,6 +68,10 @@ def build_parser():
                         help='repeat over N consecutive seeds from --seed and aggregate')
     parser.add_argument('--mode', choices=MODES, default='lockstep',
                         help='simulator stepping (default: lockstep)')
+    parser.add_argument('--engine', choices=ENGINES, default='ros',
+                        help='ros: a simulator and a planner per robot, as processes on a ROS '
+                        'domain; inprocess: the same world and planners in this process, no '
+                        'DDS (lockstep only; the same trajectories) (default: ros)')
     parser.add_argument('--timeout', type=float, default=None,
                         help='wall-clock limit per run [s] (default: 10 x duration + 60)')
     parser.add_argument('--domain-id', type=int, default=None,
@@ -93,6 +106,14 @@ def parse_arguments(argv, environment=None):
         raise UsageError(f'--seeds: {options.seeds} is not a positive count')
     if options.timeout is not None and not options.timeout > 0.0:
         raise UsageError(f'--timeout: {options.timeout} is not a positive time')
+    if options.engine == 'inprocess':
+        for name, value in (('--mode', options.mode if options.mode != 'lockstep' else None),
+                            ('--domain-id', options.domain_id),
+                            ('--sim-command', options.sim_command),
+                            ('--planner-command', options.planner_command)):
+            if value is not None:
+                raise UsageError(f'{name}: not with --engine inprocess (it runs no ROS '
+                                 'processes and steps in lockstep)')
     try:
         options.domain_id, options.domain_source = requested_domain(
             options.domain_id, os.environ if environment is None else environment)
@@ -133,7 +154,7 @@ def check_writable(folder):
 
 
 def run(options, scenario):
-    """Claim the domain, run every requested seed; return the exit code."""
+    """Claim the domain (ROS engine), run every requested seed; return the exit code."""
     from prvo_sim.runner.recorder import foreign_participants
 
     eta = run_eta(options, scenario)
@@ -141,25 +162,34 @@ def run(options, scenario):
     robot_names = [robot.name for robot in scenario.robots]
     runs = []
     with contextlib.ExitStack() as claim:
-        try:
-            domain_id = claim.enter_context(claimed_domain(
-                options.domain_id,
-                vet=lambda domain_id: foreign_participants(domain_id, robot_names)))
-        except DomainRefusedError as error:
-            print(f'{PROGRAM}: error: {error}', file=sys.stderr)
-            return 2
-        print(f'{PROGRAM}: ROS_DOMAIN_ID {domain_id} ({options.domain_source})', flush=True)
+        if options.engine == 'inprocess':
+            from prvo_sim.runner.inprocess import run_inprocess
+
+            print(f'{PROGRAM}: in-process engine (no ROS processes, no domain)', flush=True)
+            run_one = run_inprocess
+        else:
+            try:
+                domain_id = claim.enter_context(claimed_domain(
+                    options.domain_id,
+                    vet=lambda domain_id: foreign_participants(domain_id, robot_names)))
+            except DomainRefusedError as error:
+                print(f'{PROGRAM}: error: {error}', file=sys.stderr)
+                return 2
+            print(f'{PROGRAM}: ROS_DOMAIN_ID {domain_id} ({options.domain_source})',
+                  flush=True)
+
+            def run_one(spec):
+                return run_once(spec, domain_id)
         for seed in seeds:
             out_dir = options.out if options.seeds == 1 else options.out / f'seed_{seed}'
-            spec = RunSpec(options, scenario, eta, seed, out_dir)
-            run_metrics, interrupted = run_once(spec, domain_id)
-            runs.append((run_metrics, out_dir))
-            print_summary(run_metrics, out_dir)
-            if interrupted is not None:
-                return 128 + interrupted
+            result = run_one(RunSpec(options, scenario, eta, seed, out_dir))
+            runs.append((result.metrics, out_dir))
+            print_summary(result.metrics, out_dir)
+            if result.interrupted is not None:
+                return 128 + result.interrupted
     if options.seeds > 1:
         write_summary(options.out, runs)
-    return 1 if any('failure' in run_metrics for run_metrics, _ in runs) else 0
+    return 0 if all(Ending(run_metrics['ending']).completed for run_metrics, _ in runs) else 1
 
 
 def run_interruptibly(program, job):

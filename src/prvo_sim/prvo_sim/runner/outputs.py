@@ -5,6 +5,8 @@ in the same folder, so that a folder never mixes files of two runs or holds a ha
 """
 
 import csv
+from dataclasses import dataclass
+import enum
 import json
 import math
 import os
@@ -21,19 +23,74 @@ AGGREGATED_KEYS = ('success_rate', 'collisions', 'min_separation', 'makespan',
                    'deadline_misses', 'sim_time', 'wall_time')
 
 
-def write_outputs(spec, recorder, failure, wall_time):
-    """Write metrics.json, trajectories.csv and trajectories.png; return the metrics."""
+class Ending(enum.Enum):
+    """How a run ended; metrics.json's `ending` is the value."""
+
+    ARRIVED = 'arrived'  # every robot arrived and stayed for the settle time
+    DURATION = 'duration'  # the scenario's duration ran out first
+    FAILED = 'failed'  # see metrics.json's `failure`
+    INTERRUPTED = 'interrupted'  # SIGINT, SIGTERM or SIGHUP
+
+    @property
+    def completed(self):
+        """Whether the run went to its end (collisions and late robots are results)."""
+        return self in (Ending.ARRIVED, Ending.DURATION)
+
+
+@dataclass(frozen=True)
+class Recording:
+    """What a run recorded, by either engine.
+
+    `times` (T,) [s]; `states` (T, N, 4) ground truth x, y, vx, vy; `commands` (T, N, 2) the
+    world-frame command answering each state, NaN where none; `plan_times_ms` every plan's
+    time [ms]; `deadline_misses` the simulator's count, None where unknown.
+    """
+
+    times: np.ndarray
+    states: np.ndarray
+    commands: np.ndarray
+    plan_times_ms: tuple = ()
+    deadline_misses: int = None
+
+    @classmethod
+    def empty(cls, robot_count):
+        """Return a recording of no step."""
+        return cls(np.zeros(0), np.zeros((0, robot_count, 4)), np.zeros((0, robot_count, 2)))
+
+
+@dataclass(frozen=True)
+class RunResult:
+    """One run as the runner and the benchmarks read it.
+
+    `metrics` is metrics.json's content; `interrupted` the signal number that stopped the run,
+    else None.
+    """
+
+    ending: Ending
+    metrics: dict
+    interrupted: int = None
+
+    @property
+    def failure(self):
+        """The one-line reason of a run that did not complete, else None."""
+        return self.metrics.get('failure')
+
+
+def write_outputs(spec, recording, ending, failure, wall_time):
+    """Write metrics.json, trajectories.csv and trajectories.png of a run; return its metrics.
+
+    RECORDING may be None (nothing recorded); FAILURE is the one-line reason of an ENDING that
+    is not completed.
+    """
     scenario = spec.scenario
     names = [robot.name for robot in scenario.robots]
-    if recorder is not None and all(recorder.ground_truth[name] for name in names):
-        times, states, commands = recorder.arrays()
-    else:
-        times, states, commands = np.zeros(0), np.zeros((0, len(names), 4)), np.zeros(
-            (0, len(names), 2))
+    recording = recording or Recording.empty(len(names))
+    times, states, commands = recording.times, recording.states, recording.commands
     radii = np.array([robot.radius for robot in scenario.robots], dtype=float)
     goals = np.array([robot.goal for robot in scenario.robots], dtype=float)
     run_metrics = {'scenario': scenario.name, 'method': spec.method, 'eta': spec.eta,
-                   'seed': spec.seed, 'mode': spec.mode}
+                   'seed': spec.seed, 'mode': spec.mode, 'engine': spec.engine,
+                   'ending': ending.value}
     if times.size:
         measured = metrics.run_metrics(times, states[..., :2], radii, goals,
                                        scenario.goal_tolerance, names)
@@ -44,8 +101,6 @@ def write_outputs(spec, recorder, failure, wall_time):
                     'success_rate': 0.0, 'collisions': 0, 'min_separation': None,
                     'makespan': None, 'mean_time_to_goal': None, 'sim_time': 0.0}
         contacts = []
-    sim_status = recorder.sim_status if recorder is not None else {}
-    deadline_misses = sim_status.get('deadline_misses')
     run_metrics.update({
         'robots': measured['robots'],
         'success_rate': measured['success_rate'],
@@ -53,9 +108,8 @@ def write_outputs(spec, recorder, failure, wall_time):
         'min_separation': measured['min_separation'],
         'makespan': measured['makespan'],
         'mean_time_to_goal': measured['mean_time_to_goal'],
-        'planner_ms': metrics.distribution_summary(
-            recorder.plan_times_ms if recorder is not None else []),
-        'deadline_misses': int(deadline_misses) if deadline_misses is not None else None,
+        'planner_ms': metrics.distribution_summary(list(recording.plan_times_ms)),
+        'deadline_misses': recording.deadline_misses,
         'sim_time': measured['sim_time'],
         'wall_time': round(wall_time, 3),
     })
@@ -120,22 +174,27 @@ def replace_results(folder, files, result_names=()):
 
 
 def write_trajectories_csv(path, times, names, states, commands):
-    """Write one row per time and robot: ground truth x, y, vx, vy and the command answering it."""
+    """Write one row per time and robot: ground truth x, y, vx, vy and the command answering it.
+
+    Numbers are written exactly (the shortest text that reads back as the same double), so that
+    runs can be compared to the last bit.
+    """
     with open(path, 'w', newline='') as csv_file:
         writer = csv.writer(csv_file)
         writer.writerow(['time', 'robot', 'x', 'y', 'vx', 'vy', 'cmd_vx', 'cmd_vy'])
         for step, time_s in enumerate(times):
             for robot, name in enumerate(names):
-                command = ['' if math.isnan(value) else f'{value:.6g}'
+                command = ['' if math.isnan(value) else repr(float(value))
                            for value in commands[step, robot]]
                 writer.writerow([f'{time_s:.6g}', name,
-                                 *(f'{value:.6g}' for value in states[step, robot]), *command])
+                                 *(repr(float(value)) for value in states[step, robot]),
+                                 *command])
 
 
 def outcome(run_metrics):
     """Return a short description of how a run ended."""
     if 'failure' in run_metrics:
-        return 'FAILED: ' + run_metrics['failure']
+        return f"{run_metrics['ending'].upper()}: {run_metrics['failure']}"
     robots = run_metrics['robots']
     arrived = sum(robot['arrived'] for robot in robots.values())
     collisions = run_metrics['collisions']
@@ -181,7 +240,8 @@ def print_summary(run_metrics, out_dir):
           f"{run_metrics['deadline_misses']}; sim {_format(run_metrics['sim_time'], '', 1)} s "
           f"in {_format(run_metrics['wall_time'], '', 1)} s wall")
     written = ', '.join(name for name in RUN_RESULTS if (out_dir / name).exists())
-    print(f'  results: {out_dir}/ {written} (child logs in {out_dir}/logs)')
+    logs = f' (child logs in {out_dir}/logs)' if run_metrics['engine'] == 'ros' else ''
+    print(f'  results: {out_dir}/ {written}{logs}')
 
 
 def write_summary(out_dir, runs):
@@ -192,7 +252,8 @@ def write_summary(out_dir, runs):
         'mode': first['mode'], 'seeds': [run_metrics['seed'] for run_metrics, _ in runs],
         'runs': [{'seed': run_metrics['seed'], 'dir': str(run_dir),
                   'outcome': outcome(run_metrics)} for run_metrics, run_dir in runs],
-        'failed_runs': sum('failure' in run_metrics for run_metrics, _ in runs),
+        'failed_runs': sum(not Ending(run_metrics['ending']).completed
+                           for run_metrics, _ in runs),
         'metrics': metrics.aggregate([run_metrics for run_metrics, _ in runs], AGGREGATED_KEYS),
     }
     replace_results(out_dir, {'summary.json': lambda path: write_json(path, summary)})

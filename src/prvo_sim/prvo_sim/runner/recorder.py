@@ -75,7 +75,8 @@ class Recorder:
                                 dict.fromkeys(self.robot_names, 0))
                          for kind in ('ground_truth', 'commands')}
         self.plan_times_ms = []
-        self.sim_status = {}
+        # The simulator's latest prvo_sim status (world_messages.SimStatus), None before.
+        self.sim_status = None
         self.context = Context()
         # The runner handles SIGINT/SIGTERM itself, so that children are always stopped.
         rclpy.init(context=self.context, domain_id=domain_id,
@@ -171,10 +172,11 @@ class Recorder:
 
     def _on_diagnostics(self, msg):
         from prvo_msgs_util import diagnostic_values
+        from prvo_sim.world_messages import sim_status_of
 
         for status in msg.status:
             if status.name == 'prvo_sim':
-                self.sim_status = diagnostic_values(status)
+                self.sim_status = sim_status_of(status)
             elif status.name.startswith('prvo_planner/'):
                 value = diagnostic_values(status).get('plan_time_ms')
                 if value is not None:
@@ -292,13 +294,15 @@ class Recorder:
         closer.join(timeout)
         return not closer.is_alive()
 
-    def arrays(self):
-        """Return times [s], states (T, N, 4) and commands (T, N, 2) at the common stamps.
+    def recording(self):
+        """Return the `Recording` of the run: the steps every robot's ground truth has.
 
-        States are ground truth x, y, vx, vy; commands are world-frame (a body-frame command is
-        rotated by the robot's heading at its stamp), NaN where missing; only instants every
-        robot has are kept.
+        Commands are world-frame (a body-frame command is turned by the robot's heading at its
+        stamp, as the simulator does), NaN where missing.
         """
+        from prvo_msgs_util import body_to_world
+        from prvo_sim.runner.outputs import Recording
+
         ground_truth, received_commands = self.ground_truth, self.commands
         stamps = sorted(set.intersection(
             *(set(ground_truth[name]) for name in self.robot_names)))
@@ -309,15 +313,14 @@ class Recorder:
                 states[step, robot] = ground_truth[name][stamp]
                 if stamp in received_commands[name]:
                     command_x, command_y, frame_id = received_commands[name][stamp]
-                    command = np.array([command_x, command_y])
+                    command = (command_x, command_y)
                     if frame_id not in ('', WORLD_FRAME):
-                        yaw = states[step, robot, 4]
-                        command = np.array([[math.cos(yaw), -math.sin(yaw)],
-                                            [math.sin(yaw), math.cos(yaw)]]) @ command
+                        command = body_to_world(command, states[step, robot, 4])
                     commands[step, robot] = command
-        return np.asarray(stamps, dtype=float) * 1e-9, states[..., :4], commands
-
-
+        status = self.sim_status
+        return Recording(np.asarray(stamps, dtype=float) * 1e-9, states[..., :4], commands,
+                         tuple(self.plan_times_ms),
+                         None if status is None else status.deadline_misses)
 
 
 def _deep(qos):

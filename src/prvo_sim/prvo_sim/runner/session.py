@@ -16,7 +16,7 @@ import types
 
 import numpy as np
 
-from prvo_sim.runner.outputs import write_outputs
+from prvo_sim.runner.outputs import Ending, RunResult, write_outputs
 from prvo_sim.runner.processes import (
     Children,
     RunInterruptedError,
@@ -29,6 +29,7 @@ METHODS = ('prvo', 'rvo', 'inflate', 'prvo-no-ego')
 # The planner's `model` parameter for each method; prvo-no-ego is PRVO planned with S_a = 0.
 MODEL_OF_METHOD = {'prvo': 'prvo', 'rvo': 'rvo', 'inflate': 'inflate', 'prvo-no-ego': 'prvo'}
 MODES = ('lockstep', 'realtime')
+ENGINES = ('ros', 'inprocess')
 DEFAULT_ETA = 0.8
 SIM_NODE = 'prvo_sim'
 PLANNER_NODE = 'planner'
@@ -42,7 +43,7 @@ RECORDING_GRACE = 2.0  # wall seconds for messages in flight when a run ends to 
 GRAPH_CHECK_PERIOD = 1.0  # wall seconds between looks for intruders during a run
 # Planner waits in lockstep [s]: for same-stamp odometry (under the sim's step_timeout), and
 # for every listed neighbour's first message.
-LOCKSTEP_SYNC = {'sync_timeout': '1.0', 'neighbor_timeout': '5.0'}
+LOCKSTEP_SYNC = {'sync_timeout': 1.0, 'neighbor_timeout': 5.0}
 DOMAIN_CHECK_TIME = 2.0  # wall seconds of listening for strangers on the domain before a run
 # Parameters the runner sets itself; a scenario's planner block cannot override them.
 RUNNER_PARAMETERS = ('use_sim_time', 'goal', 'radius', 'max_speed', 'actuation_std',
@@ -86,37 +87,50 @@ def robot_eta(robot):
     return float(robot.planner.get('eta', DEFAULT_ETA))
 
 
-def planner_parameters(robot, scenario, method, eta, mode='lockstep'):
-    """Return the planner parameters of ROBOT, in order, as a dict of ROS-formatted values.
+def runner_planner_values(robot, scenario, method, eta, mode='lockstep'):
+    """Return the planner parameters the runner sets for ROBOT, typed, in order.
 
     ETA, if not None, is every planner's; None gives each robot the eta of its planner block.
+    The planner block's other parameters follow; every other parameter keeps its default.
     """
-    parameters = {
-        'use_sim_time': 'true',
-        'goal': ros_parameter([float(value) for value in robot.goal]),
-        'radius': ros_parameter(float(robot.radius)),
-        'max_speed': ros_parameter(float(robot.max_speed)),
+    values = {
+        'goal': [float(value) for value in robot.goal],
+        'radius': float(robot.radius),
+        'max_speed': float(robot.max_speed),
         # The robot's known execution error; the ablation plans as if there were none.
-        'actuation_std': ros_parameter(
-            0.0 if method == 'prvo-no-ego' else float(robot.noise.actuation_std)),
+        'actuation_std': 0.0 if method == 'prvo-no-ego' else float(robot.noise.actuation_std),
         # Half the scenario's: when the planner's estimate says it arrived, the ground truth is
         # inside the scenario's tolerance.
-        'goal_tolerance': ros_parameter(scenario.goal_tolerance / 2.0),
+        'goal_tolerance': scenario.goal_tolerance / 2.0,
         'model': MODEL_OF_METHOD[method],
-        'eta': ros_parameter(float(eta) if eta is not None else robot_eta(robot)),
+        'eta': float(eta) if eta is not None else robot_eta(robot),
         # Named rather than discovered: each planner waits for all of them from t_0, so a seed
         # reproduces its run.
-        'neighbors': ros_parameter(
-            [other.name for other in scenario.robots if other.name != robot.name]),
+        'neighbors': [other.name for other in scenario.robots if other.name != robot.name],
     }
     if mode == 'lockstep':
         # The simulator waits for every answer, so a planner can wait for every neighbour's
         # odometry of the same stamp however loaded the machine: that makes runs reproducible.
-        parameters.update(LOCKSTEP_SYNC)
+        values.update(LOCKSTEP_SYNC)
     for key, value in robot.planner.items():
         if key not in RUNNER_PARAMETERS:
-            parameters[key] = ros_parameter(value)
-    return parameters
+            values[key] = value
+    return values
+
+
+def planner_values(robot, scenario, method, eta, mode='lockstep'):
+    """Return every planner parameter ROBOT's planner node holds in a run, typed and checked."""
+    from prvo_planner.parameters import DEFAULTS, checked_parameters
+
+    return checked_parameters(
+        {**DEFAULTS, **runner_planner_values(robot, scenario, method, eta, mode)})
+
+
+def planner_parameters(robot, scenario, method, eta, mode='lockstep'):
+    """Return the `-p` parameters of ROBOT's planner node, in order, ROS-formatted."""
+    values = runner_planner_values(robot, scenario, method, eta, mode)
+    return {'use_sim_time': 'true',
+            **{key: ros_parameter(value) for key, value in values.items()}}
 
 
 def run_eta(options, scenario):
@@ -138,6 +152,7 @@ class RunSpec:
         self.scenario = scenario
         self.method = options.method
         self.mode = options.mode
+        self.engine = getattr(options, 'engine', 'ros')
         self.eta = eta
         self.planner_eta = eta if isinstance(eta, (int, float)) else None
         self.seed = seed
@@ -223,7 +238,7 @@ def wait_for_planners(recorder, watch):
 
 
 def wait_for_end(recorder, watch, spec, progress):
-    """Record until the run ends; return None if it completed, else a one-line failure."""
+    """Record until the run ends; return its `Ending` if it completed, else a one-line failure."""
     scenario = spec.scenario
     goals = np.array([robot.goal for robot in scenario.robots], dtype=float)
     started = time.monotonic()
@@ -236,8 +251,9 @@ def wait_for_end(recorder, watch, spec, progress):
         if failure is not None:
             return failure
         latest = recorder.latest()
+        finished = recorder.sim_status is not None and recorder.sim_status.finished
         if len(latest) < len(scenario.robots):
-            if recorder.sim_status.get('finished') == 'true':
+            if finished:
                 return ('the simulator finished before the recorder received ground truth of '
                         'every robot')
             if now - started > STARTUP_LIMIT:
@@ -249,22 +265,30 @@ def wait_for_end(recorder, watch, spec, progress):
         if now >= next_progress:
             progress(sim_time, int(arrived.sum()), now - started)
             next_progress = now + PROGRESS_PERIOD
-        if arrived.all():
-            settled_since = sim_time if settled_since is None else settled_since
-            if sim_time - settled_since >= SETTLE_TIME:
-                return None
-        else:
-            settled_since = None
-        if recorder.sim_status.get('finished') == 'true':
-            return None
+        settled_since = settled(arrived, sim_time, settled_since)
+        if settled_since is not None and sim_time - settled_since >= SETTLE_TIME:
+            return Ending.ARRIVED
+        if finished:
+            return Ending.DURATION
+
+
+def settled(arrived, sim_time, settled_since):
+    """Return since when (sim time) every robot has been at its goal, None if one is not.
+
+    ARRIVED says, per robot, whether it is at its goal at SIM_TIME; SETTLED_SINCE is the
+    previous answer. A run ends once this is SETTLE_TIME behind.
+    """
+    if not arrived.all():
+        return None
+    return sim_time if settled_since is None else settled_since
 
 
 def run_once(spec, domain_id, monitor=None):
-    """Run SPEC once on DOMAIN_ID; write its outputs; return (metrics dict, interrupting signal).
+    """Run SPEC once on DOMAIN_ID; write its outputs; return its `RunResult`.
 
-    The caller holds DOMAIN_ID (and has checked it for strangers). The metrics carry a
-    'failure' key when the run failed. The children are stopped whatever happens, including
-    SIGINT/SIGTERM/SIGHUP (returned as the interrupting signal, else None). MONITOR, if given,
+    The caller holds DOMAIN_ID (and has checked it for strangers). The children are stopped
+    whatever happens, including SIGINT/SIGTERM/SIGHUP (the result's `interrupted`). MONITOR, if
+    given,
     watches the run from inside (the team benchmark measures the children with it):
     monitor.started(children, recorder) is called once every child has been started,
     monitor.ending(children, recorder) once the run has ended, just before the children are
@@ -278,6 +302,7 @@ def run_once(spec, domain_id, monitor=None):
     children = Children(child_environment(domain_id), log_dir)
     recorder = None
     failure = None
+    ending = Ending.FAILED
     interrupted = None
     progress = ProgressLine(spec, quiet=spec.quiet)
     started = time.monotonic()
@@ -292,14 +317,21 @@ def run_once(spec, domain_id, monitor=None):
             start_sim(children, spec, recorder.name)
             if monitor is not None:
                 monitor.started(children, recorder)
-            failure = wait_for_end(recorder, watch, spec, progress)
+            end = wait_for_end(recorder, watch, spec, progress)
+            if isinstance(end, Ending):
+                ending = end
+            else:
+                failure = end
         if failure is None:
             failure = recorder.recording_gaps(scenario.dt, spec.mode == 'lockstep',
                                               RECORDING_GRACE)
+            if failure is not None:
+                ending = Ending.FAILED
         if monitor is not None:
             monitor.ending(children, recorder)
     except RunInterruptedError as interruption:
         interrupted = interruption.signum
+        ending = Ending.INTERRUPTED
         failure = f'interrupted by {interruption}'
     finally:
         with signals_ignored():
@@ -316,8 +348,9 @@ def run_once(spec, domain_id, monitor=None):
         # Interrupted before anything started: nothing to report, nothing written.
         raise RunInterruptedError(interrupted)
     wall_time = time.monotonic() - started
-    run_metrics = write_outputs(spec, recorder, failure, wall_time)
-    return run_metrics, interrupted
+    recording = recorder.recording() if recorder is not None else None
+    run_metrics = write_outputs(spec, recording, ending, failure, wall_time)
+    return RunResult(ending, run_metrics, interrupted)
 
 
 class ProgressLine:

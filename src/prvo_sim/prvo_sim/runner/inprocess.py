@@ -1,0 +1,71 @@
+"""One run on the in-process engine: the same world and agents as the ROS lockstep run, no DDS.
+
+The run ends as a ROS run does (every robot arrived and stayed, the scenario's duration, the
+wall-clock limit) and writes the same results; there are no children, logs or domain.
+"""
+
+import time
+
+import numpy as np
+
+from prvo_sim.engine import InProcessTeam
+from prvo_sim.runner.outputs import Ending, Recording, RunResult, write_outputs
+from prvo_sim.runner.processes import RunInterruptedError
+from prvo_sim.runner.session import (
+    PROGRESS_PERIOD,
+    SETTLE_TIME,
+    ProgressLine,
+    planner_values,
+    settled,
+)
+
+
+def run_inprocess(spec):
+    """Run SPEC once on the in-process engine; write its outputs; return its `RunResult`."""
+    scenario = spec.scenario
+    team = InProcessTeam(
+        scenario, [planner_values(robot, scenario, spec.method, spec.planner_eta, 'lockstep')
+                   for robot in scenario.robots], seed=spec.seed)
+    goals = team.world.goals
+    steps = []
+    ending, failure, interrupted = Ending.FAILED, None, None
+    progress = ProgressLine(spec, quiet=spec.quiet)
+    started = time.monotonic()
+    next_progress = started
+    settled_since = None
+    try:
+        while True:
+            step = team.do_step()
+            steps.append(step)
+            arrived = np.linalg.norm(step.states[:, :2] - goals, axis=1) <= (
+                scenario.goal_tolerance)
+            now = time.monotonic()
+            if now >= next_progress:
+                progress(step.time, int(arrived.sum()), now - started)
+                next_progress = now + PROGRESS_PERIOD
+            settled_since = settled(arrived, step.time, settled_since)
+            if settled_since is not None and step.time - settled_since >= SETTLE_TIME:
+                ending = Ending.ARRIVED
+                break
+            if team.finished:
+                ending = Ending.DURATION
+                break
+            if now - started > spec.timeout:
+                failure = f'timed out after {spec.timeout:g} s of wall time'
+                break
+    except RunInterruptedError as interruption:
+        ending, interrupted = Ending.INTERRUPTED, interruption.signum
+        failure = f'interrupted by {interruption}'
+    finally:
+        progress.finish()
+    wall_time = time.monotonic() - started
+    recording = None
+    if steps:
+        recording = Recording(
+            np.array([step.time for step in steps]), np.array([step.states for step in steps]),
+            np.array([step.commands for step in steps]),
+            tuple(np.concatenate([step.plan_ms for step in steps]).tolist()),
+            deadline_misses=0)
+    spec.out_dir.mkdir(parents=True, exist_ok=True)
+    run_metrics = write_outputs(spec, recording, ending, failure, wall_time)
+    return RunResult(ending, run_metrics, interrupted)

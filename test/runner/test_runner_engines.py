@@ -1,0 +1,44 @@
+"""The in-process engine runs the ROS lockstep team's loop: same trajectories, same outputs."""
+
+import csv
+import json
+import pathlib
+
+import pytest
+from runner_testing import output, start_runner
+
+SCENARIOS = pathlib.Path(__file__).resolve().parents[2] / 'src/prvo_sim/scenarios'
+
+
+def rows_of(path):
+    """Return {(time, robot): [x, y, vx, vy, cmd_vx, cmd_vy]} of a trajectories.csv."""
+    with open(path) as csv_file:
+        return {(row['time'], row['robot']): [
+            float(row[key]) if row[key] else None
+            for key in ('x', 'y', 'vx', 'vy', 'cmd_vx', 'cmd_vy')]
+            for row in csv.DictReader(csv_file)}
+
+
+@pytest.mark.parametrize('scenario', ['crossing4', 'circle8'])
+def test_both_engines_give_the_same_trajectories(scenario, tmp_path, runners):
+    outs = {}
+    for engine in ('inprocess', 'ros'):
+        outs[engine] = tmp_path / engine
+        runner = start_runner([str(SCENARIOS / f'{scenario}.yaml'), '--engine', engine,
+                               '--out', str(outs[engine]), '--quiet'], tmp_path, label=engine)
+        runners.append(runner)
+        assert runner.wait(timeout=900) == 0, output(runner)
+    inprocess, ros = (rows_of(outs[engine] / 'trajectories.csv')
+                      for engine in ('inprocess', 'ros'))
+    # The ROS runner notices the end a little later: every in-process step is in its recording.
+    assert inprocess and set(inprocess) <= set(ros)
+    for key, values in inprocess.items():
+        assert None not in values and None not in ros[key], (key, values, ros[key])
+        assert max(abs(value - ros_value) for value, ros_value in zip(
+            values, ros[key], strict=True)) <= 1e-9, (key, values, ros[key])
+    metrics = {engine: json.loads((outs[engine] / 'metrics.json').read_text())
+               for engine in outs}
+    assert metrics['inprocess']['engine'] == 'inprocess' and metrics['ros']['engine'] == 'ros'
+    # Makespans are first arrivals: within the common steps.
+    for key in ('collisions', 'success_rate', 'makespan'):
+        assert metrics['inprocess'][key] == pytest.approx(metrics['ros'][key], abs=1e-9)
