@@ -2,10 +2,11 @@
 
     experiments --out results/paper [--seeds 10] [--quick]
 
-Items 1-4 (Cantelli validation, deviation against k, the ego-noise ablation, time-scaling
-intervals against radius enlargement) use the planning core and the kinematics directly: no
-ROS, seconds of compute. Item 5 (methods over the shipped scenarios) runs the scenario runner,
-one ROS run per scenario, method and seed, and the exact-against-Taylor error of the ray solver.
+Items 1, 3 and 4 (Cantelli validation, the ego-noise ablation, time-scaling intervals against
+radius enlargement) use the planning core directly. Item 2 (deviation against k) and item 5
+(methods over the shipped scenarios, one run per scenario, method and seed) run the team loop
+on the in-process engine: the same world and planners as the ROS lockstep run, without
+processes. Item 5 also measures the exact-against-Taylor error of the ray solver.
 """
 
 import argparse
@@ -19,6 +20,7 @@ import time
 
 import numpy as np
 
+from prvo_planner.agent import preferred_velocity
 from prvo_planner.core import (
     AgentBelief,
     PlannerConfig,
@@ -28,15 +30,18 @@ from prvo_planner.core import (
     rvo_moments,
 )
 from prvo_planner.core.probability import confidence_ellipse_scale, rvo_condition_of
-from prvo_sim import kinematics, metrics
+from prvo_planner.parameters import DEFAULTS
+from prvo_sim import metrics
+from prvo_sim.engine import InProcessTeam
 from prvo_sim.plotting import draw_trajectories, plt, robot_colours
+from prvo_sim.runner.outputs import Ending
+from prvo_sim.runner.session import planner_values
 from prvo_sim.scenario import NoiseSpec, find_scenario, load_scenario
 
 SNAPSHOT_DISTANCE = 2.0  # m from the meeting point: the robots are closing in at full speed
 VALIDATION_KS = (1.0, 1.5)
 DEVIATION_KS = (0.5, 1.0, 1.5, 2.0, 3.0)
 CONFIDENCE_LEVELS = (0.68, 0.80)
-APPROACH_TIME = 1.0  # s: the preferred speed falls off linearly over the last metre
 SCENARIOS = ('circle8', 'crossing4', 'headon2')
 # (label, runner method, eta); eta None leaves the scenario's (rvo ignores it).
 METHOD_VARIANTS = (('prvo eta 0.5', 'prvo', 0.5), ('prvo eta 0.8', 'prvo', 0.8),
@@ -63,15 +68,6 @@ def belief_covariance(noise):
 def actuation_covariance(noise):
     """Return S_a of a robot whose executed velocity has NOISE's actuation std per axis."""
     return noise.actuation_std ** 2 * np.eye(2)
-
-
-def preferred_velocity(position, goal, max_speed, tolerance):
-    """Return the velocity straight to GOAL, slowing over the last APPROACH_TIME seconds."""
-    offset = np.asarray(goal) - position
-    distance = float(np.hypot(*offset))
-    if distance <= tolerance:
-        return np.zeros(2)
-    return offset * (min(max_speed, distance / APPROACH_TIME) / distance)
 
 
 def snapshot_beliefs(scenario):
@@ -122,7 +118,8 @@ def validate_snapshot(scenario, k, with_ego_noise, samples, rng):
     records = []
     for index, robot in enumerate(scenario.robots):
         neighbours = [belief for other, belief in enumerate(beliefs) if other != index]
-        v_pref = preferred_velocity(beliefs[index].position, robot.goal, robot.max_speed, 0.0)
+        v_pref, _ = preferred_velocity(beliefs[index].position, robot.goal, robot.max_speed,
+                                       DEFAULTS['approach_time'], 0.0)
         result = plan_velocity(beliefs[index], neighbours, v_pref,
                                validation_config(robot, k, with_ego_noise))
         positions, satisfied = sample_rvo_satisfaction(
@@ -171,44 +168,25 @@ def plot_validation(path, scenario, rows, row_titles):
     plt.close(figure)
 
 
-def closed_loop(scenario, k, rng, with_ego_noise=True):
-    """Simulate SCENARIO with every robot planning PRVO with margin K; no ROS.
+def closed_loop(scenario, k, seed):
+    """Run SCENARIO on the in-process engine, every robot planning PRVO with margin K.
 
-    Each step the planners see noisy odometry (the scenario's stds, as beliefs with that
-    covariance), and the commands are executed with actuation noise. Returns (times,
-    positions (T, N, 2)); stops when every robot is within the goal tolerance or at duration.
+    The planners are the runner's (tracking, goal logic, choice cost), with `k` set. Returns
+    (times, positions (T, N, 2)); stops when every robot is within the goal tolerance or at the
+    scenario's duration.
     """
-    robots = scenario.robots
-    positions = np.array([robot.start for robot in robots], dtype=float)
-    velocities = np.zeros_like(positions)
-    goals = np.array([robot.goal for robot in robots])
-    stds = {field: np.array([getattr(robot.noise, field) for robot in robots])
-            for field in ('position_std', 'velocity_std', 'actuation_std')}
-    max_speeds = np.array([robot.max_speed for robot in robots])
-    configs = [PlannerConfig(k=k, max_speed=robot.max_speed, seed=0,
-                             actuation_cov=actuation_covariance(robot.noise) if with_ego_noise
-                             else np.zeros((2, 2))) for robot in robots]
-    history = [positions.copy()]
-    steps = int(round(scenario.duration / scenario.dt))
-    for _ in range(steps):
-        measured_positions, measured_velocities = kinematics.noisy_odometry(
-            positions, velocities, stds['position_std'], stds['velocity_std'], rng)
-        beliefs = [AgentBelief(measured_positions[index], measured_velocities[index],
-                               belief_covariance(robot.noise), robot.radius)
-                   for index, robot in enumerate(robots)]
-        commands = np.zeros_like(positions)
-        for index, robot in enumerate(robots):
-            v_pref = preferred_velocity(beliefs[index].position, robot.goal, robot.max_speed,
-                                        scenario.goal_tolerance / 2.0)
-            neighbours = beliefs[:index] + beliefs[index + 1:]
-            commands[index] = plan_velocity(beliefs[index], neighbours, v_pref,
-                                            configs[index]).velocity
-        positions, velocities = kinematics.step(positions, commands, max_speeds,
-                                                stds['actuation_std'], scenario.dt, rng)
-        history.append(positions.copy())
-        if np.all(np.linalg.norm(positions - goals, axis=1) <= scenario.goal_tolerance):
+    values = [{**planner_values(robot, scenario, 'prvo', None), 'k': float(k)}
+              for robot in scenario.robots]
+    team = InProcessTeam(scenario, values, seed=seed)
+    goals = team.world.goals
+    times, positions = [], []
+    while not team.finished:
+        step = team.do_step()
+        times.append(step.time)
+        positions.append(step.states[:, :2])
+        if np.all(np.linalg.norm(positions[-1] - goals, axis=1) <= scenario.goal_tolerance):
             break
-    return np.arange(len(history)) * scenario.dt, np.array(history)
+    return np.array(times), np.array(positions)
 
 
 def lateral_deviation(positions, starts, goals):
@@ -228,7 +206,7 @@ def deviation_against_k(scenario, ks, seed, path):
     figure, axes_row = plt.subplots(1, len(ks), figsize=(4.0 * len(ks), 4.3), squeeze=False)
     rows = []
     for axes, k in zip(axes_row[0], ks, strict=True):
-        times, positions = closed_loop(scenario, k, np.random.default_rng(seed))
+        times, positions = closed_loop(scenario, k, seed)
         run = metrics.run_metrics(times, positions, radii, goals, scenario.goal_tolerance, names)
         contacts = metrics.contact_events(times, positions, radii)
         draw_trajectories(axes, times, positions, starts, goals, radii, contacts,
@@ -351,7 +329,7 @@ def run_method_table(out_dir, scenarios, variants, seeds, timeout):
             run_dir = out_dir / 'runs' / scenario_name / label.replace(' ', '_')
             command = [sys.executable, '-m', 'prvo_sim.run_scenario', str(scenario_path),
                        '--out', str(run_dir), '--method', method, '--seeds', str(seeds),
-                       '--quiet', '--timeout', str(timeout)]
+                       '--engine', 'inprocess', '--quiet', '--timeout', str(timeout)]
             if eta is not None:
                 command += ['--eta', str(eta)]
             started = time.monotonic()
@@ -365,7 +343,7 @@ def run_method_table(out_dir, scenarios, variants, seeds, timeout):
             summary = metrics.aggregate(runs, ('collisions', 'success_rate',
                                                'mean_time_to_goal', 'min_separation'))
             rows.append({'scenario': scenario_name, 'method': label, 'runs': len(runs),
-                         'failed': sum('failure' in run for run in runs),
+                         'failed': sum(not Ending(run['ending']).completed for run in runs),
                          'collisions_total': int(sum(run['collisions'] for run in runs)),
                          'summary': summary})
             print(f'  {scenario_name:<10} {label:<20} {len(runs)} runs in '
