@@ -1,0 +1,206 @@
+"""Engine benchmark: teams of 8 to 96 robots on the in-process engine, and a peer beside them.
+
+    python -m prvo_sim.bench_engine [--robots 8 16 48 96] [--peer-robots 10 20] [--json PATH]
+                                    [--out DIR]
+
+For each team size N it runs the team benchmark's circle (`bench_team.circle_document`: N
+robots swapping antipodal points under noise, PRVO at eta 0.8) on the in-process engine to
+completion and prints a Markdown table row: wall time, simulated time, steps, robot-steps per
+wall second, the planners' wall time per robot-step (the team is planned in one call, so each
+robot is charged an equal share), arrivals, collisions and the process's peak RSS after the run
+(VmHWM: it only grows, so run sizes in increasing order). Trajectories go to DIR.
+
+With `--peer-robots`, the same command also times a peer on the same circles without noise:
+ir-sim's numpy RVO (`irsim.lib.algorithm.rvo`), each robot each step building
+`reciprocal_vel_obs` over every other robot and calling `cal_vel('rvo')`, as ir-sim's own
+behaviour does; and PRVO's `plan_velocity` and `plan_velocities` on the engine's own loop of the
+same circle. ir-sim is not a dependency of prvo: install it beside it (`pip install ir-sim`) to
+measure it; without it the peer rows say so.
+
+Exit codes: 0 every run completed, 1 a run did not, 2 bad input, 130 when interrupted.
+"""
+
+import argparse
+import json
+import math
+import pathlib
+import sys
+import time
+
+import numpy as np
+
+from prvo_sim.bench_team import circle_document, peak_rss_kib, write_scenario
+from prvo_sim.engine import InProcessTeam
+from prvo_sim.runner.outputs import write_trajectories_csv
+from prvo_sim.runner.session import SETTLE_TIME, planner_values, settled
+
+DEFAULT_TEAM_SIZES = (8, 16, 48, 96)
+DEFAULT_PEER_SIZES = (10, 20)
+KIB_PER_MIB = 1024.0
+PEER_SPEED = 1.0  # m/s, the circle's max speed
+PEER_APPROACH_DISTANCE = 1.0  # m: the peer's preferred speed slows linearly over the last metre
+
+
+def run_team(scenario):
+    """Run SCENARIO on the in-process engine to its end; return (row, steps)."""
+    values = [planner_values(robot, scenario, 'prvo', None) for robot in scenario.robots]
+    team = InProcessTeam(scenario, values)
+    goals = team.world.goals
+    started = time.perf_counter()
+    steps, settled_since = [], None
+    while not team.finished:
+        step = team.do_step()
+        steps.append(step)
+        arrived = np.linalg.norm(step.states[:, :2] - goals, axis=1) <= scenario.goal_tolerance
+        settled_since = settled(arrived, step.time, settled_since)
+        if settled_since is not None and step.time - settled_since >= SETTLE_TIME:
+            break
+    wall = time.perf_counter() - started
+    count = len(scenario.robots)
+    robot_steps = len(steps) * count
+    return {
+        'robots': count,
+        'wall_s': round(wall, 2),
+        'sim_s': round(steps[-1].time, 2),
+        'steps': len(steps),
+        'robot_steps_per_s': round(robot_steps / wall, 1),
+        'plan_ms_per_robot_step': round(float(np.mean([step.plan_ms for step in steps])), 3),
+        'all_arrived': bool(settled_since is not None),
+        'collisions': team.world.contact_count,
+        'peak_rss_mib': round(peak_rss_kib('self') / KIB_PER_MIB, 1),
+    }, steps
+
+
+def peer_circle(count):
+    """Return (starts, goals, radii) of the peer circle: bench_team's, without noise."""
+    document = circle_document(count)
+    starts = np.array([robot['start'] for robot in document['robots']])
+    goals = np.array([robot['goal'] for robot in document['robots']])
+    radii = np.array([robot['radius'] for robot in document['robots']])
+    return starts, goals, radii
+
+
+def time_peer(count, dt=0.1):
+    """Return ir-sim's RVO's median ms per robot-step on the COUNT circle, None without ir-sim."""
+    try:
+        from irsim.lib.algorithm.rvo import reciprocal_vel_obs
+    except ImportError:
+        return None
+    positions, goals, radii = peer_circle(count)
+    velocities = np.zeros_like(positions)
+    times = []
+    steps = int(math.ceil(4.0 * np.linalg.norm(goals[0] - positions[0]) / PEER_SPEED / dt))
+    for _ in range(steps):
+        new_velocities = np.zeros_like(velocities)
+        for index in range(count):
+            to_goal = goals[index] - positions[index]
+            distance = float(np.hypot(*to_goal))
+            preferred = (to_goal / distance * PEER_SPEED * min(1.0, distance / (
+                PEER_APPROACH_DISTANCE)) if distance > 0.1 else np.zeros(2))
+            state = [*positions[index], *velocities[index], radii[index], *preferred]
+            others = [[*positions[other], *velocities[other], radii[other]]
+                      for other in range(count) if other != index]
+            started = time.perf_counter()
+            velocity = np.array(reciprocal_vel_obs(
+                state, others, vxmax=PEER_SPEED, vymax=PEER_SPEED, acce=1.0,
+                factor=1.0).cal_vel('rvo'), dtype=float)
+            times.append(time.perf_counter() - started)
+            speed = float(np.hypot(*velocity))
+            new_velocities[index] = velocity if speed <= PEER_SPEED else velocity / speed
+        velocities = new_velocities
+        positions = positions + dt * velocities
+        if np.all(np.linalg.norm(goals - positions, axis=1) < 0.2):
+            break
+    return round(1e3 * float(np.median(times)), 3)
+
+
+def peer_row(count, out_dir):
+    """Return the peer comparison row of COUNT robots: ir-sim's RVO and PRVO's engine."""
+    document = circle_document(count)
+    document['noise'] = {'position_std': 0.0, 'velocity_std': 0.0, 'actuation_std': 0.0}
+    scenario = write_scenario(document, out_dir / f'peer_circle{count}.yaml')
+    engine_row, _ = run_team(scenario)
+    return {'robots': count, 'irsim_rvo_ms': time_peer(count),
+            'prvo_team_ms': engine_row['plan_ms_per_robot_step'],
+            'prvo_all_arrived': engine_row['all_arrived'],
+            'prvo_collisions': engine_row['collisions']}
+
+
+def table(rows, columns):
+    """Return a Markdown table of ROWS with COLUMNS [(key, header)]."""
+    lines = ['| ' + ' | '.join(header for _, header in columns) + ' |',
+             '|' + '---|' * len(columns)]
+    for row in rows:
+        cells = ['n/a' if row.get(key) is None else ('yes' if row[key] is True else 'no'
+                 if row[key] is False else str(row[key])) for key, _ in columns]
+        lines.append('| ' + ' | '.join(cells) + ' |')
+    return '\n'.join(lines)
+
+
+TEAM_COLUMNS = (('robots', 'robots'), ('wall_s', 'wall s'), ('sim_s', 'sim s'),
+                ('steps', 'steps'), ('robot_steps_per_s', 'robot-steps/s'),
+                ('plan_ms_per_robot_step', 'plan ms per robot-step'),
+                ('all_arrived', 'all arrived'), ('collisions', 'collisions'),
+                ('peak_rss_mib', 'peak RSS MiB'))
+PEER_COLUMNS = (('robots', 'robots'), ('irsim_rvo_ms', 'ir-sim RVO ms per robot-step'),
+                ('prvo_team_ms', 'PRVO (engine) ms per robot-step'),
+                ('prvo_all_arrived', 'PRVO all arrived'), ('prvo_collisions', 'PRVO collisions'))
+
+
+def build_parser():
+    """Return the command-line parser of the engine benchmark."""
+    parser = argparse.ArgumentParser(
+        prog='bench_engine', description='Benchmark the in-process engine on circles of robots.')
+    parser.add_argument('--robots', type=int, nargs='+', default=list(DEFAULT_TEAM_SIZES),
+                        help='team sizes (default: 8 16 48 96)')
+    parser.add_argument('--peer-robots', type=int, nargs='*', default=list(DEFAULT_PEER_SIZES),
+                        help='team sizes of the peer comparison (default: 10 20; none: skip)')
+    parser.add_argument('--json', type=pathlib.Path, default=None,
+                        help='also write {"teams": [...], "peers": [...]} to this file')
+    parser.add_argument('--out', type=pathlib.Path, default=pathlib.Path('results/bench_engine'),
+                        help='folder of the scenarios and trajectories '
+                             '(default: results/bench_engine)')
+    return parser
+
+
+def main(argv=None):
+    """Run the engine benchmark's command line; return the exit code."""
+    parser = build_parser()
+    options = parser.parse_args(sys.argv[1:] if argv is None else argv)
+    for count in [*options.robots, *options.peer_robots]:
+        if count < 2:
+            print(f'bench_engine: error: --robots: {count} is not a team (at least 2)',
+                  file=sys.stderr)
+            return 2
+    teams, peers = [], []
+    try:
+        for count in sorted(options.robots):
+            scenario = write_scenario(circle_document(count),
+                                      options.out / f'circle{count}.yaml')
+            row, steps = run_team(scenario)
+            write_trajectories_csv(
+                options.out / f'circle{count}_trajectories.csv',
+                np.array([step.time for step in steps]),
+                [robot.name for robot in scenario.robots],
+                np.array([step.states for step in steps]),
+                np.array([step.commands for step in steps]))
+            teams.append(row)
+            print(f'{count} robots: {row["wall_s"]} s wall, all arrived '
+                  f'{row["all_arrived"]}, {row["collisions"]} collisions', flush=True)
+        for count in options.peer_robots:
+            peers.append(peer_row(count, options.out))
+    except KeyboardInterrupt:
+        print('bench_engine: interrupted', file=sys.stderr)
+        return 130
+    print(table(teams, TEAM_COLUMNS))
+    if peers:
+        print()
+        print(table(peers, PEER_COLUMNS))
+    if options.json is not None:
+        options.json.parent.mkdir(parents=True, exist_ok=True)
+        options.json.write_text(json.dumps({'teams': teams, 'peers': peers}, indent=2) + '\n')
+    return 0 if all(row['all_arrived'] for row in teams) else 1
+
+
+if __name__ == '__main__':
+    sys.exit(main())
