@@ -1,4 +1,4 @@
-"""Constant-velocity tracking of a robot's planar state with filterpy (prvo-math.md section 8).
+"""Constant-velocity tracking of a robot's planar state with filterpy (docs/method.md 8).
 
 Plain numpy and filterpy, no ROS: the planner node feeds it measurements converted by
 prvo_msgs_util and asks it for beliefs predicted to the planning time.
