@@ -51,6 +51,7 @@ from prvo_msgs_util.topics import (
     GROUND_TRUTH,
     MARKERS,
     ODOM,
+    WORLD_FRAME,
     robot_from_topic,
     robot_topic,
     validate_robot_name,
@@ -68,5 +69,5 @@ __all__ = [
     'make_pose_stamped', 'make_twist', 'make_twist_stamped', 'odometry_to_measurement',
     'pose_stamped_to_goal', 'robot_from_topic', 'robot_topic', 'seconds_to_stamp',
     'serialize_odometry', 'serialized_odometry_to_measurement', 'stamp_to_seconds',
-    'twist_to_velocity', 'validate_robot_name', 'world_to_body',
+    'twist_to_velocity', 'validate_robot_name', 'WORLD_FRAME', 'world_to_body',
 ]

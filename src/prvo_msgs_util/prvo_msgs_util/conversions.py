@@ -9,6 +9,8 @@ from geometry_msgs.msg import PoseStamped, Twist, TwistStamped
 from nav_msgs.msg import Odometry
 import numpy as np
 
+from prvo_msgs_util.topics import WORLD_FRAME
+
 _NS_PER_S = 1_000_000_000
 # Row-major indices of the x/y block inside a 6x6 ROS covariance.
 _XY_FLAT_INDICES = (0, 1, 6, 7)
@@ -132,7 +134,7 @@ def _yaw_from_quaternion(quaternion):
     return math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
 
 
-def odometry_to_measurement(msg, expected_frame='map'):
+def odometry_to_measurement(msg, expected_frame=WORLD_FRAME):
     """Return the world-frame OdometryMeasurement of a nav_msgs/Odometry.
 
     The twist is given in child_frame_id; it is rotated by the pose's yaw into the world frame,
@@ -148,7 +150,7 @@ def odometry_to_measurement(msg, expected_frame='map'):
         expected_frame)
 
 
-def serialized_odometry_to_measurement(data, expected_frame='map'):
+def serialized_odometry_to_measurement(data, expected_frame=WORLD_FRAME):
     """Return the OdometryMeasurement of a serialized (CDR) nav_msgs/Odometry.
 
     DATA is what a raw subscription (``create_subscription(..., raw=True)``) delivers. The
@@ -240,8 +242,8 @@ def _rotated_covariance(cos, sin, xx, xy, yy):
             sin * sin * xx + 2.0 * cross * xy + cos * cos * yy)
 
 
-def make_odometry(stamp_seconds, position, velocity, position_cov, velocity_cov, frame_id='map',
-                  child_frame_id='base_link', yaw=0.0):
+def make_odometry(stamp_seconds, position, velocity, position_cov, velocity_cov,
+                  frame_id=WORLD_FRAME, child_frame_id='base_link', yaw=0.0):
     """Return a nav_msgs/Odometry of a planar robot.
 
     VELOCITY and both (2, 2) covariances are in the world frame; the twist is written in the
@@ -263,7 +265,7 @@ def make_odometry(stamp_seconds, position, velocity, position_cov, velocity_cov,
 
 
 def serialize_odometry(stamp_seconds, position, velocity, position_cov, velocity_cov,
-                       frame_id='map', child_frame_id='base_link', yaw=0.0):
+                       frame_id=WORLD_FRAME, child_frame_id='base_link', yaw=0.0):
     """Return make_odometry's message serialized (little-endian CDR), ready to publish.
 
     A publisher sends bytes as they are; packing the few fields a planar robot sets costs a
@@ -323,7 +325,7 @@ def twist_to_velocity(msg):
     return velocity
 
 
-def pose_stamped_to_goal(msg, expected_frame='map'):
+def pose_stamped_to_goal(msg, expected_frame=WORLD_FRAME):
     """Return the x, y position of a PoseStamped goal.
 
     Raises MessageFault on NaN/inf, a coordinate beyond MAX_WORLD_COORDINATE or a bad frame.
@@ -333,7 +335,7 @@ def pose_stamped_to_goal(msg, expected_frame='map'):
     return np.array([msg.pose.position.x, msg.pose.position.y])
 
 
-def make_pose_stamped(stamp_seconds, position, frame_id='map'):
+def make_pose_stamped(stamp_seconds, position, frame_id=WORLD_FRAME):
     """Return a PoseStamped at POSITION (x, y) with identity orientation."""
     msg = PoseStamped()
     msg.header.stamp = seconds_to_stamp(stamp_seconds)

@@ -10,6 +10,8 @@ MARKERS = 'prvo_markers'
 DIAGNOSTICS = '/diagnostics'
 CONTACTS = '/prvo_sim/contacts'
 CLOCK = '/clock'
+# The world frame of odometry, ground truth, goals and world-frame commands.
+WORLD_FRAME = 'map'
 
 _NAME_SEGMENT = re.compile(r'[A-Za-z_][A-Za-z0-9_]*')
 

@@ -4,10 +4,15 @@ import math
 
 from geometry_msgs.msg import TwistStamped
 
-from prvo_msgs_util import MessageFault, body_to_world, stamp_to_seconds, twist_to_velocity
+from prvo_msgs_util import (
+    WORLD_FRAME,
+    MessageFault,
+    body_to_world,
+    stamp_to_seconds,
+    twist_to_velocity,
+)
 from prvo_sim.world import YAW_HISTORY
 
-WORLD_FRAME = 'map'
 # A commanded speed above this [m/s] is a corrupt message, not a fast robot.
 MAX_COMMAND_SPEED = 1e3
 

@@ -17,11 +17,15 @@ import time
 
 import numpy as np
 
-from prvo_msgs_util import body_to_world, serialized_odometry_to_measurement, world_to_body
+from prvo_msgs_util import (
+    WORLD_FRAME,
+    body_to_world,
+    serialized_odometry_to_measurement,
+    world_to_body,
+)
 from prvo_planner.agent import AgentSettings, PlannerAgent
 from prvo_planner.core import plan_velocities
 from prvo_planner.parameters import planner_config_from
-from prvo_sim.commands import WORLD_FRAME
 from prvo_sim.world import TeamWorld
 from prvo_sim.world_messages import serialized_odometry
 

@@ -6,12 +6,12 @@ from diagnostic_msgs.msg import DiagnosticStatus
 import numpy as np
 
 from prvo_msgs_util import (
+    WORLD_FRAME,
     diagnostic_values,
     make_diagnostic_array,
     make_diagnostic_status,
     serialize_odometry,
 )
-from prvo_sim.commands import WORLD_FRAME
 
 
 def serialized_odometry(world):

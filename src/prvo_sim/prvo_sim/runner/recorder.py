@@ -16,7 +16,6 @@ import time
 
 import numpy as np
 
-WORLD_FRAME = 'map'
 RECORDER_CLOSE_TIMEOUT = 5.0  # wall seconds the recorder's DDS teardown may take
 # Topics every rclpy node publishes on; publishing there says nothing about a node.
 ROS_DEFAULT_TOPICS = ('/rosout', '/parameter_events')
@@ -128,8 +127,7 @@ class Recorder:
         latest = {}
         for name, received in self._serialized['ground_truth'].items():
             if received:
-                measurement = serialized_odometry_to_measurement(
-                    received[-1], expected_frame=WORLD_FRAME)
+                measurement = serialized_odometry_to_measurement(received[-1])
                 latest[name] = (_seconds_ns(measurement.stamp), measurement.position)
         return latest
 
@@ -139,7 +137,7 @@ class Recorder:
         from prvo_msgs_util import serialized_odometry_to_measurement
 
         def decode(data):
-            measurement = serialized_odometry_to_measurement(data, expected_frame=WORLD_FRAME)
+            measurement = serialized_odometry_to_measurement(data)
             return _seconds_ns(measurement.stamp), (
                 *measurement.position, *measurement.velocity, measurement.yaw)
 
@@ -300,7 +298,7 @@ class Recorder:
         Commands are world-frame (a body-frame command is turned by the robot's heading at its
         stamp, as the simulator does), NaN where missing.
         """
-        from prvo_msgs_util import body_to_world
+        from prvo_msgs_util import WORLD_FRAME, body_to_world
         from prvo_sim.runner.outputs import Recording
 
         ground_truth, received_commands = self.ground_truth, self.commands
