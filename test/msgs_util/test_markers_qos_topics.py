@@ -29,6 +29,8 @@ from prvo_msgs_util import (
     robot_topic,
     validate_robot_name,
 )
+from prvo_planner.core import k_from_eta
+from prvo_planner.core.probability import confidence_ellipse_scale
 
 
 def test_belief_markers_match_chi2_ellipse():
@@ -39,7 +41,7 @@ def test_belief_markers_match_chi2_ellipse():
     radii = np.array([0.3, 0.25, 0.4])
     markers = make_belief_markers(
         7.5, 'map', 'robot_0', [1.0, 2.0], [0.5, -0.2], positions, covariances, radii,
-        confidence=0.9).markers
+        confidence_ellipse_scale(k_from_eta(0.9))).markers
 
     assert markers[0].action == Marker.DELETEALL
     arrow = markers[1]
@@ -70,7 +72,7 @@ def test_belief_markers_match_chi2_ellipse():
 def test_belief_markers_reject_mismatched_neighbours():
     with pytest.raises(ValueError, match='2 neighbour positions, 1 covariances'):
         make_belief_markers(0.0, 'map', 'r', [0, 0], [0, 0], np.zeros((2, 2)),
-                            [np.eye(2)], [0.3, 0.3])
+                            [np.eye(2)], [0.3, 0.3], 1.0)
 
 
 def test_diagnostic_status_values_round_trip():

@@ -17,7 +17,7 @@ _ARROW_HEAD_DIAMETER = 0.1
 _ARROW_HEAD_LENGTH = 0.1
 
 
-def _ellipse_marker(header, namespace, marker_id, position, covariance, radius, chi2_quantile):
+def _ellipse_marker(header, namespace, marker_id, position, covariance, radius, ellipse_scale):
     """Return a flat cylinder covering the confidence ellipse of POSITION grown by RADIUS."""
     eigenvalues, eigenvectors = np.linalg.eigh(covariance)
     # Rounding can leave a PSD covariance with a tiny negative eigenvalue.
@@ -29,24 +29,24 @@ def _ellipse_marker(header, namespace, marker_id, position, covariance, radius, 
     marker.pose.position.x, marker.pose.position.y = (float(value) for value in position)
     marker.pose.orientation.z = math.sin(0.5 * yaw)
     marker.pose.orientation.w = math.cos(0.5 * yaw)
-    marker.scale.x = 2.0 * (math.sqrt(chi2_quantile * major_variance) + radius)
-    marker.scale.y = 2.0 * (math.sqrt(chi2_quantile * minor_variance) + radius)
+    marker.scale.x = 2.0 * (ellipse_scale * math.sqrt(major_variance) + radius)
+    marker.scale.y = 2.0 * (ellipse_scale * math.sqrt(minor_variance) + radius)
     marker.scale.z = _ELLIPSE_THICKNESS
     return marker
 
 
 def make_belief_markers(stamp_seconds, frame_id, namespace, ego_position, chosen_velocity,
                         neighbour_positions, neighbour_position_covs, neighbour_radii,
-                        confidence=0.8):
+                        ellipse_scale):
     """Return a MarkerArray: DELETEALL, one ARROW for the chosen velocity, one ellipse each.
 
-    Each neighbour's CYLINDER spans its CONFIDENCE position ellipse (semi-axes
-    sqrt(q * eigenvalue), q = -2 ln(1 - CONFIDENCE), the 2-dof chi-square quantile) plus its
-    radius, turned along the major axis.
+    Each neighbour's CYLINDER spans its position ellipse of semi-axes ELLIPSE_SCALE
+    sqrt(eigenvalue) (the planner's confidence ellipse:
+    `prvo_planner.core.probability.confidence_ellipse_scale`) plus its radius, turned along
+    the major axis.
     """
-    if not 0.0 < confidence < 1.0:
-        raise ValueError(f'confidence must be in (0, 1), got {confidence}')
-    chi2_quantile = -2.0 * math.log1p(-confidence)
+    if not (math.isfinite(ellipse_scale) and ellipse_scale >= 0.0):
+        raise ValueError(f'ellipse_scale must be finite and >= 0, got {ellipse_scale}')
     positions = np.asarray(neighbour_positions, dtype=float).reshape(-1, 2)
     covariances = np.asarray(neighbour_position_covs, dtype=float).reshape(-1, 2, 2)
     radii = np.asarray(neighbour_radii, dtype=float).reshape(-1)
@@ -74,5 +74,5 @@ def make_belief_markers(stamp_seconds, frame_id, namespace, ego_position, chosen
     for index, (position, covariance, radius) in enumerate(
             zip(positions, covariances, radii, strict=True)):
         markers.markers.append(_ellipse_marker(
-            header, namespace, index + 1, position, covariance, float(radius), chi2_quantile))
+            header, namespace, index + 1, position, covariance, float(radius), ellipse_scale))
     return markers

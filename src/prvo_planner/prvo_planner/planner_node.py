@@ -63,6 +63,7 @@ from prvo_msgs_util import (
     world_to_body,
 )
 from prvo_planner.agent import AgentSettings, PlannerAgent
+from prvo_planner.core.probability import confidence_ellipse_scale
 from prvo_planner.parameters import (
     BOOL,
     FLOAT,
@@ -387,7 +388,8 @@ class PlannerNode(Node):
             command.velocity,
             np.array([belief.mean[:2] for belief in neighbours]).reshape(-1, 2),
             np.array([belief.covariance[:2, :2] for belief in neighbours]).reshape(-1, 2, 2),
-            np.full(len(neighbours), command.neighbour_radius), confidence=self._config.eta))
+            np.full(len(neighbours), command.neighbour_radius),
+            confidence_ellipse_scale(self._config.effective_k)))
 
     def _publish_diagnostics(self, command, plan_time_ms):
         result = command.result
