@@ -8,8 +8,10 @@ from geometry_msgs.msg import TwistStamped
 from nav_msgs.msg import Odometry
 import numpy as np
 import pytest
+from scipy.stats import chi2
+from visualization_msgs.msg import Marker, MarkerArray
 
-from prvo_msgs_util import CMD_VEL_QOS, ODOM_QOS, make_odometry
+from prvo_msgs_util import CMD_VEL_QOS, MARKER_QOS, ODOM_QOS, make_odometry
 
 pytestmark = pytest.mark.integration
 
@@ -94,6 +96,26 @@ def test_topics_are_inspectable(make_team, observe, probe):
         qos=CMD_VEL_QOS)
     # robot_0 starts at x = -4 with its goal at x = +4: it heads right, within its speed limit.
     assert math.hypot(command.twist.linear.x, command.twist.linear.y) <= 1.0 + 1e-9
+
+
+def test_markers_show_each_neighbour_with_its_confidence_ellipse(make_team, observe, probe):
+    team = make_team('headon2')
+    observe(team)
+    team.start_sim()
+    team.start_planners()
+    # Markers are built only for a subscriber: this one.
+    markers = probe.wait_for_message(
+        MarkerArray, '/robot_0/prvo_markers', lambda msg: len(msg.markers) == 3, timeout=30.0,
+        qos=MARKER_QOS)
+    delete_all, arrow, ellipse = markers.markers
+    assert delete_all.action == Marker.DELETEALL and arrow.type == Marker.ARROW
+    assert ellipse.type == Marker.CYLINDER and ellipse.header.frame_id == 'map'
+    # The neighbour's disc (radius 0.3) grown by its eta = 0.8 ellipse: the 2-dof chi-square
+    # quantile scales the tracked standard deviation, which is the sensors' 0.05 m at the first
+    # plan and never above it, and stays above 0.02 m at the sensors' rate.
+    scale = math.sqrt(chi2.ppf(0.8, df=2))
+    assert ellipse.scale.x == pytest.approx(ellipse.scale.y, rel=1e-6)
+    assert 2 * (0.3 + scale * 0.02) < ellipse.scale.x <= 2 * (0.3 + scale * 0.05) + 1e-6
 
 
 def test_killed_planner_is_survived_and_replaced(make_team, observe, probe, children):
