@@ -5,12 +5,18 @@ starts) would end the process with a KeyboardInterrupt traceback. The handler se
 until the node's main installs its own, just before rclpy starts.
 """
 
+import os
 import signal
 import sys
 
 
 def _exit_quietly(signum, frame):
-    sys.exit(0)
+    # Nothing is running yet that needs cleaning up, and a SystemExit raised here would land
+    # inside whatever import runs, which can turn it into an ImportError (a C extension's
+    # initialisation, for one): leave at once.
+    sys.stdout.flush()
+    sys.stderr.flush()
+    os._exit(0)
 
 
 def main(args=None):
