@@ -73,7 +73,9 @@ def test_lockstep_is_reproducible(make_team, observe, probe, children):
 def test_topics_are_inspectable(make_team, observe, probe):
     team = make_team('headon2')
     observe(team)
-    team.start_sim()
+    # In realtime, as a user inspects a team: a lockstep team can finish its run before a
+    # probe has subscribed.
+    team.start_sim(mode='realtime')
     team.start_planners()
     expected = {
         '/robot_0/odom': 'nav_msgs/msg/Odometry',
@@ -101,7 +103,8 @@ def test_topics_are_inspectable(make_team, observe, probe):
 def test_markers_show_each_neighbour_with_its_confidence_ellipse(make_team, observe, probe):
     team = make_team('headon2')
     observe(team)
-    team.start_sim()
+    # Realtime: the planners are still planning when the probe subscribes.
+    team.start_sim(mode='realtime')
     team.start_planners()
     # Markers are built only for a subscriber: this one.
     markers = probe.wait_for_message(
