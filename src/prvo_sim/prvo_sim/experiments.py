@@ -384,8 +384,9 @@ def write_report(path, results):
                          f"{record['joint_probability']:.3f} |")
     lines += ['', '![Cantelli validation](cantelli_validation.png)', '',
               '## 2. Deviation against k (paper figure 4)', '',
-              'Closed loop on `paper3` without ROS (noisy odometry as beliefs, actuation noise '
-              'on execution, same seed for every k):', '',
+              "`paper3` on the in-process engine (the runner's planners with margin k: "
+              'tracked noisy odometry, actuation noise on execution; same seed for every k):',
+              '',
               '| k | bound eta | mean max lateral deviation [m] | min separation [m] | '
               'collisions | makespan [s] |', '|---|---|---|---|---|---|']
     for row in results['deviation']:
@@ -421,8 +422,9 @@ def write_report(path, results):
                      f"{_intervals_text(row['surrogate_full'])} |")
     lines += ['', '## 5. Methods over the shipped scenarios', '']
     if results['methods']:
-        lines += [f"{results['seeds']} seed(s) per cell, lockstep, through the scenario runner "
-                  '(mean ± std over seeds):', '',
+        lines += [f"{results['seeds']} seed(s) per cell, through the scenario runner's "
+                  'in-process engine (the trajectories of a ROS lockstep run; mean ± std over '
+                  'seeds):', '',
                   '| scenario | method | runs (failed) | collisions (total) | success rate | '
                   'mean time to goal [s] | min separation [m] |', '|---|---|---|---|---|---|---|']
         for row in results['methods']:
