@@ -1,5 +1,6 @@
 """A team fixture: the simulator and one planner per robot, as real processes."""
 
+import copy
 import os
 import threading
 
@@ -19,6 +20,8 @@ from prvo_msgs_util import (
 )
 from prvo_sim.scenario import find_scenario, load_scenario
 
+OBSERVER_QUEUE_DEPTH = 2000
+
 
 class TeamObserver:
     """What the probe sees of a running team: ground truth and the simulator's status."""
@@ -29,10 +32,13 @@ class TeamObserver:
         self.sim_status = {}
         self.robot_status = {name: {} for name in robot_names}
         self.planner_status = {name: {} for name in robot_names}
+        # A deep queue: a lockstep team can publish faster than a loaded probe takes messages.
+        deep = copy.copy(ODOM_QOS)
+        deep.depth = OBSERVER_QUEUE_DEPTH
         for name in robot_names:
             probe.node.create_subscription(
                 Odometry, robot_topic(name, GROUND_TRUTH),
-                lambda msg, name=name: self._on_ground_truth(name, msg), ODOM_QOS)
+                lambda msg, name=name: self._on_ground_truth(name, msg), deep)
         probe.node.create_subscription(
             DiagnosticArray, DIAGNOSTICS, self._on_diagnostics, DIAGNOSTICS_QOS)
 
@@ -103,6 +109,8 @@ class Team:
         self._tmp_path = tmp_path
         self.planners = {}
         self.sim = None
+        # Nodes the simulator waits for before its first step (see `observe`).
+        self.observers = []
 
     def start_sim(self, seed=None, step_timeout=2.0, mode='lockstep', label='sim'):
         argv = [self._ros2_executable('prvo_sim', 'sim'), '--ros-args',
@@ -110,6 +118,9 @@ class Team:
                 '-p', f'step_timeout:={float(step_timeout)}']
         if seed is not None:
             argv += ['-p', f'seed:={int(seed)}']
+        if self.observers:
+            argv += ['-p', 'observers:=[' + ', '.join(
+                f"'{name}'" for name in self.observers) + ']']
         self.sim = self.children.start(label, argv)
         return self.sim
 
@@ -148,7 +159,13 @@ def make_team(children, ros2_executable, tmp_path):
 @pytest.fixture
 def observe(probe):
     """Return a factory of `TeamObserver`s of a team, subscribed through the probe."""
-    return lambda team: TeamObserver(probe, [spec.name for spec in team.scenario.robots])
+    def observe(team):
+        observer = TeamObserver(probe, [spec.name for spec in team.scenario.robots])
+        # The simulator takes no step before the probe listens (its `observers` parameter).
+        team.observers.append(probe.node.get_fully_qualified_name())
+        return observer
+
+    return observe
 
 
 @pytest.fixture(autouse=True)
