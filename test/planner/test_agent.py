@@ -7,12 +7,12 @@ import numpy as np
 import pytest
 
 from prvo_planner.agent import (
-    MAX_STAMP_JUMP_SECONDS,
     AgentSettings,
     PlannerAgent,
 )
 from prvo_planner.core import AgentBelief, PlannerConfig, plan_velocity
 from prvo_planner.estimation import ConstantVelocityTracker
+from prvo_planner.tracks import MAX_STAMP_JUMP_SECONDS, TrackTable
 
 GOAL = np.array([4.0, 0.5])
 SETTINGS = AgentSettings(radius=0.3, neighbor_radius=0.4, approach_time=0.5, goal_tolerance=0.2,
@@ -191,3 +191,32 @@ def test_the_agent_imports_no_ros(python_executable):
     output = subprocess.run([python_executable, '-c', probe], capture_output=True, text=True,
                             check=True).stdout
     assert output.strip() == '[]', output
+
+
+def test_agents_sharing_one_track_table_plan_as_agents_with_their_own():
+    # Two robots heading at each other, planned once with a table each (as two nodes do) and
+    # once sharing one table fed once per measurement (as the in-process engine does): the
+    # same measurements at the same `now` must give the same commands, bit for bit.
+    data = {'p': measurements(4, [0.0, 0.0], [0.8, 0.0], 12),
+            'q': measurements(5, [3.0, 0.1], [-0.8, 0.0], 12)}
+    goals = {'p': np.array([4.0, 0.0]), 'q': np.array([-1.0, 0.1])}
+    own = {name: PlannerAgent(name, CONFIG, SETTINGS, goals[name]) for name in data}
+    table = TrackTable(SETTINGS.acceleration_std, SETTINGS.neighbor_timeout)
+    shared = {name: PlannerAgent(name, CONFIG, SETTINGS, goals[name], neighbour_tracks=table)
+              for name in data}
+    for step in range(12):
+        now = 0.1 * step
+        for name, agent in own.items():
+            agent.receive_own(data[name][step], now)
+            other = 'q' if name == 'p' else 'p'
+            agent.receive_neighbour(other, data[other][step], now)
+        for name, agent in shared.items():
+            agent.receive_own(data[name][step], now)
+            table.receive(name, data[name][step], now)
+        for name in data:
+            assert own[name].ready(now) and shared[name].ready(now)
+            assert shared[name].neighbours == own[name].neighbours == {
+                'q' if name == 'p' else 'p'}
+            expected, got = own[name].plan(), shared[name].plan()
+            assert np.array_equal(expected.velocity, got.velocity)
+            assert len(got.neighbours) == 1

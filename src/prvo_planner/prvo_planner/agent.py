@@ -13,15 +13,8 @@ import dataclasses
 import numpy as np
 
 from prvo_planner.core import AgentBelief, plan_velocity
-from prvo_planner.estimation import ConstantVelocityTracker, TrackFault
+from prvo_planner.tracks import TrackTable, fuse
 
-# A stamp this far behind a track's last one means its source restarted (e.g. the simulator):
-# the track starts over instead of rejecting every message from then on.
-_TIME_RESET_SECONDS = 1.0
-# A stamp this far ahead of a track's last one is a fault (a wall-clock stamp among sim-time
-# ones, a garbage sec field), not motion: odometry comes at several Hz, over 10 s the prediction
-# of 1 m/s^2 noise is already some 18 m wide, and over years its rounding breaks the filter.
-MAX_STAMP_JUMP_SECONDS = 10.0
 # Plans for a made-up encounter in warm_up().
 _WARM_UP_PLANS = 3
 
@@ -75,25 +68,6 @@ class AgentSettings:
 
 
 @dataclasses.dataclass(frozen=True)
-class Fusion:
-    """What became of one measurement.
-
-    `status` is 'fused' or 'restarted' (accepted; 'restarted': its time went back, so the track
-    started over), 'duplicate' (the stamp of the last accepted one), or a fault that left the
-    track as it was: 'stale' (a little behind the last stamp), 'refused' (far ahead of it, or
-    numerically unusable). `detail` says why, with the values.
-    """
-
-    status: str
-    detail: str = ''
-
-    @property
-    def accepted(self):
-        """Whether the measurement reached the track."""
-        return self.status in ('fused', 'restarted')
-
-
-@dataclasses.dataclass(frozen=True)
 class Command:
     """One plan: the command for `stamp` and what it was planned from.
 
@@ -127,22 +101,6 @@ class PlanRequest:
     problem: tuple
 
 
-class _Track:
-    """One tracked robot: its filter and when (caller's `now`) it last accepted a measurement.
-
-    `superseded` is the track a backward time jump replaced, kept until the new time goes on.
-    """
-
-    def __init__(self, acceleration_std, now, superseded=None):
-        self.tracker = ConstantVelocityTracker(acceleration_std)
-        self.last_heard = now
-        self.superseded = superseded
-
-    def fits(self, stamp):
-        """Whether STAMP continues this track: later than its last, by a plausible step."""
-        return 0.0 < stamp - self.tracker.stamp <= MAX_STAMP_JUMP_SECONDS
-
-
 class PlannerAgent:
     """PRVO planner of one robot, without ROS.
 
@@ -159,6 +117,12 @@ class PlannerAgent:
     listed_neighbours : iterable of str or None
         Robots to wait for from the first own measurement on (for up to `neighbor_timeout`)
         before the first plan; None: plan with whoever has been heard.
+    neighbour_tracks : prvo_planner.tracks.TrackTable or None
+        Where the neighbours' measurements go. None: the agent's own table, fed by
+        `receive_neighbour` and retuned by `reconfigure`. Agents fed the same measurements at
+        the same `now` may share one table fed once per measurement by their caller (it may
+        hold the agent's own robot too: the agent never plans against itself); the caller
+        then keeps its settings.
 
     Use: `receive_own` and `receive_neighbour` for every measurement; when `ready(now)`, or when
     the caller's wait for neighbours (`sync_timeout`) ran out and `awaiting_listed(now)` is
@@ -167,7 +131,7 @@ class PlannerAgent:
     """
 
     def __init__(self, name, config, settings=AgentSettings(), goal=None,
-                 listed_neighbours=None):
+                 listed_neighbours=None, neighbour_tracks=None):
         self.name = name
         self.config = config
         self.settings = settings
@@ -176,7 +140,10 @@ class PlannerAgent:
             None if listed_neighbours is None else set(listed_neighbours) - {name})
         self.arrived = False
         self._own_track = None
-        self._neighbour_tracks = {}
+        self._owns_tracks = neighbour_tracks is None
+        self._neighbour_tracks = (
+            TrackTable(settings.acceleration_std, settings.neighbor_timeout)
+            if neighbour_tracks is None else neighbour_tracks)
         self._pending_stamp = None
         self._own_yaw = 0.0
         # The last planned velocity in the world frame, for the inertia term; None after a stop.
@@ -193,12 +160,19 @@ class PlannerAgent:
     @property
     def neighbours(self):
         """Names of the neighbours tracked now."""
-        return set(self._neighbour_tracks)
+        return set(self._neighbour_names())
+
+    def _neighbour_names(self):
+        """Return the names of the neighbours tracked now, in the table's order."""
+        return [robot for robot in self._neighbour_tracks.names() if robot != self.name]
 
     def reconfigure(self, config, settings, goal):
         """Take new parameters; the plan in progress and the tracks go on."""
         self.config, self.settings = config, settings
         self.goal = None if goal is None else np.asarray(goal, dtype=float)
+        if self._owns_tracks:
+            self._neighbour_tracks.acceleration_std = settings.acceleration_std
+            self._neighbour_tracks.neighbor_timeout = settings.neighbor_timeout
 
     def set_goal(self, goal):
         """Head for a new GOAL (2,): not arrived, no previous command to stay close to."""
@@ -214,7 +188,9 @@ class PlannerAgent:
         An accepted one becomes the pending stamp (replacing one not planned yet: a newer
         stamp is what a command should answer).
         """
-        self._own_track, fusion = self._fuse(self._own_track, measurement, now)
+        self._own_track, fusion = fuse(self._own_track, measurement, now,
+                                       self.settings.acceleration_std,
+                                       self.settings.neighbor_timeout)
         if fusion.accepted:
             if self._first_own_at is None:
                 self._first_own_at = now
@@ -224,69 +200,14 @@ class PlannerAgent:
 
     def receive_neighbour(self, robot, measurement, now):
         """Fuse neighbour ROBOT's MEASUREMENT; return its `Fusion`."""
-        track, fusion = self._fuse(self._neighbour_tracks.get(robot), measurement, now)
-        self._neighbour_tracks[robot] = track
-        return fusion
+        return self._neighbour_tracks.receive(robot, measurement, now)
 
     def forget_neighbours(self, now, wanted=None):
         """Drop neighbours silent longer than neighbor_timeout, or not in WANTED (if given).
 
         Returns [(robot, seconds silent)] of those dropped.
         """
-        dropped = []
-        for robot, track in list(self._neighbour_tracks.items()):
-            silent = now - track.last_heard
-            if (wanted is not None and robot not in wanted) or (
-                    silent > self.settings.neighbor_timeout):
-                del self._neighbour_tracks[robot]
-                dropped.append((robot, silent))
-        return dropped
-
-    def _fuse(self, track, measurement, now):
-        """Return (the track to keep, the `Fusion`) of MEASUREMENT fed to TRACK (None: new)."""
-        stamp = measurement.stamp
-        if track is None:
-            track = _Track(self.settings.acceleration_std, now)
-            return self._update(track, measurement, now, 'fused')
-        last = track.tracker.stamp
-        if track.superseded is not None and track.superseded.fits(stamp) and not track.fits(
-                stamp):
-            # A single stamp from the past replaced the track; time goes on from the old one.
-            track = track.superseded
-            return self._update(track, measurement, now, 'fused')
-        if stamp == last:
-            return track, Fusion('duplicate')
-        if stamp < last:
-            if last - stamp <= _TIME_RESET_SECONDS:
-                return track, Fusion(
-                    'stale', f'stamp {stamp:.3f} s is not after the last one ({last:.3f} s)')
-            restarted = _Track(self.settings.acceleration_std, now, superseded=track)
-            return self._update(
-                restarted, measurement, now, 'restarted',
-                f'time jumped back from {last:.3f} s to {stamp:.3f} s: restarting the track')
-        if stamp - last > MAX_STAMP_JUMP_SECONDS:
-            if now - track.last_heard <= self.settings.neighbor_timeout:
-                return track, Fusion(
-                    'refused', f'stamp {stamp:.3f} s is more than {MAX_STAMP_JUMP_SECONDS:g} s '
-                    f'after the last one ({last:.3f} s)')
-            # Nothing usable for a whole neighbour timeout: the source's time moved on for good.
-            return self._update(
-                _Track(self.settings.acceleration_std, now), measurement, now, 'restarted',
-                f'time jumped ahead from {last:.3f} s to {stamp:.3f} s after '
-                f'{now - track.last_heard:.1f} s without a usable stamp: restarting the track')
-        track.superseded = None
-        return self._update(track, measurement, now, 'fused')
-
-    @staticmethod
-    def _update(track, measurement, now, status, detail=''):
-        """Feed MEASUREMENT to TRACK's filter; return (TRACK, Fusion(STATUS) or 'refused')."""
-        try:
-            track.tracker.update(measurement.stamp, measurement.position, measurement.velocity,
-                                 measurement.covariance)
-        except TrackFault as fault:
-            return track, Fusion('refused', str(fault))
-        track.last_heard = now
-        return track, Fusion(status, detail)
+        return self._neighbour_tracks.forget(now, wanted)
 
     # Planning ---------------------------------------------------------------------------------
 
@@ -295,13 +216,13 @@ class PlannerAgent:
         if (self.listed_neighbours is None or self._first_own_at is None
                 or now - self._first_own_at > self.settings.neighbor_timeout):
             return False
-        return any(name not in self._neighbour_tracks for name in self.listed_neighbours)
+        return any(robot not in self._neighbour_tracks for robot in self.listed_neighbours)
 
     def ready(self, now):
         """Whether a stamp is pending and every neighbour has been measured at or after it."""
         return (self._pending_stamp is not None and not self.awaiting_listed(now) and all(
-            track.tracker.stamp >= self._pending_stamp
-            for track in self._neighbour_tracks.values()))
+            self._neighbour_tracks.track(robot).stamp >= self._pending_stamp
+            for robot in self._neighbour_names()))
 
     def plan(self):
         """Plan for the pending stamp (neighbours predicted to it); return the `Command`.
@@ -323,14 +244,14 @@ class PlannerAgent:
         if self._pending_stamp is None:
             raise RuntimeError('plan() without a pending own measurement')
         stamp, self._pending_stamp = self._pending_stamp, None
-        own = self._own_track.tracker.belief_at(stamp)
+        own = self._own_track.belief_at(stamp)
         neighbour_radius = self.settings.neighbour_radius_in_force
         max_speed = self.config.max_speed
         v_pref, self.arrived = preferred_velocity(
             own.mean[:2], self.goal, max_speed, self.settings.approach_time,
             self.settings.goal_tolerance)
-        neighbour_beliefs = tuple(
-            track.tracker.belief_at(stamp) for track in self._neighbour_tracks.values())
+        tracks = [self._neighbour_tracks.track(robot) for robot in self._neighbour_names()]
+        neighbour_beliefs = tuple(track.belief_at(stamp) for track in tracks)
         problem = None
         if not (self.arrived or self.goal is None):
             horizon = goal_horizon(
@@ -338,8 +259,7 @@ class PlannerAgent:
                 self.settings.approach_time, self.config.time_horizon)
             problem = (
                 AgentBelief(own.mean[:2], own.mean[2:], own.covariance, self.settings.radius),
-                [AgentBelief(belief.mean[:2], belief.mean[2:], belief.covariance,
-                             neighbour_radius) for belief in neighbour_beliefs],
+                [track.agent_belief(stamp, neighbour_radius) for track in tracks],
                 v_pref, dataclasses.replace(self.config, time_horizon=horizon),
                 self._previous_velocity)
         return PlanRequest(stamp=stamp, own=own, neighbours=neighbour_beliefs,

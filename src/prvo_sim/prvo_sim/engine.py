@@ -26,6 +26,7 @@ from prvo_msgs_util import (
 from prvo_planner.agent import AgentSettings, PlannerAgent
 from prvo_planner.core import plan_velocities
 from prvo_planner.parameters import planner_config_from
+from prvo_planner.tracks import TrackTable
 from prvo_sim.world import TeamWorld
 from prvo_sim.world_messages import serialized_odometry
 
@@ -47,10 +48,13 @@ class StepRecord:
     contacts: tuple
 
 
-def agent_of(name, values):
-    """Return the PlannerAgent that a planner node with parameter VALUES would run for NAME."""
+def agent_of(name, values, neighbour_tracks=None):
+    """Return the PlannerAgent that a planner node with parameter VALUES would run for NAME.
+
+    NEIGHBOUR_TRACKS: a `TrackTable` shared with other agents, or None for the agent's own.
+    """
     return PlannerAgent(name, planner_config_from(values), AgentSettings.from_parameters(values),
-                        values['goal'], values['neighbors'])
+                        values['goal'], values['neighbors'], neighbour_tracks)
 
 
 class InProcessTeam:
@@ -73,8 +77,14 @@ class InProcessTeam:
             raise ValueError(f'planner_values has {len(planner_values)} entries for '
                              f'{len(scenario.robots)} robots')
         self.world = TeamWorld(scenario, seed)
-        self.agents = [agent_of(robot.name, values)
-                       for robot, values in zip(scenario.robots, planner_values, strict=True)]
+        # Every agent hears every robot at the same step, so agents with the same tracker
+        # settings would run identical filters: one table per settings filters each robot once.
+        self._track_tables = {}
+        self.agents = []
+        for robot, values in zip(scenario.robots, planner_values, strict=True):
+            settings = (values['acceleration_std'], values['neighbor_timeout'])
+            table = self._track_tables.setdefault(settings, TrackTable(*settings))
+            self.agents.append(agent_of(robot.name, values, table))
 
     @property
     def finished(self):
@@ -100,11 +110,11 @@ class InProcessTeam:
         now = world.time
         measurements, states = self.observe()
         names = world.names
-        for index, agent in enumerate(self.agents):
-            agent.receive_own(measurements[index], now)
-            for other, measurement in enumerate(measurements):
-                if other != index:
-                    agent.receive_neighbour(names[other], measurement, now)
+        for agent, measurement in zip(self.agents, measurements, strict=True):
+            agent.receive_own(measurement, now)
+        for table in self._track_tables.values():
+            for name, measurement in zip(names, measurements, strict=True):
+                table.receive(name, measurement, now)
         started = time.perf_counter()
         requests = [agent.plan_request() for agent in self.agents]
         moving = [index for index, request in enumerate(requests) if request.problem is not None]
