@@ -2,7 +2,7 @@
 
 import numpy as np
 
-from prvo_planner.core import AgentBelief
+from prvo_planner.encounters import EncounterDistribution, random_encounter
 
 
 def random_covariance(rng, size, scale):
@@ -13,13 +13,9 @@ def random_covariance(rng, size, scale):
 
 def random_two_robot_encounter(rng, position_noise=0.1, velocity_noise=0.1):
     """Ego at the origin heading towards a neighbour 2 to 6 m away, both noisy."""
-    distance = rng.uniform(2.0, 6.0)
-    bearing = rng.uniform(-0.6, 0.6)
-    neighbour_position = distance * np.array([np.cos(bearing), np.sin(bearing)])
-    ego = AgentBelief([0.0, 0.0], rng.uniform(-0.2, 1.0, size=2),
-                      random_covariance(rng, 4, rng.uniform(0.2, 1.0) * position_noise), 0.3)
-    neighbour = AgentBelief(neighbour_position,
-                            -0.8 * neighbour_position / distance + rng.normal(0.0, 0.3, size=2),
-                            random_covariance(rng, 4, rng.uniform(0.2, 1.0) * velocity_noise),
-                            rng.uniform(0.2, 0.5))
+    ego, (neighbour,) = random_encounter(rng, EncounterDistribution(
+        neighbours=(1, 1), distance=(2.0, 6.0), bearing=(-0.6, 0.6), approach_speed=(0.8, 0.8),
+        velocity_scatter=0.3, ego_velocity=(-0.2, 1.0),
+        position_std=(0.2 * position_noise, position_noise),
+        velocity_std=(0.2 * velocity_noise, velocity_noise), radius=(0.2, 0.5)))
     return ego, neighbour

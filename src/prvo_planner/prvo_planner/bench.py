@@ -20,6 +20,7 @@ import time
 import numpy as np
 
 from prvo_planner.core import AgentBelief, PlannerConfig, plan_velocities, plan_velocity
+from prvo_planner.encounters import EncounterDistribution, random_encounter
 
 NEIGHBOURS = (1, 5, 10, 20, 50)
 DIRECTIONS = (16, 64, 128)
@@ -32,25 +33,12 @@ VARIANTS = (
 )
 
 
-def random_covariance(rng, position_std, velocity_std):
-    """Random full 4x4 covariance with the given typical standard deviations."""
-    scales = np.array([position_std, position_std, velocity_std, velocity_std])
-    factor = rng.normal(size=(4, 4)) * 0.5 + np.eye(4)
-    return (scales[:, None] * (factor @ factor.T) * scales[None, :]) / 2.0
-
-
-def random_encounter(rng, count):
-    """Draw an ego robot at the origin heading +x and ``count`` neighbours within 8 m."""
-    ego = AgentBelief([0.0, 0.0], [0.8, 0.0], random_covariance(rng, 0.05, 0.05), 0.3)
-    neighbours = []
-    for _ in range(count):
-        while True:
-            position = rng.uniform(-8.0, 8.0, size=2)
-            if np.hypot(*position) > 1.0:
-                break
-        neighbours.append(AgentBelief(position, rng.uniform(-1.0, 1.0, size=2),
-                                      random_covariance(rng, 0.1, 0.1), 0.3))
-    return ego, neighbours
+def bench_encounter(count):
+    """Return the seeded encounter of COUNT neighbours within 8 m that each variant is timed on."""
+    return random_encounter(np.random.default_rng(count), EncounterDistribution(
+        neighbours=(count, count), distance=(1.0, 8.0), approach_speed=(-1.0, 1.0),
+        velocity_scatter=0.5, ego_velocity=(0.0, 0.8), position_std=(0.05, 0.1),
+        velocity_std=(0.05, 0.1)))
 
 
 def time_calls(ego, neighbours, config, repeats, clock=time.perf_counter):
@@ -68,7 +56,7 @@ def run(repeats, mc_repeats, clock=time.perf_counter):
     """Time every variant; return the result rows."""
     rows = []
     for count in NEIGHBOURS:
-        ego, neighbours = random_encounter(np.random.default_rng(count), count)
+        ego, neighbours = bench_encounter(count)
         for directions in DIRECTIONS:
             for name, options in VARIANTS:
                 config = PlannerConfig(max_speed=1.0, num_directions=directions,

@@ -20,6 +20,7 @@ import time
 
 import numpy as np
 
+from prvo_planner import encounters
 from prvo_planner.agent import preferred_velocity
 from prvo_planner.core import (
     AgentBelief,
@@ -278,17 +279,7 @@ def time_scaling_table(noise_std, resolution=4001):
 
 def random_encounter(rng):
     """Return (ego, neighbours, v_pref) of a random encounter with 1-3 noisy neighbours."""
-    def belief(position, velocity):
-        stds = rng.uniform(0.02, 0.15, size=4)
-        return AgentBelief(position, velocity, np.diag(stds ** 2), 0.3)
-
-    ego = belief(np.zeros(2), rng.uniform(-1.0, 1.0, size=2) / math.sqrt(2.0))
-    neighbours = []
-    for _ in range(int(rng.integers(1, 4))):
-        angle = rng.uniform(0.0, 2.0 * math.pi)
-        distance = rng.uniform(0.8, 4.0)
-        position = distance * np.array([math.cos(angle), math.sin(angle)])
-        neighbours.append(belief(position, -position / distance * rng.uniform(0.0, 1.0)))
+    ego, neighbours = encounters.random_encounter(rng)
     goal_angle = rng.uniform(0.0, 2.0 * math.pi)
     return ego, neighbours, np.array([math.cos(goal_angle), math.sin(goal_angle)])
 
