@@ -2,12 +2,12 @@
 
 import math
 
+from independent import line_clear, relative_samples
 import numpy as np
 from prvo_core_testing import random_two_robot_encounter
 import pytest
 
 from prvo_planner.core import PlannerConfig, eta_from_k, plan_velocity
-from prvo_planner.core.probability import rvo_condition, sample_relative_states
 
 SAMPLES = 4000
 # One-sided z for a family-wise false alarm below 1e-3 over the ~1000 checks of this module.
@@ -32,8 +32,8 @@ def test_cantelli_bound_holds_at_the_chosen_velocity(k):
             continue
         feasible += 1
         active += result.achieved_k < k + 1e-3
-        z = sample_relative_states(ego, neighbour, result.velocity, actuation, SAMPLES, rng)
-        probability = np.mean(rvo_condition(z, ego.radius + neighbour.radius) >= 0.0)
+        r, u = relative_samples(rng, ego, neighbour, result.velocity, actuation, SAMPLES)
+        probability = np.mean(line_clear(r, u, ego.radius + neighbour.radius))
         lowest = min(lowest, probability)
         assert probability >= bound - Z * math.sqrt(bound * (1.0 - bound) / SAMPLES)
     print(f'k={k}: {feasible}/200 feasible, {active} active, lowest sampled P = {lowest:.3f} '
@@ -60,10 +60,10 @@ def test_horizon_plan_is_safe_within_the_horizon_with_probability_eta(eta):
             continue
         feasible += 1
         for neighbour in neighbours:
-            z = sample_relative_states(ego, neighbour, result.velocity, actuation, SAMPLES, rng)
+            position, velocity = relative_samples(rng, ego, neighbour, result.velocity,
+                                                  actuation, SAMPLES)
             # Simulate r(t) = r + t u on [0, tau]: safe if the motion never brings the robots
             # closer than R, or closer than they already are.
-            position, velocity = z[:, :2], z[:, 2:]
             speed_sq = np.sum(velocity ** 2, axis=1)
             closest = np.clip(-np.sum(position * velocity, axis=1) / np.maximum(speed_sq, 1e-300),
                               0.0, tau)

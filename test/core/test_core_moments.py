@@ -1,11 +1,11 @@
 """``rvo_moments`` and the ray polynomials against quadrature and Monte Carlo."""
 
+from independent import rvo_f
 import numpy as np
 from prvo_core_testing import random_covariance
 
 from prvo_planner.core import rvo_moments
 from prvo_planner.core.moments import condition_moments, ray_polynomials
-from prvo_planner.core.probability import rvo_condition
 
 # Probabilists' Gauss-Hermite rule: 5 nodes integrate polynomials of degree <= 9 exactly.
 _NODES, _WEIGHTS = np.polynomial.hermite_e.hermegauss(5)
@@ -42,7 +42,8 @@ def test_moments_match_gauss_hermite_quadrature():
     radii = np.array([case[2] for case in cases])
     expectation, variance = rvo_moments(means, covs, radii)
     for index, (mean, cov, radius) in enumerate(cases):
-        values = quadrature_values(lambda z, radius=radius: rvo_condition(z, radius), mean, cov)
+        values = quadrature_values(
+            lambda z, radius=radius: rvo_f(z[..., :2], z[..., 2:], radius), mean, cov)
         first = np.sum(_GRID_WEIGHTS * values)
         second = np.sum(_GRID_WEIGHTS * values ** 2)
         reference_variance = second - first ** 2
@@ -56,7 +57,8 @@ def test_moments_match_monte_carlo_within_four_standard_errors():
     samples = 1_000_000
     for _ in range(3):
         mean, cov, radius = random_case(rng)
-        values = rvo_condition(rng.multivariate_normal(mean, cov, size=samples), radius)
+        z = rng.multivariate_normal(mean, cov, size=samples)
+        values = rvo_f(z[:, :2], z[:, 2:], radius)
         expectation, variance = rvo_moments(mean, cov, radius)
         sample_variance = np.var(values)
         mean_error = np.sqrt(sample_variance / samples)
@@ -75,7 +77,7 @@ def test_horizon_condition_moments_match_quadrature():
         means, variances = condition_moments(origin, cov[None], np.array([radius]),
                                              command[None, :], tau, True)
         conditions = [
-            lambda z, radius=radius: rvo_condition(z, radius),
+            lambda z, radius=radius: rvo_f(z[..., :2], z[..., 2:], radius),
             lambda z: np.sum(z[:, :2] * z[:, 2:], axis=1),
             lambda z: -np.sum(z[:, :2] * z[:, 2:], axis=1) - tau * np.sum(z[:, 2:] ** 2, axis=1),
             lambda z, radius=radius: np.sum((z[:, :2] + tau * z[:, 2:]) ** 2, axis=1)

@@ -2,6 +2,7 @@
 
 import math
 
+from independent import line_clear, relative_samples, rvo_f
 import numpy as np
 from prvo_core_testing import random_covariance, random_two_robot_encounter
 import pytest
@@ -11,12 +12,11 @@ from prvo_planner.core import (
     PlannerConfig,
     plan_velocity,
     rvo_moments,
-    rvo_satisfaction_probability,
 )
 from prvo_planner.core.encounter import build_encounter, candidate_directions, condition_layout
 from prvo_planner.core.feasibility import ray_gaps
 from prvo_planner.core.moments import condition_moments, ray_polynomials
-from prvo_planner.core.probability import rvo_condition, sample_relative_states
+from prvo_planner.core.probability import sample_relative_states
 
 MODELS = ('prvo', 'rvo', 'inflate', 'mc')
 
@@ -27,7 +27,7 @@ def deterministic_f(ego, neighbour, velocity, radius=None):
     relative_velocity = 2.0 * np.asarray(velocity) - ego.velocity - neighbour.velocity
     relative_position = np.broadcast_to(ego.position - neighbour.position,
                                         relative_velocity.shape)
-    return rvo_condition(np.concatenate([relative_position, relative_velocity], axis=-1), radius)
+    return rvo_f(relative_position, relative_velocity, radius)
 
 
 def crowd(rng, count, noise):
@@ -199,8 +199,9 @@ def test_monte_carlo_baseline_meets_eta_under_independent_sampling():
         ego, neighbour = random_two_robot_encounter(rng)
         result = plan_velocity(ego, [neighbour], [1.0, 0.0], config)
         if result.feasible:
-            probability = rvo_satisfaction_probability(ego, neighbour, result.velocity,
-                                                       config.actuation_cov, samples, rng)
+            r, u = relative_samples(rng, ego, neighbour, result.velocity, config.actuation_cov,
+                                    samples)
+            probability = np.mean(line_clear(r, u, ego.radius + neighbour.radius))
             # The planner's estimate (4000 samples) and ours (20000) both err.
             error = math.sqrt(0.8 * 0.2 / 4000) + math.sqrt(0.8 * 0.2 / samples)
             assert probability >= 0.8 - 4.0 * error
@@ -229,7 +230,7 @@ def test_joint_risk_bounds_the_probability_that_all_constraints_hold():
                                             neighbour.covariance, size=samples)
             z = np.concatenate([ego_state[:, :2] - other[:, :2],
                                 2.0 * command - ego_state[:, 2:] - other[:, 2:]], axis=1)
-            all_hold &= rvo_condition(z, ego.radius + neighbour.radius) >= 0.0
+            all_hold &= line_clear(z[:, :2], z[:, 2:], ego.radius + neighbour.radius)
         assert all_hold.mean() >= eta - 4.0 * math.sqrt(eta * (1.0 - eta) / samples)
     assert checked >= 5
 
@@ -239,12 +240,18 @@ def test_sampler_matches_the_relative_gaussian_of_section_2():
     ego = AgentBelief([0.0, 0.0], [0.5, 0.0], random_covariance(rng, 4, 0.3), 0.3)
     neighbour = AgentBelief([3.0, 1.0], [-0.5, 0.1], random_covariance(rng, 4, 0.3), 0.4)
     actuation = 0.02 * np.eye(2)
-    z = sample_relative_states(ego, neighbour, np.array([0.4, 0.2]), actuation, 200_000, rng)
-    config = PlannerConfig(actuation_cov=actuation)
-    encounter = build_encounter(ego, [neighbour], config)
-    expected_mean = encounter.origin[0] + np.r_[0.0, 0.0, 0.8, 0.4]
+    command = np.array([0.4, 0.2])
+    z = sample_relative_states(ego, neighbour, command, actuation, 200_000, rng)
+    # z = M (p_i, v_i, p_j, v_j, a) + (0, 2 v_c): r = p_i - p_j, u = 2 (v_c + a) - v_i - v_j.
+    identity, zero = np.eye(2), np.zeros((2, 2))
+    linear = np.block([[identity, zero, -identity, zero, zero],
+                       [zero, -identity, zero, -identity, 2.0 * identity]])
+    joint = np.zeros((10, 10))
+    joint[:4, :4], joint[4:8, 4:8], joint[8:, 8:] = ego.covariance, neighbour.covariance, actuation
+    expected_mean = np.r_[ego.position - neighbour.position,
+                          2.0 * command - ego.velocity - neighbour.velocity]
     np.testing.assert_allclose(z.mean(axis=0), expected_mean, atol=0.01)
-    np.testing.assert_allclose(np.cov(z.T), encounter.cov[0], atol=0.02)
+    np.testing.assert_allclose(np.cov(z.T), linear @ joint @ linear.T, atol=0.02)
 
 
 def head_on(heading):

@@ -204,6 +204,16 @@ def test_serialized_odometry_gives_the_measurement_of_the_message():
             assert (measurement.frame_id, measurement.child_frame_id) == (
                 frame_id, child_frame_id)
             assert measurement.yaw == expected.yaw
+            # And against the message's fields read by hand: the pose, the quaternion's yaw,
+            # the body-frame twist turned into the world frame.
+            pose, twist = msg.pose.pose, msg.twist.twist.linear
+            q = pose.orientation
+            yaw = math.atan2(2.0 * (q.w * q.z + q.x * q.y), 1.0 - 2.0 * (q.y ** 2 + q.z ** 2))
+            assert measurement.yaw == pytest.approx(yaw, abs=1e-12)
+            np.testing.assert_array_equal(measurement.position, [pose.position.x, pose.position.y])
+            np.testing.assert_allclose(measurement.velocity, [
+                math.cos(yaw) * twist.x - math.sin(yaw) * twist.y,
+                math.sin(yaw) * twist.x + math.cos(yaw) * twist.y], rtol=1e-12, atol=1e-12)
             for field in ('position', 'velocity', 'covariance'):
                 np.testing.assert_array_equal(
                     getattr(measurement, field), getattr(expected, field))
