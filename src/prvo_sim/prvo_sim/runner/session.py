@@ -44,7 +44,10 @@ GRAPH_CHECK_PERIOD = 1.0  # wall seconds between looks for intruders during a ru
 # Planner waits in lockstep [s]: for same-stamp odometry (under the sim's step_timeout), and
 # for every listed neighbour's first message.
 LOCKSTEP_SYNC = {'sync_timeout': 1.0, 'neighbor_timeout': 5.0}
-DOMAIN_CHECK_TIME = 2.0  # wall seconds of listening for strangers on the domain before a run
+# Wall seconds of listening for strangers on the domain before a run. Longer than Fast DDS's
+# periodic participant announcement (3 s): a stranger starved of CPU when the check's own
+# announcements arrive is still heard once.
+DOMAIN_CHECK_TIME = 3.5
 # Parameters the runner sets itself; a scenario's planner block cannot override them.
 RUNNER_PARAMETERS = ('use_sim_time', 'goal', 'radius', 'max_speed', 'actuation_std',
                      'goal_tolerance', 'model', 'eta')
