@@ -8,7 +8,6 @@ from matplotlib.patches import Circle  # noqa: E402  (the backend must be chosen
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-
 SCRIPTED_COLOUR = 'grey'
 
 
