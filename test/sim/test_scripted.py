@@ -9,7 +9,7 @@ import pytest
 import yaml
 
 from prvo_sim import metrics
-from prvo_sim.scenario import load_scenario
+from prvo_sim.scenario import PLANNER_MEMORY_MIB, estimate_team_memory, load_scenario
 from prvo_sim.scripted import WaypointFollower
 from prvo_sim.world import TeamWorld
 
@@ -141,3 +141,12 @@ def test_scripted_robots_count_in_contacts_not_in_arrivals():
     # Counted as a robot, the walker would fail the run.
     as_robot = metrics.run_metrics(times, positions, radii, goals, 0.1, names)
     assert as_robot['success_rate'] == pytest.approx(2 / 3) and as_robot['makespan'] is None
+
+
+def test_scripted_robots_need_no_planner_memory(tmp_path):
+    scenario = load_scenario(scenario_file(tmp_path, {'start': [0.0, 0.0], 'scripted': {
+        'waypoints': [[1.0, 0.0]]}}))
+    as_planned = dataclasses.replace(scenario, robots=(
+        scenario.robots[0], dataclasses.replace(scenario.robots[1], scripted=None)))
+    assert estimate_team_memory(as_planned) - estimate_team_memory(scenario) == (
+        PLANNER_MEMORY_MIB)

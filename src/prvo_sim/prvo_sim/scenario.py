@@ -392,12 +392,12 @@ def find_scenario(name_or_path):
 def estimate_team_memory(scenario):
     """Return the memory a run of SCENARIO is estimated to need [MiB].
 
-    One planner process per robot, the simulator and the runner, each at the resident size
-    measured for it (PLANNER_MEMORY_MIB, ...): an estimate that ignores sharing between
-    processes and growth with the team, good to a few tens of percent.
+    One planner process per robot (scripted robots have none), the simulator and the runner,
+    each at the resident size measured for it (PLANNER_MEMORY_MIB, ...): an estimate that
+    ignores sharing between processes and growth with the team, good to a few tens of percent.
     """
-    return (len(scenario.robots) * PLANNER_MEMORY_MIB + SIMULATOR_MEMORY_MIB
-            + RUNNER_MEMORY_MIB)
+    planners = sum(robot.scripted is None for robot in scenario.robots)
+    return planners * PLANNER_MEMORY_MIB + SIMULATOR_MEMORY_MIB + RUNNER_MEMORY_MIB
 
 
 def available_memory_mib(meminfo='/proc/meminfo'):
