@@ -136,6 +136,7 @@ class InProcessTeam:
         # One call plans the team: each planned robot is charged an equal share of it.
         plan_ms = np.full(len(self._planned), (time.perf_counter() - started) * 1e3
                           / max(len(self._planned), 1))
+        # The world ignores a scripted robot's row, but wants it finite.
         contacts = world.step(np.nan_to_num(commands))
         return StepRecord(time=now, states=states, commands=commands, plan_ms=plan_ms,
                           contacts=tuple(contacts))
