@@ -114,3 +114,57 @@ def test_ros_parameter_keeps_types():
     assert run_scenario.ros_parameter(3) == '3'
     assert run_scenario.ros_parameter(4) != run_scenario.ros_parameter(4.0)
     assert run_scenario.ros_parameter([1, 2.5]) == '[1, 2.5]'
+
+
+WALKER_SCENARIO = """\
+name: walk
+seed: 1
+dt: 0.1
+duration: 5.0
+goal_tolerance: 0.2
+robots:
+  - name: robot_0
+    start: [-2.0, 0.0]
+    goal: [2.0, 0.0]
+    radius: 0.3
+    max_speed: 1.0
+  - name: walker
+    start: [0.0, -2.0]
+    radius: 0.3
+    max_speed: 1.0
+"""
+
+
+@pytest.mark.parametrize('entry, key', [
+    ('    scripted: {speed: 0.5}', 'robots[1].scripted.waypoints'),
+    ('    scripted: {waypoints: []}', 'robots[1].scripted.waypoints'),
+    ('    scripted: {waypoints: [0.0, 2.0]}', 'robots[1].scripted.waypoints[0]'),
+    ('    scripted: {waypoints: [[0.0, 2.0], [.nan, 1.0]]}', 'robots[1].scripted.waypoints[1][0]'),
+    ('    scripted: {waypoints: [[0.0, .inf]]}', 'robots[1].scripted.waypoints[0][1]'),
+    ('    scripted: {waypoints: [[0.0, 2.0]], speed: -0.5}', 'robots[1].scripted.speed'),
+    ('    scripted: {waypoints: [[0.0, 2.0]], speed: 0}', 'robots[1].scripted.speed'),
+    ('    scripted: {waypoints: [[0.0, 2.0]], speed: 1.5}', 'robots[1].scripted.speed'),
+    ('    scripted: {waypoints: [[0.0, 2.0]], loop: yes please}', 'robots[1].scripted.loop'),
+    ('    scripted: {waypoints: [[0.0, 2.0]], pace: 0.5}', 'robots[1].scripted.pace'),
+    ('    scripted: [[0.0, 2.0]]', 'robots[1].scripted'),
+    ('    goal: [0.0, 2.0]\n    scripted: {waypoints: [[0.0, 2.0]]}', 'robots[1].goal'),
+    ('    planner: {eta: 0.9}\n    scripted: {waypoints: [[0.0, 2.0]]}', 'robots[1].planner'),
+])
+def test_bad_scripted_robot_is_named(entry, key, tmp_path, marker_command, capsys):
+    broken = tmp_path / 'walk.yaml'
+    broken.write_text(WALKER_SCENARIO + entry + '\n')
+    code, err = run_main([str(broken), '--out', str(tmp_path / 'out')], marker_command, capsys)
+    assert code == 2
+    assert_one_line_error(err, 'walk.yaml', f'{key}:', 'walker')
+
+
+def test_scripted_robot_gets_no_planner_but_is_every_planner_neighbour(tmp_path):
+    from prvo_sim.runner.session import planner_values
+    from prvo_sim.scenario import load_scenario
+
+    path = tmp_path / 'walk.yaml'
+    path.write_text(WALKER_SCENARIO + '    scripted: {waypoints: [[0.0, 2.0]]}\n')
+    scenario = load_scenario(path)
+    robot, walker = scenario.robots
+    assert planner_values(walker, scenario, 'prvo', None) is None
+    assert planner_values(robot, scenario, 'prvo', None)['neighbors'] == ['walker']

@@ -9,7 +9,7 @@ import pytest
 from runner_testing import HEADON, output, processes_with_token, start_runner, wait_for
 
 SCHEMA_KEYS = {'scenario', 'method', 'eta', 'seed', 'mode', 'engine', 'ending', 'robots',
-               'success_rate',
+               'scripted_robots', 'success_rate',
                'collisions', 'min_separation', 'makespan', 'mean_time_to_goal', 'planner_ms',
                'deadline_misses', 'sim_time', 'wall_time'}
 
@@ -26,6 +26,7 @@ def test_headon2_both_arrive_without_contact(tmp_path, runners):
             recorded['mode']) == ('headon2', 'prvo', 0.8, 3, 'lockstep')
     assert recorded['success_rate'] == 1.0
     assert recorded['collisions'] == 0
+    assert recorded['scripted_robots'] == []
     assert all(robot['arrived'] for robot in recorded['robots'].values())
     # Straight-line distance is 8 m, minus the 0.2 m tolerance.
     for robot in recorded['robots'].values():

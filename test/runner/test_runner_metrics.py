@@ -79,17 +79,18 @@ def test_run_metrics_of_the_hand_built_run():
     positions, radii, goals = crossing_ground_truth()
     result = metrics.run_metrics(TIMES, positions, radii, goals, 0.2, ['a', 'b', 'c'])
     assert result['robots']['a'] == {'arrived': True, 'time_to_goal': pytest.approx(3.7),
-                                     'path_length': pytest.approx(3.7)}
+                                     'path_length': pytest.approx(3.7), 'scripted': False}
     assert result['robots']['b']['time_to_goal'] == pytest.approx(3.7)
     # C passed through its goal and left: not arrived, path length of the whole run.
     assert result['robots']['c'] == {'arrived': False, 'time_to_goal': None,
-                                     'path_length': pytest.approx(4.0)}
+                                     'path_length': pytest.approx(4.0), 'scripted': False}
     assert result['success_rate'] == pytest.approx(2.0 / 3.0)
     assert result['collisions'] == 1
     assert result['min_separation'] == pytest.approx(-0.5)
     assert result['makespan'] is None
     assert result['mean_time_to_goal'] == pytest.approx(3.7)
     assert result['sim_time'] == pytest.approx(4.0)
+    assert result['scripted_robots'] == []
 
 
 def test_makespan_is_the_last_arrival_when_all_arrive():

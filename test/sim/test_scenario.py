@@ -21,7 +21,7 @@ from prvo_sim.scenario import (
     load_scenario,
 )
 
-SHIPPED = ('circle8', 'crossing4', 'headon2', 'paper3')
+SHIPPED = ('circle8', 'crossing4', 'headon2', 'paper3', 'walkers')
 
 VALID = """\
 name: pair

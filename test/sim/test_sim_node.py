@@ -513,3 +513,50 @@ def test_shutdown_at_any_moment_is_quiet(probe, children, ros2_executable, momen
     output = children.output(sim)
     for bad in ('Traceback', 'FATAL', 'Error', 'KeyboardInterrupt'):
         assert bad not in output
+
+
+WALKER_HEADON = """\
+name: walker_headon
+seed: 2
+dt: 0.1
+duration: 60.0
+goal_tolerance: 0.2
+robots:
+  - name: robot_0
+    start: [-4.0, 0.0]
+    goal: [4.0, 0.0]
+    radius: 0.3
+    max_speed: 1.0
+  - name: robot_1
+    start: [4.0, 0.0]
+    radius: 0.3
+    max_speed: 1.0
+    scripted: {waypoints: [[4.0, 3.0]], speed: 0.5}
+"""
+
+
+def test_scripted_robot_walks_without_cmd_vel_and_is_reported(probe, children, ros2_executable,
+                                                              tmp_path):
+    scenario = tmp_path / 'walker_headon.yaml'
+    scenario.write_text(WALKER_HEADON)
+    diagnostics = probe.record(DiagnosticArray, '/diagnostics', DIAGNOSTICS_QOS)
+    # Only robot_0 answers. Lockstep must not wait for the scripted robot_1 (a wait would
+    # stall the run: the step timeout is an hour).
+    planners = Planners(probe, {'robot_0': HEAD_ON['robot_0']})
+    start_sim(children, ros2_executable, 'sim', scenario=str(scenario), step_timeout=3600.0,
+              startup_timeout=3600.0)
+    steps = 40
+    probe.wait_until(lambda: len(planners.steps('robot_1', 'ground_truth')) > steps, 60.0,
+                     f'{steps} steps of the scripted robot')
+    for step in range(steps + 1):
+        walker = odometry_to_measurement(
+            planners.ground_truth['robot_1'][round(step * HEADON2.dt * 1e9)])
+        # Noise-free: 0.05 m per step up to its one waypoint at (4, 3), whatever robot_0 does.
+        np.testing.assert_allclose(walker.position, [4.0, min(0.05 * step, 3.0)], atol=1e-9)
+    probe.wait_until(lambda: latest_statuses(diagnostics), 10.0, "the simulator's diagnostics")
+    statuses = latest_statuses(diagnostics)
+    assert statuses['prvo_sim']['deadline_misses'] == '0'
+    assert statuses['prvo_sim/robot_1']['scripted'] == 'true'
+    assert statuses['prvo_sim/robot_1']['waypoint'] == '0'
+    assert statuses['prvo_sim/robot_1']['deadline_misses'] == '0'
+    assert statuses['prvo_sim/robot_0']['scripted'] == 'false'

@@ -36,8 +36,9 @@ class StepRecord:
     """One step of a team: the state at `time` and the commands that answered it.
 
     `states` (N, 4) is every robot's ground truth [x, y, vx, vy] as a recorder reads it;
-    `commands` (N, 2) the world-frame velocities commanded for the next dt; `plan_ms` (N,)
-    each robot's share of the team's planning time [ms of wall time]; `contacts` the
+    `commands` (N, 2) the world-frame velocities commanded for the next dt (NaN for a scripted
+    robot: it has none); `plan_ms` (one per planned robot) each planned robot's share of the
+    team's planning time [ms of wall time]; `contacts` the
     `world.Contact`s the step made.
     """
 
@@ -64,9 +65,10 @@ class InProcessTeam:
     ----------
     scenario : prvo_sim.scenario.Scenario
         The world: robots, noise, dt, duration.
-    planner_values : sequence of mapping
+    planner_values : sequence of mapping or None
         Per robot, in the scenario's order, the complete planner parameters its node would
-        have (`prvo_planner.parameters`; the runner's `planner_values`).
+        have (`prvo_planner.parameters`; the runner's `planner_values`); None for a scripted
+        robot, which has no planner (the world moves it).
     seed : int or None
         Noise seed; None uses the scenario's.
 
@@ -77,14 +79,24 @@ class InProcessTeam:
             raise ValueError(f'planner_values has {len(planner_values)} entries for '
                              f'{len(scenario.robots)} robots')
         self.world = TeamWorld(scenario, seed)
+        for robot, values in zip(scenario.robots, planner_values, strict=True):
+            if (values is None) != (robot.scripted is not None):
+                raise ValueError(f'planner_values of robot {robot.name!r} must be '
+                                 f'{"None: it is scripted" if values is not None else "given"}')
         # Every agent hears every robot at the same step, so agents with the same tracker
         # settings would run identical filters: one table per settings filters each robot once.
         self._track_tables = {}
+        # None for a scripted robot.
         self.agents = []
         for robot, values in zip(scenario.robots, planner_values, strict=True):
+            if values is None:
+                self.agents.append(None)
+                continue
             settings = (values['acceleration_std'], values['neighbor_timeout'])
             table = self._track_tables.setdefault(settings, TrackTable(*settings))
             self.agents.append(agent_of(robot.name, values, table))
+        self._planned = [(index, agent) for index, agent in enumerate(self.agents)
+                         if agent is not None]
 
     @property
     def finished(self):
@@ -110,13 +122,13 @@ class InProcessTeam:
         now = world.time
         measurements, states = self.observe()
         names = world.names
-        for agent, measurement in zip(self.agents, measurements, strict=True):
-            agent.receive_own(measurement, now)
+        for index, agent in self._planned:
+            agent.receive_own(measurements[index], now)
         for table in self._track_tables.values():
             for name, measurement in zip(names, measurements, strict=True):
                 table.receive(name, measurement, now)
         started = time.perf_counter()
-        requests = [agent.plan_request() for agent in self.agents]
+        requests = [agent.plan_request() for _, agent in self._planned]
         moving = [index for index, request in enumerate(requests) if request.problem is not None]
         results = [None] * len(requests)
         if moving:
@@ -125,16 +137,19 @@ class InProcessTeam:
             for index, result in zip(moving, solved, strict=True):
                 results[index] = result
         yaws = world.yaws_at(world.step_count)
-        commands = np.empty((len(self.agents), 2))
-        for index, agent in enumerate(self.agents):
-            command = agent.complete(requests[index], results[index])
+        # A scripted robot has no command (NaN, as a recording without one); the world moves it.
+        commands = np.full((len(self.agents), 2), np.nan)
+        for request, result, (index, agent) in zip(requests, results, self._planned,
+                                                   strict=True):
+            command = agent.complete(request, result)
             # The node publishes in the body frame; the simulator turns it back by the heading
             # at the command's stamp.
             commands[index] = body_to_world(world_to_body(command.velocity, command.yaw),
                                             yaws[index])
-        # One call plans the team: each robot is charged an equal share of it.
-        plan_ms = np.full(len(self.agents), (time.perf_counter() - started) * 1e3
-                          / len(self.agents))
-        contacts = world.step(commands)
+        # One call plans the team: each planned robot is charged an equal share of it.
+        plan_ms = np.full(len(self._planned), (time.perf_counter() - started) * 1e3
+                          / max(len(self._planned), 1))
+        # The world ignores a scripted robot's row, but wants it finite.
+        contacts = world.step(np.nan_to_num(commands))
         return StepRecord(time=now, states=states, commands=commands, plan_ms=plan_ms,
                           contacts=tuple(contacts))

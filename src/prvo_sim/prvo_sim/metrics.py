@@ -92,31 +92,42 @@ def distribution_summary(values):
             'max': float(values.max())}
 
 
-def run_metrics(times, positions, radii, goals, goal_tolerance, robot_names):
+def run_metrics(times, positions, radii, goals, goal_tolerance, robot_names, scripted=None):
     """Return the ground-truth part of metrics.json for one run.
 
-    Keys: robots (arrived, time_to_goal, path_length per robot), success_rate, collisions,
-    min_separation, makespan, mean_time_to_goal, sim_time. Times are measured from times[0];
-    a robot's path length runs up to its arrival (the whole run if it did not arrive).
+    Keys: robots (arrived, time_to_goal, path_length, scripted per robot), scripted_robots,
+    success_rate, collisions, min_separation, makespan, mean_time_to_goal, sim_time. Times are
+    measured from times[0]; a robot's path length runs up to its arrival (the whole run if it
+    did not arrive). SCRIPTED (N,) marks the robots that follow waypoints (default: none):
+    they count in collisions and min_separation, while success_rate, makespan and
+    mean_time_to_goal are over the others; their `arrived` and `time_to_goal` are None.
     """
     times = np.asarray(times, dtype=float)
-    arrivals = arrival_indices(positions, goals, goal_tolerance)
+    scripted = (np.zeros(len(robot_names), dtype=bool) if scripted is None
+                else np.asarray(scripted, dtype=bool))
+    arrivals = [None if is_scripted else arrival for arrival, is_scripted in zip(
+        arrival_indices(positions, goals, goal_tolerance), scripted, strict=True)]
     lengths = path_lengths(positions, arrivals)
     robots = {}
     times_to_goal = []
-    for name, arrival, length in zip(robot_names, arrivals, lengths, strict=True):
+    for name, arrival, length, is_scripted in zip(robot_names, arrivals, lengths, scripted,
+                                                  strict=True):
         time_to_goal = None if arrival is None else float(times[arrival] - times[0])
         if time_to_goal is not None:
             times_to_goal.append(time_to_goal)
-        robots[name] = {'arrived': arrival is not None, 'time_to_goal': time_to_goal,
-                        'path_length': length}
-    all_arrived = len(times_to_goal) == len(robot_names)
+        robots[name] = {'arrived': None if is_scripted else arrival is not None,
+                        'time_to_goal': time_to_goal, 'path_length': length,
+                        'scripted': bool(is_scripted)}
+    planned_count = int((~scripted).sum())
+    all_arrived = len(times_to_goal) == planned_count
     return {
         'robots': robots,
-        'success_rate': len(times_to_goal) / len(robot_names),
+        'scripted_robots': [name for name, is_scripted in zip(robot_names, scripted,
+                                                               strict=True) if is_scripted],
+        'success_rate': len(times_to_goal) / planned_count if planned_count else None,
         'collisions': len(contact_events(times, positions, radii)),
         'min_separation': min_separation(positions, radii),
-        'makespan': max(times_to_goal) if all_arrived else None,
+        'makespan': max(times_to_goal) if all_arrived and times_to_goal else None,
         'mean_time_to_goal': float(np.mean(times_to_goal)) if times_to_goal else None,
         'sim_time': float(times[-1] - times[0]),
     }

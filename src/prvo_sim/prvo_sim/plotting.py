@@ -8,6 +8,8 @@ from matplotlib.patches import Circle  # noqa: E402  (the backend must be chosen
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
+SCRIPTED_COLOUR = 'grey'
+
 
 def robot_colours(count):
     """Return COUNT distinct colours, one per robot."""
@@ -16,19 +18,26 @@ def robot_colours(count):
 
 
 def draw_trajectories(axes, times, positions, starts, goals, radii, contacts,
-                      disc_interval=1.0, labels=None):
+                      disc_interval=1.0, labels=None, scripted=None):
     """Draw paths, start (square) and goal (star) markers, discs every DISC_INTERVAL seconds.
 
     CONTACTS are (time, i, j, distance) events: both robots' positions at that time are marked
-    with red crosses and red disc outlines.
+    with red crosses and red disc outlines. SCRIPTED (N,) marks robots that follow waypoints:
+    a dashed grey path, hatched grey discs, no goal star, '(scripted)' in their label.
     """
     times = np.asarray(times, dtype=float)
     positions = np.asarray(positions, dtype=float)
-    colours = robot_colours(positions.shape[1])
+    scripted = np.zeros(positions.shape[1], dtype=bool) if scripted is None else scripted
+    colours = robot_colours(int(np.count_nonzero(np.logical_not(scripted))))[::-1]
     disc_steps = _steps_every(times, disc_interval)
-    for robot, colour in enumerate(colours):
+    for robot in range(positions.shape[1]):
         path = positions[:, robot, :]
         label = None if labels is None else labels[robot]
+        if scripted[robot]:
+            _draw_scripted(axes, path, starts[robot], radii[robot], disc_steps,
+                           None if label is None else f'{label} (scripted)')
+            continue
+        colour = colours.pop()
         axes.plot(path[:, 0], path[:, 1], '-', color=colour, linewidth=1.2, label=label)
         for step in disc_steps:
             axes.add_patch(Circle(path[step], radii[robot], fill=False, color=colour,
@@ -48,6 +57,15 @@ def draw_trajectories(axes, times, positions, starts, goals, radii, contacts,
     axes.grid(True, alpha=0.3)
 
 
+def _draw_scripted(axes, path, start, radius, disc_steps, label):
+    """Draw a scripted robot: dashed grey PATH, hatched grey discs, grey start square."""
+    axes.plot(path[:, 0], path[:, 1], '--', color=SCRIPTED_COLOUR, linewidth=1.2, label=label)
+    for step in disc_steps:
+        axes.add_patch(Circle(path[step], radius, fill=False, color=SCRIPTED_COLOUR, alpha=0.5,
+                              linewidth=0.8, hatch='///'))
+    axes.plot(*start, 's', color=SCRIPTED_COLOUR, markersize=7)
+
+
 def _steps_every(times, interval):
     """Return the indices of TIMES closest to 0, INTERVAL, 2 INTERVAL, ... from times[0]."""
     if times.size == 0:
@@ -56,11 +74,12 @@ def _steps_every(times, interval):
     return sorted({int(np.argmin(np.abs(times - mark))) for mark in marks} | {times.size - 1})
 
 
-def plot_run(path, times, positions, starts, goals, radii, robot_names, contacts, title):
-    """Write a PNG of one run's trajectories to PATH."""
+def plot_run(path, times, positions, starts, goals, radii, robot_names, contacts, title,
+             scripted=None):
+    """Write a PNG of one run's trajectories to PATH (SCRIPTED: see draw_trajectories)."""
     figure, axes = plt.subplots(figsize=(7.0, 7.0))
     draw_trajectories(axes, times, positions, starts, goals, radii, contacts,
-                      labels=list(robot_names))
+                      labels=list(robot_names), scripted=scripted)
     axes.set_title(title, fontsize=10)
     axes.legend(loc='upper left', fontsize=7, ncol=2, framealpha=0.7)
     figure.tight_layout()

@@ -27,8 +27,9 @@ _SCENARIO_NAME = re.compile(r'[A-Za-z0-9_-]+')
 _TOP_LEVEL_KEYS = {'name', 'description', 'seed', 'dt', 'duration', 'goal_tolerance', 'noise',
                    'planner', 'robots'}
 _TOP_LEVEL_REQUIRED = {'name', 'seed', 'dt', 'duration', 'goal_tolerance', 'robots'}
-_ROBOT_KEYS = {'name', 'start', 'goal', 'radius', 'max_speed', 'noise', 'planner'}
+_ROBOT_KEYS = {'name', 'start', 'goal', 'radius', 'max_speed', 'noise', 'planner', 'scripted'}
 _ROBOT_REQUIRED = {'name', 'start', 'goal', 'radius', 'max_speed'}
+_SCRIPTED_KEYS = {'waypoints', 'speed', 'loop'}
 _NOISE_KEYS = ('position_std', 'velocity_std', 'actuation_std')
 DT_RANGE = (1.0e-4, 10.0)
 MAX_STEPS = 10 ** 6
@@ -77,12 +78,22 @@ class NoiseSpec:
 
 
 @dataclass(frozen=True, eq=False)
+class ScriptedPath:
+    """The path of a scripted robot: `waypoints` (K, 2), read-only, its `speed`, `loop`."""
+
+    waypoints: np.ndarray
+    speed: float
+    loop: bool
+
+
+@dataclass(frozen=True, eq=False)
 class RobotSpec:
     """One robot of a scenario, with the file-level noise and planner blocks merged in.
 
     `start` and `goal` are read-only arrays (2,), so specs compare by identity. `planner` holds
     the planner parameters given for this robot, typed and checked: the file-level block with
-    the robot's own block over it.
+    the robot's own block over it. `scripted` is the `ScriptedPath` of a robot that the
+    simulator moves along waypoints (no planner; its `goal` is the last waypoint), else None.
     """
 
     name: str
@@ -92,6 +103,7 @@ class RobotSpec:
     max_speed: float
     noise: NoiseSpec
     planner: dict
+    scripted: ScriptedPath = None
 
 
 @dataclass(frozen=True)
@@ -283,21 +295,59 @@ def load_scenario(path, seed=None):
 
 
 def _robot(check, entry, key, file_noise, file_planner):
-    entry = check.mapping(entry, key, _ROBOT_KEYS, _ROBOT_REQUIRED)
+    scripted = isinstance(entry, dict) and 'scripted' in entry
+    # A scripted robot goes to its waypoints: it has no goal of its own.
+    required = _ROBOT_REQUIRED - {'goal'} if scripted else _ROBOT_REQUIRED
+    entry = check.mapping(entry, key, _ROBOT_KEYS, required)
     name = check.string(entry['name'], f'{key}.name')
     try:
         validate_robot_name(name)
     except ValueError as error:
         check.fail(f'{key}.name', str(error))
     noise = {**file_noise, **check.noise(entry.get('noise'), f'{key}.noise')}
+    # A planner gets both as its parameters of the same name: the same rules apply.
+    radius = check.planner_parameter('radius', entry['radius'], f'{key}.radius')
+    max_speed = check.planner_parameter('max_speed', entry['max_speed'], f'{key}.max_speed')
+    path = None
+    if scripted:
+        for planned_only in ('goal', 'planner'):
+            if planned_only in entry:
+                check.fail(f'{key}.{planned_only}',
+                           f'robot {name!r} is scripted: it has no {planned_only} '
+                           f'(it follows scripted.waypoints)')
+        path = _scripted_path(check, entry['scripted'], f'{key}.scripted', name, max_speed)
     return RobotSpec(
         name=name, start=check.point(entry['start'], f'{key}.start'),
-        goal=check.point(entry['goal'], f'{key}.goal'),
-        # A planner gets both as its parameters of the same name: the same rules apply.
-        radius=check.planner_parameter('radius', entry['radius'], f'{key}.radius'),
-        max_speed=check.planner_parameter('max_speed', entry['max_speed'], f'{key}.max_speed'),
+        goal=path.waypoints[-1] if path is not None else check.point(entry['goal'],
+                                                                     f'{key}.goal'),
+        radius=radius, max_speed=max_speed,
         noise=NoiseSpec(**{field: noise.get(field, 0.0) for field in _NOISE_KEYS}),
-        planner={**file_planner, **check.planner(entry.get('planner'), f'{key}.planner')})
+        planner={} if path is not None else {
+            **file_planner, **check.planner(entry.get('planner'), f'{key}.planner')},
+        scripted=path)
+
+
+def _scripted_path(check, value, key, name, max_speed):
+    """Return the ScriptedPath of robot NAME's `scripted` block VALUE; errors name the robot."""
+    try:
+        block = check.mapping(value, key, _SCRIPTED_KEYS, {'waypoints'})
+        waypoints = block['waypoints']
+        if not isinstance(waypoints, list) or not waypoints:
+            check.fail(f'{key}.waypoints',
+                       f'expected a non-empty list of [x, y], got {waypoints!r}')
+        points = np.array([check.point(point, f'{key}.waypoints[{index}]')
+                           for index, point in enumerate(waypoints)])
+        points.flags.writeable = False
+        speed = check.number(block.get('speed', max_speed), f'{key}.speed', 0.0, low_open=True)
+        if speed > max_speed:
+            check.fail(f'{key}.speed', f"{speed:g} m/s is above the robot's max_speed "
+                       f'{max_speed:g} m/s')
+        loop = block.get('loop', False)
+        if not isinstance(loop, bool):
+            check.fail(f'{key}.loop', f'expected true or false, got {type_name(loop)}')
+    except ScenarioError as error:
+        raise ScenarioError(error.file, error.key, f'{error.reason} (robot {name!r})') from None
+    return ScriptedPath(waypoints=points, speed=speed, loop=loop)
 
 
 def _check_robots_distinct(check, robots):
@@ -342,12 +392,12 @@ def find_scenario(name_or_path):
 def estimate_team_memory(scenario):
     """Return the memory a run of SCENARIO is estimated to need [MiB].
 
-    One planner process per robot, the simulator and the runner, each at the resident size
-    measured for it (PLANNER_MEMORY_MIB, ...): an estimate that ignores sharing between
-    processes and growth with the team, good to a few tens of percent.
+    One planner process per robot (scripted robots have none), the simulator and the runner,
+    each at the resident size measured for it (PLANNER_MEMORY_MIB, ...): an estimate that
+    ignores sharing between processes and growth with the team, good to a few tens of percent.
     """
-    return (len(scenario.robots) * PLANNER_MEMORY_MIB + SIMULATOR_MEMORY_MIB
-            + RUNNER_MEMORY_MIB)
+    planners = sum(robot.scripted is None for robot in scenario.robots)
+    return planners * PLANNER_MEMORY_MIB + SIMULATOR_MEMORY_MIB + RUNNER_MEMORY_MIB
 
 
 def available_memory_mib(meminfo='/proc/meminfo'):

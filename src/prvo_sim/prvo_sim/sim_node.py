@@ -71,10 +71,14 @@ _WARNING_THROTTLE = 2.0
 
 
 class _Robot:
-    """One simulated robot's ROS side: its topics, command in force and deadline record."""
+    """One simulated robot's ROS side: its topics, command in force and deadline record.
 
-    def __init__(self, name):
+    A scripted robot (SCRIPTED) is moved by the world: it has no cmd_vel and misses no deadline.
+    """
+
+    def __init__(self, name, scripted=False):
         self.name = name
+        self.scripted = scripted
         self.cmd_vel_topic = robot_topic(name, CMD_VEL)
         self.base_frame = f'{name}/base_link'
         self.command = np.zeros(2)
@@ -136,7 +140,9 @@ class SimNode(Node):
         scenario = load_scenario(find_scenario(scenario_name), seed=None if seed < 0 else seed)
         self._world = TeamWorld(scenario)
         self._dt = scenario.dt
-        self._robots = [_Robot(spec.name) for spec in scenario.robots]
+        self._robots = [_Robot(spec.name, spec.scripted is not None) for spec in scenario.robots]
+        # The robots whose cmd_vel lockstep waits for.
+        self._planned = [robot for robot in self._robots if not robot.scripted]
         self._stamp = seconds_to_stamp(0.0)
         self._started = False
         self._waiting_for = 'every cmd_vel publisher'
@@ -165,11 +171,15 @@ class SimNode(Node):
                 Odometry, ground_truth_topic, ODOM_QOS, event_callbacks=quiet())
             observed.insert(index, (ground_truth_topic, robot.ground_truth_publisher))
             robot.logger = self.get_logger().get_child(robot.name)
-            command_subscription = self.create_subscription(
+            endpoints += [robot.odom_publisher, robot.ground_truth_publisher]
+            if robot.scripted:
+                # No planner speaks for a scripted robot: what planners announce of their
+                # robot to its neighbours is for this node to announce of it.
+                continue
+            endpoints.append(self.create_subscription(
                 command_type, robot.cmd_vel_topic,
                 lambda msg, index=index: self._on_cmd_vel(index, msg), CMD_VEL_QOS,
-                event_callbacks=quiet_subscription_events())
-            endpoints += [robot.odom_publisher, robot.ground_truth_publisher, command_subscription]
+                event_callbacks=quiet_subscription_events()))
         for endpoint in endpoints:
             self._qos_watch.watch(endpoint)
         self._observer_gate = ObserverGate(self, observers, observed)
@@ -230,7 +240,7 @@ class SimNode(Node):
         if not isinstance(msg, TwistStamped) or msg.header.stamp == self._stamp:
             robot.answered = True
         if (self._mode == 'lockstep' and self._started and not self._world.finished
-                and all(other.answered for other in self._robots)):
+                and all(other.answered for other in self._planned)):
             self._advance()
 
     def _poll(self):
@@ -247,7 +257,7 @@ class SimNode(Node):
                                    'stepping')
         if self._world.finished:
             return
-        if all(robot.answered for robot in self._robots):
+        if all(robot.answered for robot in self._planned):
             self._advance()
         elif self._world.step_count == 0:
             # Whoever is not subscribed yet gets t_0 again: a run starts with everyone in it,
@@ -266,7 +276,7 @@ class SimNode(Node):
 
     def _ready_to_start(self):
         """Whether every cmd_vel has a publisher and every observer subscribes; else say why."""
-        if any(self.count_publishers(robot.cmd_vel_topic) == 0 for robot in self._robots):
+        if any(self.count_publishers(robot.cmd_vel_topic) == 0 for robot in self._planned):
             self._waiting_for = 'every cmd_vel publisher'
             return False
         missing = self._observer_gate.missing()
@@ -289,7 +299,7 @@ class SimNode(Node):
         if world.finished:
             return
         now = time.monotonic()
-        late = [robot for robot in self._robots if not robot.answered]
+        late = [robot for robot in self._planned if not robot.answered]
         for robot in late:
             robot.deadline_misses += 1
             if robot.missed_since is None:
@@ -299,7 +309,7 @@ class SimNode(Node):
                 f'deadline miss at t={world.time:.3f}: no cmd_vel from '
                 f'{", ".join(robot.name for robot in late)}; reusing the last command',
                 throttle_duration_sec=_WARNING_THROTTLE)
-        for robot in self._robots:
+        for robot in self._planned:
             self._stop_if_silent(robot, now)
         for contact in world.step([robot.command for robot in self._robots]):
             self._report_contact(contact)

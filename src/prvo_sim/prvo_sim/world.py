@@ -10,7 +10,7 @@ import math
 
 import numpy as np
 
-from prvo_sim import kinematics
+from prvo_sim import kinematics, scripted
 
 # Below this executed speed [m/s] the heading is noise, so the last heading is kept.
 HEADING_MIN_SPEED = 1e-3
@@ -34,7 +34,9 @@ class TeamWorld:
     Attributes (arrays over robots, in the scenario's order): `positions`, `velocities` (the
     executed velocities of the last step), `yaws` (ground truth), `measured_positions`,
     `measured_velocities` (the noisy odometry of the current state), `radii`, `max_speeds`,
-    `goals`, `position_std`, `velocity_std`, `actuation_std`; `step_count`, `contact_count`.
+    `goals`, `position_std`, `velocity_std`, `actuation_std`; `step_count`, `contact_count`;
+    `followers`, {index: `scripted.WaypointFollower`} of the scripted robots, whose commands the
+    world makes itself.
     """
 
     def __init__(self, scenario, seed=None):
@@ -51,8 +53,11 @@ class TeamWorld:
         self.velocity_std = np.array([spec.noise.velocity_std for spec in specs])
         self.positions = np.array([spec.start for spec in specs], dtype=float)
         self.velocities = np.zeros_like(self.positions)
-        # A robot placed at its start faces its goal until it first moves.
-        to_goal = self.goals - self.positions
+        self.followers = scripted.followers_of(specs)
+        # A robot placed at its start faces its goal (a scripted one its first waypoint) until
+        # it first moves.
+        to_goal = np.array([spec.goal if spec.scripted is None else spec.scripted.waypoints[0]
+                            for spec in specs]) - self.positions
         self.yaws = np.arctan2(to_goal[:, 1], to_goal[:, 0])
         self.final_step = math.ceil(scenario.duration / scenario.dt - 1e-9)
         self.step_count = 0
@@ -75,12 +80,15 @@ class TeamWorld:
         """Execute COMMANDS (N, 2), world-frame velocities, for one dt; return new `Contact`s.
 
         Each command is clamped to its robot's max speed and disturbed by actuation noise, the
-        heading follows the executed velocity, and the odometry of the new state is drawn.
+        heading follows the executed velocity, and the odometry of the new state is drawn. A
+        scripted robot's row is ignored: it executes its follower's command.
         """
         commands = np.asarray(commands, dtype=float)
         if commands.shape != self.positions.shape or not np.all(np.isfinite(commands)):
             raise ValueError(
                 f'commands must be finite, of shape {self.positions.shape}, got {commands!r}')
+        commands = scripted.scripted_commands(self.followers, commands, self.positions,
+                                              self.scenario.dt)
         self.positions, self.velocities = kinematics.step(
             self.positions, commands, self.max_speeds, self.actuation_std, self.scenario.dt,
             self.rng)

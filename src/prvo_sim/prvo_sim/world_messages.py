@@ -48,10 +48,16 @@ def status_array(world, message, mode, deadline_misses):
         level=DiagnosticStatus.WARN if warn else DiagnosticStatus.OK)]
     arrived = world.arrived()
     for index, name in enumerate(world.names):
+        values = {'deadline_misses': deadline_misses[index], 'arrived': bool(arrived[index]),
+                  'x': float(world.positions[index, 0]), 'y': float(world.positions[index, 1]),
+                  'scripted': index in world.followers}
+        message = 'arrived' if arrived[index] else 'driving'
+        if index in world.followers:
+            # A scripted robot's goal is its last waypoint; which one it heads for says more.
+            values['waypoint'] = world.followers[index].target
+            message = f'scripted, heading for waypoint {values["waypoint"]}'
         statuses.append(make_diagnostic_status(
-            f'prvo_sim/{name}', 'arrived' if arrived[index] else 'driving',
-            {'deadline_misses': deadline_misses[index], 'arrived': bool(arrived[index]),
-             'x': float(world.positions[index, 0]), 'y': float(world.positions[index, 1])},
+            f'prvo_sim/{name}', message, values,
             level=DiagnosticStatus.WARN if deadline_misses[index] else DiagnosticStatus.OK))
     return make_diagnostic_array(world.time, statuses)
 

@@ -27,6 +27,8 @@ def run_inprocess(spec):
         scenario, [planner_values(robot, scenario, spec.method, spec.planner_eta, 'lockstep')
                    for robot in scenario.robots], seed=spec.seed)
     goals = team.world.goals
+    # Scripted robots do not arrive: the planned ones end the run.
+    planned = np.array([robot.scripted is None for robot in scenario.robots])
     steps = []
     ending, failure, interrupted = Ending.FAILED, None, None
     progress = ProgressLine(spec, quiet=spec.quiet)
@@ -37,8 +39,8 @@ def run_inprocess(spec):
         while True:
             step = team.do_step()
             steps.append(step)
-            arrived = np.linalg.norm(step.states[:, :2] - goals, axis=1) <= (
-                scenario.goal_tolerance)
+            arrived = (np.linalg.norm(step.states[:, :2] - goals, axis=1) <= (
+                scenario.goal_tolerance))[planned]
             now = time.monotonic()
             if now >= next_progress:
                 progress(step.time, int(arrived.sum()), now - started)

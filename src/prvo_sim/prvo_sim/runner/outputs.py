@@ -88,21 +88,27 @@ def write_outputs(spec, recording, ending, failure, wall_time):
     times, states, commands = recording.times, recording.states, recording.commands
     radii = np.array([robot.radius for robot in scenario.robots], dtype=float)
     goals = np.array([robot.goal for robot in scenario.robots], dtype=float)
+    scripted = [robot.scripted is not None for robot in scenario.robots]
     run_metrics = {'scenario': scenario.name, 'method': spec.method, 'eta': spec.eta,
                    'seed': spec.seed, 'mode': spec.mode, 'engine': spec.engine,
                    'ending': ending.value}
     if times.size:
         measured = metrics.run_metrics(times, states[..., :2], radii, goals,
-                                       scenario.goal_tolerance, names)
+                                       scenario.goal_tolerance, names, scripted)
         contacts = metrics.contact_events(times, states[..., :2], radii)
     else:
-        measured = {'robots': {name: {'arrived': False, 'time_to_goal': None,
-                                      'path_length': None} for name in names},
+        measured = {'robots': {name: {'arrived': None if is_scripted else False,
+                                      'time_to_goal': None, 'path_length': None,
+                                      'scripted': is_scripted}
+                               for name, is_scripted in zip(names, scripted, strict=True)},
+                    'scripted_robots': [name for name, is_scripted in zip(
+                        names, scripted, strict=True) if is_scripted],
                     'success_rate': 0.0, 'collisions': 0, 'min_separation': None,
                     'makespan': None, 'mean_time_to_goal': None, 'sim_time': 0.0}
         contacts = []
     run_metrics.update({
         'robots': measured['robots'],
+        'scripted_robots': measured['scripted_robots'],
         'success_rate': measured['success_rate'],
         'collisions': measured['collisions'],
         'min_separation': measured['min_separation'],
@@ -124,7 +130,7 @@ def write_outputs(spec, recording, ending, failure, wall_time):
         files['trajectories.png'] = lambda path: plot_run(
             path, times, states[..., :2],
             np.array([robot.start for robot in scenario.robots], dtype=float), goals, radii,
-            names, contacts, plot_title(run_metrics))
+            names, contacts, plot_title(run_metrics), scripted)
     # Last: metrics.json says which run the folder holds.
     files['metrics.json'] = lambda path: write_json(path, run_metrics)
     replace_results(spec.out_dir, files, RUN_RESULTS)
@@ -195,11 +201,13 @@ def outcome(run_metrics):
     """Return a short description of how a run ended."""
     if 'failure' in run_metrics:
         return f"{run_metrics['ending'].upper()}: {run_metrics['failure']}"
-    robots = run_metrics['robots']
-    arrived = sum(robot['arrived'] for robot in robots.values())
+    planned = [robot for robot in run_metrics['robots'].values() if not robot.get('scripted')]
+    arrived = sum(robot['arrived'] for robot in planned)
     collisions = run_metrics['collisions']
     contact_text = 'no contact' if collisions == 0 else f'{collisions} contact(s)'
-    return f'{arrived}/{len(robots)} arrived, {contact_text}'
+    walkers = len(run_metrics['robots']) - len(planned)
+    scripted_text = f' ({walkers} scripted)' if walkers else ''
+    return f'{arrived}/{len(planned)} arrived{scripted_text}, {contact_text}'
 
 
 def plot_title(run_metrics):
@@ -228,11 +236,13 @@ def print_summary(run_metrics, out_dir):
           f"{format_eta(run_metrics['eta'])} | seed {run_metrics['seed']} | {run_metrics['mode']}")
     print(f"  {'robot':<12} {'arrived':<8} {'time to goal':>12} {'path length':>12}")
     for name, robot in run_metrics['robots'].items():
-        print(f"  {name:<12} {'yes' if robot['arrived'] else 'no':<8} "
+        arrived = {True: 'yes', False: 'no', None: 'scripted'}[robot['arrived']]
+        print(f"  {name:<12} {arrived:<8} "
               f"{_format(robot['time_to_goal'], ' s', 1):>12} "
               f"{_format(robot['path_length'], ' m'):>12}")
     planner_ms = run_metrics['planner_ms']
-    print(f"  outcome: {outcome(run_metrics)}; success rate {run_metrics['success_rate']:.2f}, "
+    print(f"  outcome: {outcome(run_metrics)}; success rate "
+          f"{_format(run_metrics['success_rate'])}, "
           f"min separation {_format(run_metrics['min_separation'], ' m')}, "
           f"makespan {_format(run_metrics['makespan'], ' s', 1)}")
     print(f"  planner ms median/p95/max {_format(planner_ms['median'])}/"

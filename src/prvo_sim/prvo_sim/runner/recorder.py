@@ -39,10 +39,12 @@ def _seconds_ns(seconds):
 class Recorder:
     """An rclpy node in a context of its own that records what the run needs to be measured."""
 
-    def __init__(self, domain_id, robot_names, role='recorder'):
+    def __init__(self, domain_id, robot_names, role='recorder', planned_names=None):
         """Create the node on DOMAIN_ID, subscribed to what ROBOT_NAMES' run publishes.
 
         ROLE goes into the node's name, which is unique to the process and the instance.
+        PLANNED_NAMES are the robots with a planner (default: all); the others are scripted,
+        moved by the simulator, and publish no cmd_vel or planner diagnostics.
         """
         from diagnostic_msgs.msg import DiagnosticArray
         from geometry_msgs.msg import TwistStamped
@@ -66,6 +68,7 @@ class Recorder:
         from prvo_sim.runner.session import run_topics
 
         self.robot_names = list(robot_names)
+        self.planned_names = list(robot_names if planned_names is None else planned_names)
         # Ground truth and commands are kept serialized as they arrive and decoded when read:
         # decoding costs the recorder most of its CPU, which the team it measures needs.
         self._serialized = {kind: {name: [] for name in self.robot_names}
@@ -113,10 +116,10 @@ class Recorder:
 
         Every planner publishes both; diagnostics carry its plan times from the first plan on.
         """
-        unheard = [name for name, subscription in self._command_subscriptions.items()
-                   if subscription.get_publisher_count() == 0]
+        unheard = [name for name in self.planned_names
+                   if self._command_subscriptions[name].get_publisher_count() == 0]
         if not unheard and (self._diagnostics_subscription.get_publisher_count()
-                            < len(self.robot_names)):
+                            < len(self.planned_names)):
             return ['diagnostics']
         return unheard
 
@@ -265,7 +268,7 @@ class Recorder:
         deadline = time.monotonic() + grace
         while True:
             gaps = recording_gaps(self.ground_truth, self.commands, self.robot_names, dt,
-                                  commands_expected)
+                                  commands_expected, self.planned_names)
             if gaps is None or time.monotonic() >= deadline:
                 return gaps
             self.spin_for(0.05)
@@ -353,13 +356,15 @@ def _describe(found):
                      for node in _shortened(found))
 
 
-def recording_gaps(ground_truth, commands, robot_names, dt, commands_expected):
+def recording_gaps(ground_truth, commands, robot_names, dt, commands_expected,
+                   planned_names=None):
     """Describe in one line what a recording lacks, else None.
 
     GROUND_TRUTH and COMMANDS are {robot: {stamp ns: ...}} (Recorder.ground_truth, .commands).
     A complete recording has every robot's ground truth at every step t = k DT from t = 0 to
-    its last, and, if COMMANDS_EXPECTED (lockstep: every step is answered), the command
-    answering each of those steps but the last.
+    its last, and, if COMMANDS_EXPECTED (lockstep: every step is answered), the command of
+    each of PLANNED_NAMES (default: every robot; scripted robots have none) answering each of
+    those steps but the last.
     """
     for name in robot_names:
         steps = sorted(round(stamp * 1e-9 / dt) for stamp in ground_truth[name])
@@ -369,7 +374,7 @@ def recording_gaps(ground_truth, commands, robot_names, dt, commands_expected):
         if missing:
             return (f'the recorder missed {len(missing)} ground truth message(s) of {name}, '
                     f'the first at t = {missing[0] * dt:g} s')
-        if commands_expected:
+        if commands_expected and (planned_names is None or name in planned_names):
             answered = {round(stamp * 1e-9 / dt) for stamp in commands[name]}
             unanswered = sorted(set(steps[:-1]) - answered)
             if unanswered:

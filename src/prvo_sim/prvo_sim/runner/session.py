@@ -85,6 +85,11 @@ def ros_parameter(value):
     return str(value)
 
 
+def planned_robots(scenario):
+    """Return the robots of SCENARIO that have a planner: all but the scripted ones."""
+    return [robot for robot in scenario.robots if robot.scripted is None]
+
+
 def robot_eta(robot):
     """Return the eta of ROBOT's own planner block, else the default."""
     return float(robot.planner.get('eta', DEFAULT_ETA))
@@ -122,9 +127,14 @@ def runner_planner_values(robot, scenario, method, eta, mode='lockstep'):
 
 
 def planner_values(robot, scenario, method, eta, mode='lockstep'):
-    """Return every planner parameter ROBOT's planner node holds in a run, typed and checked."""
+    """Return every planner parameter ROBOT's planner node holds in a run, typed and checked.
+
+    None for a scripted robot: it has no planner.
+    """
     from prvo_planner.parameters import DEFAULTS, checked_parameters
 
+    if robot.scripted is not None:
+        return None
     return checked_parameters(
         {**DEFAULTS, **runner_planner_values(robot, scenario, method, eta, mode)})
 
@@ -140,7 +150,7 @@ def run_eta(options, scenario):
     """Return the eta of the run: --eta, else the robots' common eta, else the list of them."""
     if options.eta is not None:
         return options.eta
-    etas = [robot_eta(robot) for robot in scenario.robots]
+    etas = [robot_eta(robot) for robot in planned_robots(scenario)]
     return etas[0] if len(set(etas)) == 1 else etas
 
 
@@ -171,13 +181,13 @@ class RunSpec:
     def own_nodes(self):
         """Return the fully qualified names of the nodes the run's children create."""
         return {f'/{SIM_NODE}', *(f'/{robot.name}/{PLANNER_NODE}'
-                                   for robot in self.scenario.robots)}
+                                   for robot in planned_robots(self.scenario))}
 
 
 def start_planners(children, spec):
-    """Start one planner per robot."""
+    """Start one planner per robot that is not scripted."""
     scenario = spec.scenario
-    for robot in scenario.robots:
+    for robot in planned_robots(scenario):
         argv = [*spec.planner_command, '--ros-args', '-r', f'__ns:=/{robot.name}',
                 '-r', f'__node:={PLANNER_NODE}']
         parameters = planner_parameters(robot, scenario, spec.method, spec.planner_eta,
@@ -244,6 +254,7 @@ def wait_for_end(recorder, watch, spec, progress):
     """Record until the run ends; return its `Ending` if it completed, else a one-line failure."""
     scenario = spec.scenario
     goals = np.array([robot.goal for robot in scenario.robots], dtype=float)
+    planned = np.array([robot.scripted is None for robot in scenario.robots])
     started = time.monotonic()
     settled_since = None
     next_progress = started
@@ -264,7 +275,8 @@ def wait_for_end(recorder, watch, spec, progress):
             continue
         sim_time = min(stamp for stamp, _ in latest.values()) * 1e-9
         positions = np.array([latest[robot.name][1] for robot in scenario.robots])
-        arrived = np.linalg.norm(positions - goals, axis=1) <= scenario.goal_tolerance
+        # Scripted robots do not arrive: the planned ones end the run.
+        arrived = (np.linalg.norm(positions - goals, axis=1) <= scenario.goal_tolerance)[planned]
         if now >= next_progress:
             progress(sim_time, int(arrived.sum()), now - started)
             next_progress = now + PROGRESS_PERIOD
@@ -310,7 +322,8 @@ def run_once(spec, domain_id, monitor=None):
     progress = ProgressLine(spec, quiet=spec.quiet)
     started = time.monotonic()
     try:
-        recorder = Recorder(domain_id, [robot.name for robot in scenario.robots])
+        recorder = Recorder(domain_id, [robot.name for robot in scenario.robots],
+                            planned_names=[robot.name for robot in planned_robots(scenario)])
         # The first file of the run: a run that never got here leaves the folder alone.
         log_dir.mkdir(parents=True, exist_ok=True)
         watch = _Watch(recorder, children, spec)
@@ -367,12 +380,12 @@ class ProgressLine:
         self._written = False
 
     def __call__(self, sim_time, arrived, wall_time):
-        """Report SIM_TIME, the number of ARRIVED robots and WALL_TIME."""
+        """Report SIM_TIME, the number of ARRIVED planned robots and WALL_TIME."""
         if self._quiet:
             return
         scenario = self._spec.scenario
         line = (f'{scenario.name} seed {self._spec.seed}: sim {sim_time:5.1f}/'
-                f'{scenario.duration:g} s, arrived {arrived}/{len(scenario.robots)}, '
+                f'{scenario.duration:g} s, arrived {arrived}/{len(planned_robots(scenario))}, '
                 f'wall {wall_time:5.1f} s')
         if self._tty:
             sys.stderr.write('\r' + line + '   ')
