@@ -35,9 +35,10 @@ class StepRecord:
     """One step of a team: the state at `time` and the commands that answered it.
 
     `states` (N, 4) is every robot's ground truth [x, y, vx, vy] as a recorder reads it;
-    `commands` (N, 2) the world-frame velocities commanded for the next dt; `plan_ms` (N,)
+    `commands` (N, 2) the world-frame velocities commanded for the next dt (a unicycle's
+    forward speed along its heading); `plan_ms` (N,)
     each robot's share of the team's planning time [ms of wall time]; `contacts` the
-    `world.Contact`s the step made.
+    `world.Contact`s the step made; `yaws` (N,) the ground-truth headings of the state.
     """
 
     time: float
@@ -45,6 +46,7 @@ class StepRecord:
     commands: np.ndarray
     plan_ms: np.ndarray
     contacts: tuple
+    yaws: np.ndarray = None
 
 
 def agent_of(name, values):
@@ -82,13 +84,16 @@ class InProcessTeam:
         return self.world.finished
 
     def observe(self):
-        """Return (odometry measurements, ground-truth states (N, 4)) of the current state."""
+        """Return (odometry measurements, ground-truth states (N, 5)) of the current state.
+
+        A state is [x, y, vx, vy, yaw].
+        """
         messages = serialized_odometry(self.world)
         measurements = [serialized_odometry_to_measurement(odometry, expected_frame=WORLD_FRAME)
                         for odometry, _ in messages]
         truths = [serialized_odometry_to_measurement(truth, expected_frame=WORLD_FRAME)
                   for _, truth in messages]
-        states = np.array([[*truth.position, *truth.velocity] for truth in truths])
+        states = np.array([[*truth.position, *truth.velocity, truth.yaw] for truth in truths])
         return measurements, states
 
     def do_step(self):
@@ -116,15 +121,23 @@ class InProcessTeam:
                 results[index] = result
         yaws = world.yaws_at(world.step_count)
         commands = np.empty((len(self.agents), 2))
+        executed = np.empty_like(commands)
         for index, agent in enumerate(self.agents):
             command = agent.complete(requests[index], results[index])
+            if command.drive is not None:
+                # A unicycle's node publishes linear.x and angular.z, executed as they are; a
+                # recorder sees the forward speed turned by the heading at the stamp.
+                executed[index] = command.drive
+                commands[index] = body_to_world((command.drive[0], 0.0), yaws[index])
+                continue
             # The node publishes in the body frame; the simulator turns it back by the heading
             # at the command's stamp.
             commands[index] = body_to_world(world_to_body(command.velocity, command.yaw),
                                             yaws[index])
+            executed[index] = commands[index]
         # One call plans the team: each robot is charged an equal share of it.
         plan_ms = np.full(len(self.agents), (time.perf_counter() - started) * 1e3
                           / len(self.agents))
-        contacts = world.step(commands)
-        return StepRecord(time=now, states=states, commands=commands, plan_ms=plan_ms,
-                          contacts=tuple(contacts))
+        contacts = world.step(executed)
+        return StepRecord(time=now, states=states[:, :4], commands=commands, plan_ms=plan_ms,
+                          contacts=tuple(contacts), yaws=states[:, 4])

@@ -16,11 +16,12 @@ def robot_colours(count):
 
 
 def draw_trajectories(axes, times, positions, starts, goals, radii, contacts,
-                      disc_interval=1.0, labels=None):
+                      disc_interval=1.0, labels=None, yaws=None):
     """Draw paths, start (square) and goal (star) markers, discs every DISC_INTERVAL seconds.
 
     CONTACTS are (time, i, j, distance) events: both robots' positions at that time are marked
-    with red crosses and red disc outlines.
+    with red crosses and red disc outlines. YAWS (T, N), if given, draws each disc's heading as
+    a radius.
     """
     times = np.asarray(times, dtype=float)
     positions = np.asarray(positions, dtype=float)
@@ -33,6 +34,11 @@ def draw_trajectories(axes, times, positions, starts, goals, radii, contacts,
         for step in disc_steps:
             axes.add_patch(Circle(path[step], radii[robot], fill=False, color=colour,
                                   alpha=0.35, linewidth=0.8))
+            if yaws is not None:
+                heading = radii[robot] * np.array([np.cos(yaws[step, robot]),
+                                                   np.sin(yaws[step, robot])])
+                axes.plot(*np.stack([path[step], path[step] + heading], axis=1), '-',
+                          color=colour, alpha=0.6, linewidth=0.8)
         axes.plot(*starts[robot], 's', color=colour, markersize=7)
         axes.plot(*goals[robot], '*', color=colour, markersize=12, markeredgecolor='black',
                   markeredgewidth=0.5)
@@ -56,11 +62,12 @@ def _steps_every(times, interval):
     return sorted({int(np.argmin(np.abs(times - mark))) for mark in marks} | {times.size - 1})
 
 
-def plot_run(path, times, positions, starts, goals, radii, robot_names, contacts, title):
-    """Write a PNG of one run's trajectories to PATH."""
+def plot_run(path, times, positions, starts, goals, radii, robot_names, contacts, title,
+             yaws=None):
+    """Write a PNG of one run's trajectories to PATH (headings drawn where YAWS is given)."""
     figure, axes = plt.subplots(figsize=(7.0, 7.0))
     draw_trajectories(axes, times, positions, starts, goals, radii, contacts,
-                      labels=list(robot_names))
+                      labels=list(robot_names), yaws=yaws)
     axes.set_title(title, fontsize=10)
     axes.legend(loc='upper left', fontsize=7, ncol=2, framealpha=0.7)
     figure.tight_layout()

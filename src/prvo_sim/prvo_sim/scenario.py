@@ -17,6 +17,7 @@ import yaml
 from prvo_msgs_util import validate_robot_name
 from prvo_planner.parameters import (
     COORDINATE_LIMIT,
+    KINEMATICS,
     ParameterError,
     check_parameter,
     type_name,
@@ -27,7 +28,12 @@ _SCENARIO_NAME = re.compile(r'[A-Za-z0-9_-]+')
 _TOP_LEVEL_KEYS = {'name', 'description', 'seed', 'dt', 'duration', 'goal_tolerance', 'noise',
                    'planner', 'robots'}
 _TOP_LEVEL_REQUIRED = {'name', 'seed', 'dt', 'duration', 'goal_tolerance', 'robots'}
-_ROBOT_KEYS = {'name', 'start', 'goal', 'radius', 'max_speed', 'noise', 'planner'}
+_ROBOT_KEYS = {'name', 'start', 'goal', 'radius', 'max_speed', 'noise', 'planner', 'kinematics',
+               'max_angular_speed', 'max_acceleration', 'max_angular_acceleration', 'start_yaw'}
+DEFAULT_MAX_ANGULAR_SPEED = 2.0
+# Limits of a robot's motion [m/s^2, rad/s^2, rad/s]: as large as a speed may be, and more.
+MAX_LIMIT = 1.0e3
+_UNICYCLE_ONLY = ('max_angular_speed', 'max_angular_acceleration')
 _ROBOT_REQUIRED = {'name', 'start', 'goal', 'radius', 'max_speed'}
 _NOISE_KEYS = ('position_std', 'velocity_std', 'actuation_std')
 DT_RANGE = (1.0e-4, 10.0)
@@ -46,6 +52,11 @@ SET_BY_RUNNER = {
                      'set it there',
     'goal_tolerance': 'set by the runner from the top-level goal_tolerance: set it there',
     'model': 'set by the runner from its --method option',
+    'kinematics': "set by the runner from each robot's kinematics: set it there",
+    'max_angular_speed': "set by the runner from each robot's max_angular_speed: set it there",
+    'max_acceleration': "set by the runner from each robot's max_acceleration: set it there",
+    'max_angular_acceleration': "set by the runner from each robot's max_angular_acceleration: "
+                                'set it there',
     'use_sim_time': 'set by the runner (always true: the simulator keeps the time)',
 }
 # Resident memory of one process of a run [MiB], measured by prvo_sim.bench_team (planners
@@ -82,7 +93,9 @@ class RobotSpec:
 
     `start` and `goal` are read-only arrays (2,), so specs compare by identity. `planner` holds
     the planner parameters given for this robot, typed and checked: the file-level block with
-    the robot's own block over it.
+    the robot's own block over it. `kinematics` is 'holonomic' or 'unicycle'; the acceleration
+    limits are inf when unlimited; `start_yaw` [rad] is the heading at the start (None: facing
+    the goal).
     """
 
     name: str
@@ -92,6 +105,11 @@ class RobotSpec:
     max_speed: float
     noise: NoiseSpec
     planner: dict
+    kinematics: str = 'holonomic'
+    max_angular_speed: float = DEFAULT_MAX_ANGULAR_SPEED
+    max_acceleration: float = math.inf
+    max_angular_acceleration: float = math.inf
+    start_yaw: float | None = None
 
 
 @dataclass(frozen=True)
@@ -290,9 +308,26 @@ def _robot(check, entry, key, file_noise, file_planner):
     except ValueError as error:
         check.fail(f'{key}.name', str(error))
     noise = {**file_noise, **check.noise(entry.get('noise'), f'{key}.noise')}
+    start = check.point(entry['start'], f'{key}.start')
+    goal = check.point(entry['goal'], f'{key}.goal')
+    kinematics = entry.get('kinematics', 'holonomic')
+    if kinematics not in KINEMATICS:
+        check.fail(f'{key}.kinematics', f'must be one of {", ".join(KINEMATICS)}, '
+                   f'got {kinematics!r} (robot {name!r})')
+    if kinematics == 'holonomic':
+        for limit in _UNICYCLE_ONLY:
+            if limit in entry:
+                check.fail(f'{key}.{limit}', f'only for kinematics: unicycle (robot {name!r} is '
+                           'holonomic)')
+    limits = {limit: check.number(entry[limit], f'{key}.{limit}', 0.0, MAX_LIMIT,
+                                  low_open=True)
+              for limit in ('max_angular_speed', 'max_acceleration', 'max_angular_acceleration')
+              if limit in entry}
+    start_yaw = (check.number(entry['start_yaw'], f'{key}.start_yaw', -2.0 * math.pi,
+                              2.0 * math.pi) if 'start_yaw' in entry else None)
     return RobotSpec(
-        name=name, start=check.point(entry['start'], f'{key}.start'),
-        goal=check.point(entry['goal'], f'{key}.goal'),
+        name=name, start=start, goal=goal, kinematics=kinematics, start_yaw=start_yaw,
+        **limits,
         # A planner gets both as its parameters of the same name: the same rules apply.
         radius=check.planner_parameter('radius', entry['radius'], f'{key}.radius'),
         max_speed=check.planner_parameter('max_speed', entry['max_speed'], f'{key}.max_speed'),
