@@ -13,9 +13,9 @@ import math
 
 import numpy as np
 
-from prvo_planner.core import AgentBelief, plan_velocity, VelocityLimits
+from prvo_planner.core import AgentBelief, VelocityLimits, plan_velocity
 from prvo_planner.estimation import ConstantVelocityTracker, TrackFault
-from prvo_planner.tracking import tracking_command, TrackingModel
+from prvo_planner.tracking import TrackingModel, tracking_command
 
 # A stamp this far behind a track's last one means its source restarted (e.g. the simulator):
 # the track starts over instead of rejecting every message from then on.

@@ -1,8 +1,8 @@
 """
-What a robot can command next: speeds reachable under an acceleration limit and holonomic
-velocities a differential-drive robot can track.
+What a robot can command next: reachable speeds and trackable velocities.
 
-On a candidate ray ``s e`` (``s >= 0``) both restrictions are one interval of speeds:
+Reachable: under an acceleration limit; trackable: by a differential-drive robot. On a
+candidate ray ``s e`` (``s >= 0``) both restrictions are one interval of speeds:
 
 * reachable: ``|s e - v_now| <= a_max dt`` is a chord of a disc,
   ``s in [e.v_now - sqrt(D), e.v_now + sqrt(D)]`` with ``D = (e.v_now)^2 - |v_now|^2 +
@@ -71,7 +71,7 @@ class VelocityLimits:
         return self.current is not None and math.isfinite(self.max_change)
 
     def extra_directions(self):
-        """Unit directions (REACHABLE_DIRECTIONS, 2) across the reachable disc; (0, 2) if none."""
+        """Return unit directions (REACHABLE_DIRECTIONS, 2) across the reachable disc (or none)."""
         if not self.accelerating:
             return np.zeros((0, 2))
         centre = math.atan2(self.current[1], self.current[0])
@@ -82,7 +82,7 @@ class VelocityLimits:
         return np.stack([np.cos(angles), np.sin(angles)], axis=1)
 
     def ray_intervals(self, directions, max_speed):
-        """Allowed ``t`` (speed / ``max_speed``) on each ray: (lower, upper), each (M,).
+        """Return the allowed ``t`` (speed / ``max_speed``) on each ray: (lower, upper), each (M,).
 
         An empty interval has ``lower > upper``.
         """

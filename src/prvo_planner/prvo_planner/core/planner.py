@@ -39,7 +39,7 @@ from .encounter import (
     model_moments,
 )
 from .feasibility import RayRows, achieved_margins, monte_carlo_probabilities, team_ray_gaps
-from .limits import fallback_choice, free_choice, relaxed_intervals, VelocityLimits
+from .limits import VelocityLimits, fallback_choice, free_choice, relaxed_intervals
 from .moments import (
     NODES,
     bivariate_polynomials,
@@ -314,7 +314,7 @@ def _solve_group(plans):
 
 
 def _allowed_gaps(plans, gap_ray, lower, upper):
-    """The feasible intervals cut to their rays' allowed speeds; empty ones dropped."""
+    """Return the feasible intervals cut to their rays' allowed speeds, empty ones dropped."""
     if all(plan.allowed is None for plan in plans):
         return gap_ray, lower, upper
     allowed_lower, allowed_upper = (np.concatenate([

@@ -176,11 +176,11 @@ def replace_results(folder, files, result_names=()):
 
 
 def write_trajectories_csv(path, times, names, states, commands, yaws=None):
-    """Write one row per time and robot: ground truth x, y, vx, vy, the command answering it
-    and the ground-truth heading `yaw` (empty where YAWS is None).
+    """Write one row per time and robot: ground truth, the command answering it, the heading.
 
-    Numbers are written exactly (the shortest text that reads back as the same double), so that
-    runs can be compared to the last bit.
+    The columns are x, y, vx, vy, cmd_vx, cmd_vy and the ground-truth `yaw` (empty where YAWS
+    is None). Numbers are written exactly (the shortest text that reads back as the same
+    double), so that runs can be compared to the last bit.
     """
     with open(path, 'w', newline='') as csv_file:
         writer = csv.writer(csv_file)
