@@ -39,22 +39,20 @@ def tracking_command(velocity, yaw, previous_forward, previous_turn, model, peri
     turning.
     """
     speed = math.hypot(velocity[0], velocity[1])
-    if speed > 1e-9:
-        error = float(wrapped(math.atan2(velocity[1], velocity[0]) - yaw))
-    else:
-        error = 0.0
-    forward, turn = _control_law(speed, error, model, period)
+    error = float(wrapped(math.atan2(velocity[1], velocity[0]) - yaw)) if speed > 1e-9 else 0.0
+    forward, turn = _control_law(speed, error, previous_forward, previous_turn, model, period)
+    return float(forward), float(turn)
+
+
+def _control_law(speed, error, previous_forward, previous_turn, model, period):
+    """Return the (forward, turn) command for heading ERROR; scalars or arrays alike."""
+    # A horizon shorter than the period would overshoot: then the turn closes the error in one.
+    turn = np.clip(error / max(model.horizon, period), -model.max_angular_speed,
+                   model.max_angular_speed)
+    forward = np.where(np.abs(error) < 0.5 * math.pi,
+                       np.minimum(speed * np.cos(error), model.max_speed), 0.0)
     forward = _toward(previous_forward, forward, _change(model.max_acceleration, period))
     turn = _toward(previous_turn, turn, _change(model.max_angular_acceleration, period))
-    return forward, turn
-
-
-def _control_law(speed, error, model, period):
-    # A horizon shorter than the period would overshoot: then the turn closes the error in one.
-    turn = min(max(error / max(model.horizon, period), -model.max_angular_speed),
-               model.max_angular_speed)
-    forward = min(speed * math.cos(error), model.max_speed) if abs(error) < 0.5 * math.pi \
-        else 0.0
     return forward, turn
 
 
@@ -66,7 +64,7 @@ def _change(acceleration, period):
 def _toward(previous, target, max_change):
     if not math.isfinite(max_change):
         return target
-    return min(max(target, previous - max_change), previous + max_change)
+    return np.clip(target, previous - max_change, previous + max_change)
 
 
 class TrackingModel:
@@ -112,37 +110,39 @@ class TrackingModel:
         return functools.partial(self.trackable_speeds, period=period)
 
 
-def tracked_path(speed, heading_error, model, period, duration):
-    """Return (times, offsets (K, 2)) of a unicycle tracking a constant velocity, noise-free.
+def tracked_path(speed, heading_errors, model, period, duration):
+    """Return (times, offsets (A, K, 2)) of unicycles tracking constant velocities, noise-free.
 
-    The robot starts at the origin heading along +x, turning at rate 0 and at rest; the
-    velocity has length SPEED and points HEADING_ERROR from +x. `offsets` are the robot's
-    position minus the straight path `t velocity`, sampled within every control period up to
-    DURATION [s].
+    Each robot starts at the origin heading along +x, at rest and not turning; its velocity has
+    length SPEED and points one of HEADING_ERRORS (A,) from +x. `offsets` are the robots'
+    positions minus the straight paths `t velocity`, sampled within every control period (held
+    commands, exact arcs) up to DURATION [s].
     """
-    velocity = speed * np.array([math.cos(heading_error), math.sin(heading_error)])
-    position = np.zeros(2)
-    yaw = forward = turn = 0.0
-    times, offsets = [0.0], [np.zeros(2)]
+    heading_errors = np.asarray(heading_errors, dtype=float)
+    velocities = speed * np.stack([np.cos(heading_errors), np.sin(heading_errors)], axis=1)
+    positions = np.zeros_like(velocities)
+    yaws = np.zeros_like(heading_errors)
+    forward = turn = np.zeros_like(heading_errors)
     fractions = np.arange(1, _SAMPLES_PER_PERIOD + 1) / _SAMPLES_PER_PERIOD
+    times, offsets = [0.0], [np.zeros_like(velocities)]
     for step in range(math.ceil(duration / period - 1e-9)):
-        forward, turn = tracking_command(velocity, yaw, forward, turn, model, period)
-        moved, yaws = _arc(forward, turn, yaw, fractions * period)
-        start = step * period
-        for fraction, offset in zip(fractions, moved, strict=True):
-            times.append(start + fraction * period)
-            offsets.append(position + offset - times[-1] * velocity)
-        position = position + moved[-1]
-        yaw = float(yaws[-1])
-    return np.array(times), np.array(offsets)
+        forward, turn = _control_law(speed, wrapped(heading_errors - yaws), forward, turn,
+                                     model, period)
+        for fraction in fractions:
+            moved, turned = _arc(forward, turn, yaws, fraction * period)
+            times.append((step + fraction) * period)
+            offsets.append(positions + moved - times[-1] * velocities)
+        positions = positions + moved
+        yaws = turned
+    return np.array(times), np.stack(offsets, axis=1)
 
 
-def _arc(forward, turn, yaw, durations):
-    """Displacements (K, 2) and yaws (K,) after DURATIONS of an exact unicycle arc."""
-    half = 0.5 * turn * durations
-    chord = forward * durations * np.sinc(half / math.pi)
-    moved = np.stack([chord * np.cos(yaw + half), chord * np.sin(yaw + half)], axis=1)
-    return moved, yaw + 2.0 * half
+def _arc(forward, turn, yaws, duration):
+    """Return displacements (A, 2) and yaws (A,) after DURATION of exact unicycle arcs."""
+    half = 0.5 * turn * duration
+    chord = forward * duration * np.sinc(half / math.pi)
+    moved = np.stack([chord * np.cos(yaws + half), chord * np.sin(yaws + half)], axis=1)
+    return moved, yaws + 2.0 * half
 
 
 @functools.lru_cache(maxsize=32)
@@ -156,7 +156,5 @@ def _unit_error_table(max_angular_speed, max_angular_acceleration, horizon, peri
     duration = (math.pi / max_angular_speed + (
         max_angular_speed / max_angular_acceleration if math.isfinite(
             max_angular_acceleration) else 0.0) + max(convergence, 1.0) * period + period)
-    errors = np.array([np.max(np.linalg.norm(tracked_path(1.0, angle, model, period,
-                                                          duration)[1], axis=1))
-                       for angle in _TABLE_ANGLES])
-    return np.maximum.accumulate(errors)
+    offsets = tracked_path(1.0, _TABLE_ANGLES, model, period, duration)[1]
+    return np.maximum.accumulate(np.max(np.linalg.norm(offsets, axis=2), axis=1))
