@@ -5,8 +5,8 @@ import math
 import numpy as np
 import pytest
 
-from prvo_planner.core import AgentBelief, PlannerConfig, plan_velocity, VelocityLimits
-from prvo_planner.tracking import tracking_command, TrackingModel
+from prvo_planner.core import AgentBelief, PlannerConfig, VelocityLimits, plan_velocity
+from prvo_planner.tracking import TrackingModel, tracking_command
 
 COV = np.diag([0.01, 0.01, 0.02, 0.02])
 

@@ -10,8 +10,8 @@ import math
 
 import numpy as np
 
-from prvo_planner.core import AgentBelief, PlannerConfig, plan_velocity, VelocityLimits
-from prvo_planner.tracking import tracking_command, TrackingModel
+from prvo_planner.core import AgentBelief, PlannerConfig, VelocityLimits, plan_velocity
+from prvo_planner.tracking import TrackingModel, tracking_command
 
 RADIUS = 0.3
 TRACKING_ERROR = 0.1
@@ -22,7 +22,7 @@ ENCOUNTERS = 12
 
 
 def random_covariance(rng, position_std, velocity_std):
-    """A positive definite (4, 4) covariance with position-velocity cross terms."""
+    """Return a positive definite (4, 4) covariance with position-velocity cross terms."""
     scales = np.array([position_std, position_std, velocity_std, velocity_std])
     correlation = np.eye(4)
     correlation[0, 2] = correlation[2, 0] = rng.uniform(-0.5, 0.5)
@@ -31,7 +31,7 @@ def random_covariance(rng, position_std, velocity_std):
 
 
 def encounter(seed):
-    """An ego unicycle at the origin with a random heading, and 1 to 3 neighbours coming near."""
+    """Return an ego unicycle with a random heading and 1 to 3 neighbours coming near."""
     rng = np.random.default_rng(seed)
     yaw = rng.uniform(-math.pi, math.pi)
     heading = np.array([math.cos(yaw), math.sin(yaw)])
