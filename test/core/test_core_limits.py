@@ -124,3 +124,14 @@ def test_the_tracking_command_turns_toward_and_drives_along_the_velocity():
     assert forward == pytest.approx(0.05)  # rate limited from rest
     assert turn == pytest.approx(math.atan2(0.1, 1.0) / 0.5)
     assert tracking_command(np.zeros(2), 1.0, 0.0, 0.3, model, 0.1) == (0.0, 0.0)
+
+
+@pytest.mark.parametrize('model', ['mc', 'rvo', 'inflate'])
+def test_every_model_keeps_to_the_reachable_disc(model):
+    ego, others = encounter()
+    config = PlannerConfig(eta=0.8, model=model, mc_samples=200, seed=1,
+                           actuation_cov=0.0025 * np.eye(2))
+    current = np.array([0.2, 0.6])
+    result = plan_velocity(ego, others, [1.0, 0.0], config, previous=current,
+                           limits=VelocityLimits(current=current, max_change=0.05))
+    assert np.linalg.norm(result.velocity - current) <= 0.05 + 1e-9

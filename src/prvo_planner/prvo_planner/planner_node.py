@@ -406,7 +406,8 @@ class PlannerNode(Node):
             'ok' if feasible else 'no velocity meets the chance constraint',
             {'achieved_k': achieved_k, 'eta_bound': eta_bound, 'feasible': feasible,
              'neighbours_tracked': len(command.neighbours), 'plan_time_ms': plan_time_ms,
-             'arrived': command.arrived, 'model': self._config.model},
+             'arrived': command.arrived, 'model': self._config.model,
+             'planning_radius': self._agent.settings.planning_radius},
             level=DiagnosticStatus.OK if feasible else DiagnosticStatus.WARN,
             hardware_id=self._robot)
         self._diagnostics_publisher.publish(make_diagnostic_array(command.stamp, [status]))

@@ -126,6 +126,22 @@ def free_choice(directions, lower, upper, v_pref, config):
     return candidates[int(np.argmin(costs))]
 
 
+def allowed_speed_grid(plan, lower, upper):
+    """Return candidate ``t`` (M, T) within each ray's allowed interval and their costs.
+
+    Per ray: the preferred speed (projected) and ``_FALLBACK_FRACTIONS`` of the interval; a ray
+    whose interval is empty gets ``t = 0`` at infinite cost.
+    """
+    allowed = lower <= upper
+    span = np.where(allowed, upper - lower, 0.0)
+    speeds = np.concatenate([np.clip(plan.preferred, lower, upper)[:, None],
+                             lower[:, None] + span[:, None] * _FALLBACK_FRACTIONS], axis=1)
+    speeds = np.where(allowed[:, None], speeds, 0.0)
+    costs = choice_costs(plan.config.max_speed * speeds[..., None] * plan.directions[:, None, :],
+                         plan.v_pref, plan.previous, plan.config)
+    return speeds, np.where(allowed[:, None], costs, np.inf)
+
+
 def fallback_choice(plan, means, variances, lower, upper):
     """
     No allowed feasible interval: the allowed candidate with the largest achieved ``k``.
@@ -150,11 +166,8 @@ def fallback_choice(plan, means, variances, lower, upper):
         (direction index, ``t``).
 
     """
+    speeds, costs = allowed_speed_grid(plan, lower, upper)
     allowed = lower <= upper
-    span = np.where(allowed, upper - lower, 0.0)
-    speeds = np.concatenate([np.clip(plan.preferred, lower, upper)[:, None],
-                             lower[:, None] + span[:, None] * _FALLBACK_FRACTIONS], axis=1)
-    speeds = np.where(allowed[:, None], speeds, 0.0)
     # Values (T, N, M, C) of every condition at every candidate.
     at_speeds = [horner_coefficient_major(polynomial.transpose(3, 0, 1, 2)[:, None],
                                           speeds.T[:, None, :, None])
@@ -163,8 +176,5 @@ def fallback_choice(plan, means, variances, lower, upper):
                                     plan.layout.receding_enabled[:, None],
                                     rank=plan.deterministic), axis=1).T
     score = np.where(allowed[:, None], score, -np.inf)
-    costs = choice_costs(plan.config.max_speed * speeds[..., None] * plan.directions[:, None, :],
-                         plan.v_pref, plan.previous, plan.config)
-    costs = np.where(allowed[:, None], costs, np.inf)
     direction_index, speed_index = np.unravel_index(best_ranked(score, costs), speeds.shape)
     return direction_index, speeds[direction_index, speed_index]

@@ -39,7 +39,13 @@ from .encounter import (
     model_moments,
 )
 from .feasibility import RayRows, achieved_margins, monte_carlo_probabilities, team_ray_gaps
-from .limits import VelocityLimits, fallback_choice, free_choice, relaxed_intervals
+from .limits import (
+    VelocityLimits,
+    allowed_speed_grid,
+    fallback_choice,
+    free_choice,
+    relaxed_intervals,
+)
 from .moments import (
     NODES,
     bivariate_polynomials,
@@ -228,16 +234,21 @@ def _prepared_plan(ego, neighbours, v_pref, config, previous, limits=None):
 def _monte_carlo_plan(plan):
     """Plan by the sampling baseline: probabilities estimated at a grid of candidate speeds."""
     encounter, config, directions = plan.encounter, plan.config, plan.directions
-    speeds, grid_costs = speed_grid(directions, plan.preferred, plan.v_pref, plan.previous,
-                                    config)
+    if plan.allowed is None:
+        speeds, grid_costs = speed_grid(directions, plan.preferred, plan.v_pref, plan.previous,
+                                        config)
+    else:
+        # Only allowed speeds are sampled; a ray with none gets an infinite cost.
+        speeds, grid_costs = allowed_speed_grid(plan, *plan.allowed)
     probabilities = monte_carlo_probabilities(encounter, plan.layout, directions, speeds,
                                                config, np.random.default_rng(config.seed))
-    feasible_points = np.all(probabilities >= encounter.eta, axis=0)
+    feasible_points = np.all(probabilities >= encounter.eta, axis=0) & np.isfinite(grid_costs)
     candidates_feasible = int(np.count_nonzero(np.any(feasible_points, axis=1)))
     if candidates_feasible:
         flat = int(np.argmin(np.where(feasible_points, grid_costs, np.inf)))
     else:
-        flat = best_ranked(np.min(probabilities, axis=0), grid_costs)
+        flat = best_ranked(np.where(np.isfinite(grid_costs), np.min(probabilities, axis=0),
+                                    -np.inf), grid_costs)
     direction_index, speed_index = np.unravel_index(flat, speeds.shape)
     velocity = config.max_speed * speeds[direction_index, speed_index] * \
         directions[direction_index]
