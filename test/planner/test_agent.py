@@ -220,3 +220,54 @@ def test_agents_sharing_one_track_table_plan_as_agents_with_their_own():
             expected, got = own[name].plan(), shared[name].plan()
             assert np.array_equal(expected.velocity, got.velocity)
             assert len(got.neighbours) == 1
+
+
+def unicycle_settings(**limits):
+    return dataclasses.replace(SETTINGS, kinematics='unicycle', tracking_error=0.1,
+                               tracking_horizon=0.5, **limits)
+
+
+def test_a_unicycle_agent_plans_with_its_grown_radius_and_drives_forward_and_turns():
+    agent = PlannerAgent('self', CONFIG, unicycle_settings(max_acceleration=1.0), goal=GOAL)
+    drives = []
+    for step, measurement in enumerate(team()['self']):
+        agent.receive_own(measurement, step * 0.1)
+        request = agent.plan_request()
+        ego, _, _, _, _, limits = request.problem
+        assert ego.radius == pytest.approx(0.4)
+        assert limits.heading == 0.1 and limits.trackable_speed is not None
+        result = plan_velocity(*request.problem)
+        command = agent.complete(request, result)
+        # The diagnostics' bound is the plan's, made with the grown radius.
+        assert command.result is result
+        drives.append(command.drive)
+    forward = np.array([drive[0] for drive in drives])
+    turn = np.array([drive[1] for drive in drives])
+    # From rest: the forward speed rises by at most 1 m/s^2 x 0.1 s per plan; the first plan,
+    # before any period is known, stays put.
+    assert forward[0] == 0.0
+    assert np.all(np.abs(np.diff(forward)) <= 0.1 + 1e-12) and forward[-1] > 0.3
+    # The goal is a little to the left of the heading (yaw 0.1 rad): it turns toward it.
+    assert np.all(np.abs(turn) <= 2.0)
+
+
+def test_an_accelerating_agent_changes_its_command_by_at_most_the_limit_and_brakes():
+    settings = dataclasses.replace(SETTINGS, max_acceleration=0.8)
+    agent = PlannerAgent('self', CONFIG, settings, goal=[0.6, 0.0])
+    previous = np.zeros(2)
+    rng = np.random.default_rng(4)
+    position = np.zeros(2)
+    arrived_at = None
+    for step in range(80):
+        measured = Measurement(round(step * 0.1, 9), position + rng.normal(0.0, 0.01, 2),
+                               previous + rng.normal(0.0, 0.01, 2), 1e-4 * np.eye(4))
+        agent.receive_own(measured, step * 0.1)
+        command = agent.plan()
+        assert np.linalg.norm(command.velocity - previous) <= 0.08 + 1e-9, step
+        previous = command.velocity
+        position = position + previous * 0.1
+        if command.arrived and arrived_at is None:
+            arrived_at = step
+    # It arrived and came to rest at the limit, near the goal: no overshoot beyond braking.
+    assert arrived_at is not None and np.all(previous == 0.0)
+    assert abs(position[0] - 0.6) < 0.15

@@ -39,7 +39,7 @@ def rows_of(path):
             for row in csv.DictReader(csv_file)}
 
 
-@pytest.mark.parametrize('scenario', ['crossing4', 'circle8', 'walker2'])
+@pytest.mark.parametrize('scenario', ['crossing4', 'circle8', 'walker2', 'mixed_drive'])
 def test_both_engines_give_the_same_trajectories(scenario, tmp_path, runners):
     path = SCENARIOS / f'{scenario}.yaml'
     scripted = set()

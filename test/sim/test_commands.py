@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from prvo_msgs_util import MessageFault, make_twist, make_twist_stamped
-from prvo_sim.commands import command_velocity
+from prvo_sim.commands import command_velocity, unicycle_command
 from prvo_sim.observers import observer_name_fault
 from prvo_sim.scenario import find_scenario, load_scenario
 from prvo_sim.world import YAW_HISTORY, TeamWorld
@@ -86,3 +86,19 @@ def test_fully_qualified_observer_names_are_accepted(name):
 def test_bad_observer_names_are_named(name, fault):
     message = observer_name_fault(name)
     assert message.startswith(f'observers: {name!r}') and fault in message
+
+
+def test_a_unicycle_takes_forward_speed_and_turn_rate_and_drops_sideways_speed(world):
+    base = 'robot_0/base_link'
+    message = stamped(world, 0, (0.5, 0.2), base)
+    message.twist.angular.z = -0.7
+    assert unicycle_command(message, base, world) == ((0.5, -0.7), 0.2)
+    plain = make_twist((0.4, 0.0), 1.1)
+    assert unicycle_command(plain, base, world) == ((0.4, 1.1), 0.0)
+    with pytest.raises(MessageFault, match="'map'.*a unicycle takes body-frame commands"):
+        unicycle_command(stamped(world, 0, (0.5, 0.0), 'map'), base, world)
+    broken = make_twist((0.4, 0.0), float('nan'))
+    with pytest.raises(MessageFault, match='angular.z is nan'):
+        unicycle_command(broken, base, world)
+    with pytest.raises(MessageFault, match='after the sim time'):
+        unicycle_command(stamped(world, -1, (0.5, 0.0), base), base, world)

@@ -21,7 +21,8 @@ from prvo_sim.scenario import (
     load_scenario,
 )
 
-SHIPPED = ('circle8', 'crossing4', 'headon2', 'paper3', 'walkers')
+SHIPPED = ('circle8', 'crossing4', 'headon2', 'paper3', 'walkers', 'diffdrive_circle6',
+           'mixed_drive', 'accel8')
 
 VALID = """\
 name: pair
@@ -125,6 +126,24 @@ def test_valid_file_merges_blocks_under_robot_overrides(tmp_path):
     ('  eta: 0.8\n', '  eta: {a: 1}\n', 'planner.eta', 'expected a number, got a mapping'),
     ('seed: 3\n', 'seed: 3\nseed: 4\n', 'line 3, column 1', 'duplicate key'),
     ('dt: 0.1\n', 'dt: [0.1\n', 'line', 'YAML syntax error'),
+    ('    max_speed: 0.5\n', '    max_speed: 0.5\n    kinematics: tank\n',
+     'robots[1].kinematics', "must be one of holonomic, unicycle, got 'tank' (robot 'robot_1')"),
+    ('    max_speed: 0.5\n', '    max_speed: 0.5\n    max_angular_speed: 1.0\n',
+     'robots[1].max_angular_speed', "only for kinematics: unicycle (robot 'robot_1' is"),
+    ('    max_speed: 0.5\n', '    max_speed: 0.5\n    max_angular_acceleration: 1.0\n',
+     'robots[1].max_angular_acceleration', "only for kinematics: unicycle (robot 'robot_1'"),
+    ('    max_speed: 0.5\n', '    max_speed: 0.5\n    max_acceleration: 0\n',
+     'robots[1].max_acceleration', 'must be in (0, 1000], got 0'),
+    ('    max_speed: 0.5\n',
+     '    max_speed: 0.5\n    kinematics: unicycle\n    max_angular_speed: -2\n',
+     'robots[1].max_angular_speed', 'must be in (0, 1000], got -2'),
+    ('    max_speed: 0.5\n',
+     '    max_speed: 0.5\n    kinematics: unicycle\n    max_angular_acceleration: .inf\n',
+     'robots[1].max_angular_acceleration', 'finite'),
+    ('    max_speed: 0.5\n', '    max_speed: 0.5\n    start_yaw: 7.0\n',
+     'robots[1].start_yaw', 'must be in [-6.28319, 6.28319], got 7.0'),
+    ('  eta: 0.8\n', '  eta: 0.8\n  max_acceleration: 1.0\n', 'planner.max_acceleration',
+     "set by the runner from each robot's max_acceleration"),
 ])
 def test_bad_file_names_file_key_and_reason(tmp_path, old, new, key, reason):
     assert old in VALID
@@ -311,6 +330,12 @@ def test_team_memory_check_against_available_memory(tmp_path):
 @pytest.mark.parametrize(('old', 'new', 'key'), [
     ('  eta: 0.8\n', '  etaa: 0.9\n', 'planner.etaa'),
     ('dt: 0.1\n', 'dt: 1e-300\n', 'dt'),
+    ('    max_speed: 0.5\n', '    max_speed: 0.5\n    kinematics: tank\n',
+     'robots[1].kinematics'),
+    ('    max_speed: 0.5\n', '    max_speed: 0.5\n    max_angular_speed: 1.0\n',
+     'robots[1].max_angular_speed'),
+    ('    max_speed: 0.5\n', '    max_speed: 0.5\n    max_acceleration: -1\n',
+     'robots[1].max_acceleration'),
 ])
 def test_runner_exits_2_on_a_bad_file_before_starting_anything(tmp_path, old, new, key):
     marker = tmp_path / 'a-child-started'
@@ -325,6 +350,19 @@ def test_runner_exits_2_on_a_bad_file_before_starting_anything(tmp_path, old, ne
     assert len(lines) == 1 and f'{path}: {key}: ' in lines[0], result.stderr
     assert not marker.exists()
     assert not (tmp_path / 'out').exists()
+
+
+def test_robot_kinematics_and_limits_are_read_with_their_defaults(tmp_path):
+    text = VALID.replace('    planner: {eta: 0.95}\n', '    planner: {eta: 0.95}\n'
+                         '    kinematics: unicycle\n    max_angular_speed: 1.5\n'
+                         '    max_acceleration: 1\n    max_angular_acceleration: 4\n'
+                         '    start_yaw: -3.0\n')
+    first, second = load_scenario(write(tmp_path, text)).robots
+    assert (first.kinematics, first.max_angular_speed, first.max_acceleration,
+            first.max_angular_acceleration, first.start_yaw) == ('unicycle', 1.5, 1.0, 4.0, -3.0)
+    assert (second.kinematics, second.max_angular_speed, second.max_acceleration,
+            second.max_angular_acceleration, second.start_yaw) == (
+                'holonomic', 2.0, np.inf, np.inf, None)
 
 
 def test_the_scenario_documentation_names_every_planner_parameter():

@@ -35,6 +35,8 @@ _CDR_LITTLE_ENDIAN = b'\x00\x01\x00\x00'
 _ODOMETRY_FLOAT_COUNT = 85
 _POSITION, _ORIENTATION = slice(0, 2), slice(3, 7)
 _POSE_COVARIANCE, _LINEAR, _TWIST_COVARIANCE = slice(7, 43), slice(43, 45), slice(49, 85)
+# twist.angular.z and its variance (the last entry of the row-major 6 x 6 twist covariance).
+_ANGULAR_Z, _ANGULAR_Z_VARIANCE = 48, 84
 
 
 class MessageFault(ValueError):  # noqa: N818 (the project's API name)
@@ -243,13 +245,16 @@ def _rotated_covariance(cos, sin, xx, xy, yy):
 
 
 def make_odometry(stamp_seconds, position, velocity, position_cov, velocity_cov,
-                  frame_id=WORLD_FRAME, child_frame_id='base_link', yaw=0.0):
+                  frame_id=WORLD_FRAME, child_frame_id='base_link', yaw=0.0, turn_rate=0.0,
+                  turn_rate_variance=0.0):
     """Return a nav_msgs/Odometry of a planar robot.
 
     VELOCITY and both (2, 2) covariances are in the world frame; the twist is written in the
-    child frame (rotated by -YAW), as Odometry requires.
+    child frame (rotated by -YAW), as Odometry requires. TURN_RATE [rad/s] is twist.angular.z,
+    with TURN_RATE_VARIANCE its variance.
     """
-    values = _odometry_values(position, velocity, position_cov, velocity_cov, yaw)
+    values = _odometry_values(position, velocity, position_cov, velocity_cov, yaw, turn_rate,
+                              turn_rate_variance)
     msg = Odometry()
     msg.header.stamp = seconds_to_stamp(stamp_seconds)
     msg.header.frame_id = frame_id
@@ -260,18 +265,21 @@ def make_odometry(stamp_seconds, position, velocity, position_cov, velocity_cov,
         values[_ORIENTATION])
     msg.pose.covariance = values[_POSE_COVARIANCE]
     twist.linear.x, twist.linear.y = values[_LINEAR]
+    twist.angular.z = values[_ANGULAR_Z]
     msg.twist.covariance = values[_TWIST_COVARIANCE]
     return msg
 
 
 def serialize_odometry(stamp_seconds, position, velocity, position_cov, velocity_cov,
-                       frame_id=WORLD_FRAME, child_frame_id='base_link', yaw=0.0):
+                       frame_id=WORLD_FRAME, child_frame_id='base_link', yaw=0.0, turn_rate=0.0,
+                       turn_rate_variance=0.0):
     """Return make_odometry's message serialized (little-endian CDR), ready to publish.
 
     A publisher sends bytes as they are; packing the few fields a planar robot sets costs a
     small fraction of building the message in Python and having rclpy convert it.
     """
-    values = _odometry_values(position, velocity, position_cov, velocity_cov, yaw)
+    values = _odometry_values(position, velocity, position_cov, velocity_cov, yaw, turn_rate,
+                              turn_rate_variance)
     body = bytearray(struct.pack('<iI', *_stamp_fields(stamp_seconds)))
     for text in (frame_id, child_frame_id):
         body += bytes(-len(body) % 4)
@@ -282,7 +290,8 @@ def serialize_odometry(stamp_seconds, position, velocity, position_cov, velocity
     return _CDR_LITTLE_ENDIAN + bytes(body)
 
 
-def _odometry_values(position, velocity, position_cov, velocity_cov, yaw):
+def _odometry_values(position, velocity, position_cov, velocity_cov, yaw, turn_rate=0.0,
+                     turn_rate_variance=0.0):
     """Return the 85 floats of a planar robot's Odometry after its two frame names."""
     (axx, axy), (ayx, ayy) = np.asarray(velocity_cov, dtype=float).tolist()
     (pxx, pxy), (pyx, pyy) = np.asarray(position_cov, dtype=float).tolist()
@@ -298,22 +307,28 @@ def _odometry_values(position, velocity, position_cov, velocity_cov, yaw):
                                     (_TWIST_COVARIANCE, (bxx, bxy, bxy, byy))):
         for index, value in zip(_XY_FLAT_INDICES, (xx, xy, yx, yy), strict=True):
             values[block.start + index] = value
+    values[_ANGULAR_Z] = float(turn_rate)
+    values[_ANGULAR_Z_VARIANCE] = float(turn_rate_variance)
     return values
 
 
-def make_twist(velocity):
-    """Return a geometry_msgs/Twist with linear x, y = VELOCITY."""
+def make_twist(velocity, turn_rate=0.0):
+    """Return a geometry_msgs/Twist with linear x, y = VELOCITY and angular z = TURN_RATE."""
     msg = Twist()
     msg.linear.x, msg.linear.y = (float(value) for value in velocity)
+    msg.angular.z = float(turn_rate)
     return msg
 
 
-def make_twist_stamped(stamp_seconds, velocity, frame_id):
-    """Return a geometry_msgs/TwistStamped with linear x, y = VELOCITY in FRAME_ID."""
+def make_twist_stamped(stamp_seconds, velocity, frame_id, turn_rate=0.0):
+    """Return a geometry_msgs/TwistStamped with linear x, y = VELOCITY in FRAME_ID.
+
+    TURN_RATE is angular z.
+    """
     msg = TwistStamped()
     msg.header.stamp = seconds_to_stamp(stamp_seconds)
     msg.header.frame_id = frame_id
-    msg.twist = make_twist(velocity)
+    msg.twist = make_twist(velocity, turn_rate)
     return msg
 
 

@@ -9,25 +9,32 @@ endpoints; an in-process engine can feed it step by step.
 """
 
 import dataclasses
+import math
 
 import numpy as np
 
-from prvo_planner.core import AgentBelief, plan_velocity
+from prvo_planner.core import AgentBelief, VelocityLimits, plan_velocity
+from prvo_planner.tracking import TrackingModel, tracking_command
 from prvo_planner.tracks import TrackTable, fuse
 
 # Plans for a made-up encounter in warm_up().
 _WARM_UP_PLANS = 3
 
 
-def preferred_velocity(position, goal, max_speed, approach_time, goal_tolerance):
-    """Return (v_pref (2,), arrived): straight to the goal, slowing over the last stretch."""
+def preferred_velocity(position, goal, max_speed, approach_time, goal_tolerance,
+                       max_acceleration=math.inf):
+    """Return (v_pref (2,), arrived): straight to the goal, slowing over the last stretch.
+
+    With a finite MAX_ACCELERATION the speed is also at most the one that can still brake to a
+    stop at the goal, sqrt(2 a d).
+    """
     if goal is None:
         return np.zeros(2), False
     offset = goal - position
     distance = float(np.hypot(*offset))
     if distance <= goal_tolerance:
         return np.zeros(2), True
-    speed = min(max_speed, distance / approach_time)
+    speed = min(max_speed, distance / approach_time, math.sqrt(2.0 * max_acceleration * distance))
     return offset * (speed / distance), False
 
 
@@ -46,7 +53,9 @@ class AgentSettings:
     """The agent's settings besides the core's PlannerConfig; names as the node's parameters.
 
     `neighbor_radius` < 0 means the same as `radius`; `neighbor_timeout` is in the seconds of
-    the `now` arguments.
+    the `now` arguments. `kinematics` is 'holonomic' or 'unicycle' (which tracks its plans
+    within `tracking_error` and plans with its radius grown by it); the acceleration limits
+    are inf when unlimited.
     """
 
     radius: float = 0.3
@@ -55,6 +64,12 @@ class AgentSettings:
     goal_tolerance: float = 0.2
     acceleration_std: float = 1.0
     neighbor_timeout: float = 2.0
+    kinematics: str = 'holonomic'
+    max_angular_speed: float = 2.0
+    max_acceleration: float = math.inf
+    max_angular_acceleration: float = math.inf
+    tracking_error: float = 0.1
+    tracking_horizon: float = 0.5
 
     @classmethod
     def from_parameters(cls, values):
@@ -66,6 +81,22 @@ class AgentSettings:
         """Return the radius assumed for every neighbour [m]."""
         return self.radius if self.neighbor_radius < 0.0 else self.neighbor_radius
 
+    @property
+    def unicycle(self):
+        """Whether the robot is differential drive."""
+        return self.kinematics == 'unicycle'
+
+    @property
+    def planning_radius(self):
+        """Return the radius the robot plans with [m]: grown by the tracking error if any."""
+        return self.radius + self.tracking_error if self.unicycle else self.radius
+
+    def tracking_model(self, max_speed):
+        """Return the `TrackingModel` of a unicycle with these settings and MAX_SPEED."""
+        return TrackingModel(max_speed, self.max_angular_speed, self.max_acceleration,
+                             self.max_angular_acceleration, self.tracking_horizon,
+                             self.tracking_error)
+
 
 @dataclasses.dataclass(frozen=True)
 class Command:
@@ -73,7 +104,9 @@ class Command:
 
     `velocity` (2,) is in the world frame; `yaw` is the robot's yaw measured at `stamp`, to turn
     it into the body frame. `result` is the core's PlanResult, None when the robot stands still
-    (no goal, or arrived). `own` and `neighbours` are the `StateBelief`s at `stamp`.
+    (no goal, or arrived). `own` and `neighbours` are the `StateBelief`s at `stamp`. `drive`
+    is a unicycle's (forward speed, turn rate) that tracks `velocity`, None for a holonomic
+    robot.
     """
 
     stamp: float
@@ -84,6 +117,7 @@ class Command:
     own: object
     neighbours: tuple
     neighbour_radius: float
+    drive: tuple = None
 
 
 @dataclasses.dataclass(frozen=True)
@@ -91,7 +125,8 @@ class PlanRequest:
     """One plan about to be made: the beliefs at `stamp` and the core's problem.
 
     `problem` is the argument tuple of `prvo_planner.core.plan_velocity` (ego, neighbours,
-    v_pref, config, previous), or None when the robot stands still (no goal, or arrived).
+    v_pref, config, previous, limits), or None when the robot stands still (no goal, or
+    arrived).
     """
 
     stamp: float
@@ -148,6 +183,12 @@ class PlannerAgent:
         self._own_yaw = 0.0
         # The last planned velocity in the world frame, for the inertia term; None after a stop.
         self._previous_velocity = None
+        # The command in force (world frame, zero at the start) and the stamp it answered: the
+        # acceleration limits act on its change. A unicycle's (forward, turn) likewise.
+        self._command_in_force = np.zeros(2)
+        self._command_stamp = None
+        self._drive = (0.0, 0.0)
+        self._control_period = None
         # Listed neighbours are waited for from the first own measurement on, not from start-up:
         # a team's processes start at different speeds, and a run begins with all of them.
         self._first_own_at = None
@@ -249,29 +290,74 @@ class PlannerAgent:
         max_speed = self.config.max_speed
         v_pref, self.arrived = preferred_velocity(
             own.mean[:2], self.goal, max_speed, self.settings.approach_time,
-            self.settings.goal_tolerance)
+            self.settings.goal_tolerance, self.settings.max_acceleration)
         tracks = [self._neighbour_tracks.track(robot) for robot in self._neighbour_names()]
         neighbour_beliefs = tuple(track.belief_at(stamp) for track in tracks)
+        if self._command_stamp is not None and 0.0 < stamp - self._command_stamp:
+            self._control_period = stamp - self._command_stamp
         problem = None
         if not (self.arrived or self.goal is None):
             horizon = goal_horizon(
                 float(np.hypot(*(self.goal - own.mean[:2]))), max_speed,
                 self.settings.approach_time, self.config.time_horizon)
             problem = (
-                AgentBelief(own.mean[:2], own.mean[2:], own.covariance, self.settings.radius),
+                AgentBelief(own.mean[:2], own.mean[2:], own.covariance,
+                            self.settings.planning_radius),
                 [track.agent_belief(stamp, neighbour_radius) for track in tracks],
                 v_pref, dataclasses.replace(self.config, time_horizon=horizon),
-                self._previous_velocity)
+                self._previous_velocity, self._limits(stamp))
         return PlanRequest(stamp=stamp, own=own, neighbours=neighbour_beliefs,
                            neighbour_radius=neighbour_radius, problem=problem)
 
     def complete(self, request, result):
-        """Return the `Command` of REQUEST given the core's RESULT (None: stand still)."""
-        velocity = np.zeros(2) if result is None else result.velocity
+        """Return the `Command` of REQUEST given the core's RESULT (None: stand still).
+
+        Standing still under an acceleration limit is braking toward zero at that limit.
+        """
+        if result is None:
+            velocity = np.zeros(2) if not math.isfinite(self.settings.max_acceleration) else (
+                self._command_in_force - _clipped_norm(
+                    self._command_in_force,
+                    self.settings.max_acceleration * self._period(request)))
+        else:
+            velocity = result.velocity
         self._previous_velocity = None if result is None else velocity
+        drive = None
+        if self.settings.unicycle:
+            drive = tracking_command(velocity, self._own_yaw, *self._drive,
+                                     self.settings.tracking_model(self.config.max_speed),
+                                     self._period(request))
+            self._drive = drive
+        self._command_in_force, self._command_stamp = velocity, request.stamp
         return Command(stamp=request.stamp, velocity=velocity, yaw=self._own_yaw, result=result,
                        arrived=self.arrived, own=request.own, neighbours=request.neighbours,
-                       neighbour_radius=request.neighbour_radius)
+                       neighbour_radius=request.neighbour_radius, drive=drive)
+
+    def _period(self, request):
+        """Return the time [s] the command for REQUEST will be in force (0 before any)."""
+        if self._command_stamp is None or request.stamp <= self._command_stamp:
+            return 0.0 if self._control_period is None else self._control_period
+        return request.stamp - self._command_stamp
+
+    def _limits(self, stamp):
+        """Return the core's VelocityLimits for the plan of STAMP, None without limits."""
+        settings = self.settings
+        accelerating = math.isfinite(settings.max_acceleration)
+        if not (accelerating or settings.unicycle):
+            return None
+        period = (stamp - self._command_stamp
+                  if self._command_stamp is not None and stamp > self._command_stamp
+                  else 0.0)
+        limits = {}
+        if accelerating:
+            limits.update(current=self._command_in_force,
+                          max_change=settings.max_acceleration * period)
+        if settings.unicycle:
+            # Before the first period is known, the tracking horizon stands in for it.
+            model = settings.tracking_model(self.config.max_speed)
+            limits.update(heading=self._own_yaw, trackable_speed=model.speed_function(
+                self._control_period or settings.tracking_horizon))
+        return VelocityLimits(**limits)
 
     def warm_up(self):
         """Plan for a made-up encounter a few times; no state of the agent changes.
@@ -289,3 +375,9 @@ class PlannerAgent:
             previous = plan_velocity(own, neighbours, np.array([1.0, 0.0]), self.config,
                                      previous=previous).velocity
 
+
+
+def _clipped_norm(vector, limit):
+    """Return VECTOR (2,) scaled down to length LIMIT if longer."""
+    norm = math.hypot(vector[0], vector[1])
+    return vector * (limit / norm) if norm > limit else vector

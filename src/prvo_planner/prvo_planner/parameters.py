@@ -24,6 +24,7 @@ FLOAT = 'float'
 STRING = 'str'
 FLOAT_ARRAY = 'float[]'
 STRING_ARRAY = 'str[]'
+KINEMATICS = ('holonomic', 'unicycle')
 # Goals (and the scenario's coordinates) are in metres of one shared map: 1000 km is plenty and
 # keeps every product of coordinates far from floating-point trouble.
 COORDINATE_LIMIT = 1.0e6
@@ -154,6 +155,22 @@ _SPECS = (
     ParameterSpec('passing_bias', FLOAT, 0.1, 'Cost per m/s of velocity left of the preferred '
                   'direction: every robot breaks the tie of a symmetric encounter the same way '
                   '(pass on the right). 0 = none.', (0.0, 10.0)),
+    ParameterSpec('kinematics', STRING, 'holonomic', 'Drive of the robot: holonomic (cmd_vel '
+                  'linear x, y) or unicycle (differential drive: linear.x and angular.z).',
+                  choices=KINEMATICS),
+    ParameterSpec('max_angular_speed', FLOAT, 2.0, 'Turn rate limit of a unicycle [rad/s], in '
+                  '(0, 1000].', (0.0, 1.0e3), rule=_positive),
+    # Unbounded ranges: .inf (the default) means no limit.
+    ParameterSpec('max_acceleration', FLOAT, math.inf, 'Limit of the change of the commanded '
+                  'velocity (unicycle: forward speed) [m/s^2], > 0; .inf for none.',
+                  rule=_positive),
+    ParameterSpec('max_angular_acceleration', FLOAT, math.inf, 'Limit of the change of a '
+                  "unicycle's turn rate [rad/s^2], > 0; .inf for none.", rule=_positive),
+    ParameterSpec('tracking_error', FLOAT, 0.1, 'Largest distance [m] a unicycle may stray from '
+                  'the holonomic plan it tracks; its radius is grown by it, in (0, 10].',
+                  (0.0, 10.0), rule=_positive),
+    ParameterSpec('tracking_horizon', FLOAT, 0.5, 'A unicycle turns toward its plan at the '
+                  'heading error / tracking_horizon [s].', (1.0e-3, 100.0)),
 )
 
 # Every planner parameter by name, in declaration order.

@@ -360,12 +360,17 @@ class PlannerNode(Node):
         plan_time_ms = (time.perf_counter() - started) * 1e3
         if command.arrived and not was_arrived:
             self.get_logger().info(f'arrived at {self._agent.goal.tolist()}')
-        # cmd_vel is in the body frame: rotate the world-frame plan by minus the robot's yaw.
-        velocity = world_to_body(command.velocity, command.yaw)
-        if self._stamped:
-            message = make_twist_stamped(command.stamp, velocity, f'{self._robot}/base_link')
+        # cmd_vel is in the body frame: rotate the world-frame plan by minus the robot's yaw; a
+        # unicycle drives forward and turns (its tracking controller's command), nothing else.
+        if command.drive is None:
+            velocity, turn_rate = world_to_body(command.velocity, command.yaw), 0.0
         else:
-            message = make_twist(velocity)
+            velocity, turn_rate = (command.drive[0], 0.0), command.drive[1]
+        if self._stamped:
+            message = make_twist_stamped(command.stamp, velocity, f'{self._robot}/base_link',
+                                         turn_rate)
+        else:
+            message = make_twist(velocity, turn_rate)
         self._cmd_vel_publisher.publish(message)
         self._last_command, self._last_command_stamp = message, command.stamp
         result = command.result
@@ -401,7 +406,8 @@ class PlannerNode(Node):
             'ok' if feasible else 'no velocity meets the chance constraint',
             {'achieved_k': achieved_k, 'eta_bound': eta_bound, 'feasible': feasible,
              'neighbours_tracked': len(command.neighbours), 'plan_time_ms': plan_time_ms,
-             'arrived': command.arrived, 'model': self._config.model},
+             'arrived': command.arrived, 'model': self._config.model,
+             'planning_radius': self._agent.settings.planning_radius},
             level=DiagnosticStatus.OK if feasible else DiagnosticStatus.WARN,
             hardware_id=self._robot)
         self._diagnostics_publisher.publish(make_diagnostic_array(command.stamp, [status]))

@@ -36,10 +36,11 @@ class StepRecord:
     """One step of a team: the state at `time` and the commands that answered it.
 
     `states` (N, 4) is every robot's ground truth [x, y, vx, vy] as a recorder reads it;
-    `commands` (N, 2) the world-frame velocities commanded for the next dt (NaN for a scripted
-    robot: it has none); `plan_ms` (one per planned robot) each planned robot's share of the
-    team's planning time [ms of wall time]; `contacts` the
-    `world.Contact`s the step made.
+    `commands` (N, 2) the world-frame velocities commanded for the next dt (a unicycle's
+    forward speed along its heading; NaN for a scripted robot: it has none); `plan_ms` (one per
+    planned robot) each planned robot's share of the team's planning time [ms of wall time];
+    `contacts` the `world.Contact`s the step made; `yaws` (N,) the ground-truth headings of the
+    state.
     """
 
     time: float
@@ -47,6 +48,7 @@ class StepRecord:
     commands: np.ndarray
     plan_ms: np.ndarray
     contacts: tuple
+    yaws: np.ndarray = None
 
 
 def agent_of(name, values, neighbour_tracks=None):
@@ -104,13 +106,16 @@ class InProcessTeam:
         return self.world.finished
 
     def observe(self):
-        """Return (odometry measurements, ground-truth states (N, 4)) of the current state."""
+        """Return (odometry measurements, ground-truth states (N, 5)) of the current state.
+
+        A state is [x, y, vx, vy, yaw].
+        """
         messages = serialized_odometry(self.world)
         measurements = [serialized_odometry_to_measurement(odometry, expected_frame=WORLD_FRAME)
                         for odometry, _ in messages]
         truths = [serialized_odometry_to_measurement(truth, expected_frame=WORLD_FRAME)
                   for _, truth in messages]
-        states = np.array([[*truth.position, *truth.velocity] for truth in truths])
+        states = np.array([[*truth.position, *truth.velocity, truth.yaw] for truth in truths])
         return measurements, states
 
     def do_step(self):
@@ -137,19 +142,27 @@ class InProcessTeam:
             for index, result in zip(moving, solved, strict=True):
                 results[index] = result
         yaws = world.yaws_at(world.step_count)
-        # A scripted robot has no command (NaN, as a recording without one); the world moves it.
+        # A scripted robot has no command (NaN, as a recording without one); the world moves it
+        # and ignores its row of what is executed, which it wants finite.
         commands = np.full((len(self.agents), 2), np.nan)
+        executed = np.zeros_like(commands)
         for request, result, (index, agent) in zip(requests, results, self._planned,
                                                    strict=True):
             command = agent.complete(request, result)
+            if command.drive is not None:
+                # A unicycle's node publishes linear.x and angular.z, executed as they are; a
+                # recorder sees the forward speed turned by the heading at the stamp.
+                executed[index] = command.drive
+                commands[index] = body_to_world((command.drive[0], 0.0), yaws[index])
+                continue
             # The node publishes in the body frame; the simulator turns it back by the heading
             # at the command's stamp.
             commands[index] = body_to_world(world_to_body(command.velocity, command.yaw),
                                             yaws[index])
+            executed[index] = commands[index]
         # One call plans the team: each planned robot is charged an equal share of it.
         plan_ms = np.full(len(self._planned), (time.perf_counter() - started) * 1e3
                           / max(len(self._planned), 1))
-        # The world ignores a scripted robot's row, but wants it finite.
-        contacts = world.step(np.nan_to_num(commands))
-        return StepRecord(time=now, states=states, commands=commands, plan_ms=plan_ms,
-                          contacts=tuple(contacts))
+        contacts = world.step(executed)
+        return StepRecord(time=now, states=states[:, :4], commands=commands, plan_ms=plan_ms,
+                          contacts=tuple(contacts), yaws=states[:, 4])

@@ -18,12 +18,13 @@ def robot_colours(count):
 
 
 def draw_trajectories(axes, times, positions, starts, goals, radii, contacts,
-                      disc_interval=1.0, labels=None, scripted=None):
+                      disc_interval=1.0, labels=None, scripted=None, yaws=None):
     """Draw paths, start (square) and goal (star) markers, discs every DISC_INTERVAL seconds.
 
     CONTACTS are (time, i, j, distance) events: both robots' positions at that time are marked
     with red crosses and red disc outlines. SCRIPTED (N,) marks robots that follow waypoints:
-    a dashed grey path, hatched grey discs, no goal star, '(scripted)' in their label.
+    a dashed grey path, hatched grey discs, no goal star, '(scripted)' in their label. YAWS
+    (T, N), if given, draws each disc's heading as a radius.
     """
     times = np.asarray(times, dtype=float)
     positions = np.asarray(positions, dtype=float)
@@ -42,6 +43,11 @@ def draw_trajectories(axes, times, positions, starts, goals, radii, contacts,
         for step in disc_steps:
             axes.add_patch(Circle(path[step], radii[robot], fill=False, color=colour,
                                   alpha=0.35, linewidth=0.8))
+            if yaws is not None:
+                heading = radii[robot] * np.array([np.cos(yaws[step, robot]),
+                                                   np.sin(yaws[step, robot])])
+                axes.plot(*np.stack([path[step], path[step] + heading], axis=1), '-',
+                          color=colour, alpha=0.6, linewidth=0.8)
         axes.plot(*starts[robot], 's', color=colour, markersize=7)
         axes.plot(*goals[robot], '*', color=colour, markersize=12, markeredgecolor='black',
                   markeredgewidth=0.5)
@@ -75,11 +81,11 @@ def _steps_every(times, interval):
 
 
 def plot_run(path, times, positions, starts, goals, radii, robot_names, contacts, title,
-             scripted=None):
-    """Write a PNG of one run's trajectories to PATH (SCRIPTED: see draw_trajectories)."""
+             scripted=None, yaws=None):
+    """Write a PNG of one run's trajectories to PATH (SCRIPTED, YAWS: see draw_trajectories)."""
     figure, axes = plt.subplots(figsize=(7.0, 7.0))
     draw_trajectories(axes, times, positions, starts, goals, radii, contacts,
-                      labels=list(robot_names), scripted=scripted)
+                      labels=list(robot_names), scripted=scripted, yaws=yaws)
     axes.set_title(title, fontsize=10)
     axes.legend(loc='upper left', fontsize=7, ncol=2, framealpha=0.7)
     figure.tight_layout()

@@ -17,6 +17,7 @@ import yaml
 from prvo_msgs_util import validate_robot_name
 from prvo_planner.parameters import (
     COORDINATE_LIMIT,
+    KINEMATICS,
     ParameterError,
     check_parameter,
     type_name,
@@ -27,7 +28,13 @@ _SCENARIO_NAME = re.compile(r'[A-Za-z0-9_-]+')
 _TOP_LEVEL_KEYS = {'name', 'description', 'seed', 'dt', 'duration', 'goal_tolerance', 'noise',
                    'planner', 'robots'}
 _TOP_LEVEL_REQUIRED = {'name', 'seed', 'dt', 'duration', 'goal_tolerance', 'robots'}
-_ROBOT_KEYS = {'name', 'start', 'goal', 'radius', 'max_speed', 'noise', 'planner', 'scripted'}
+_ROBOT_KEYS = {'name', 'start', 'goal', 'radius', 'max_speed', 'noise', 'planner', 'scripted',
+               'kinematics', 'max_angular_speed', 'max_acceleration', 'max_angular_acceleration',
+               'start_yaw'}
+DEFAULT_MAX_ANGULAR_SPEED = 2.0
+# Limits of a robot's motion [m/s^2, rad/s^2, rad/s]: as large as a speed may be, and more.
+MAX_LIMIT = 1.0e3
+_UNICYCLE_ONLY = ('max_angular_speed', 'max_angular_acceleration')
 _ROBOT_REQUIRED = {'name', 'start', 'goal', 'radius', 'max_speed'}
 _SCRIPTED_KEYS = {'waypoints', 'speed', 'loop'}
 _NOISE_KEYS = ('position_std', 'velocity_std', 'actuation_std')
@@ -47,6 +54,11 @@ SET_BY_RUNNER = {
                      'set it there',
     'goal_tolerance': 'set by the runner from the top-level goal_tolerance: set it there',
     'model': 'set by the runner from its --method option',
+    'kinematics': "set by the runner from each robot's kinematics: set it there",
+    'max_angular_speed': "set by the runner from each robot's max_angular_speed: set it there",
+    'max_acceleration': "set by the runner from each robot's max_acceleration: set it there",
+    'max_angular_acceleration': "set by the runner from each robot's max_angular_acceleration: "
+                                'set it there',
     'use_sim_time': 'set by the runner (always true: the simulator keeps the time)',
 }
 # Resident memory of one process of a run [MiB], measured by prvo_sim.bench_team (planners
@@ -94,6 +106,8 @@ class RobotSpec:
     the planner parameters given for this robot, typed and checked: the file-level block with
     the robot's own block over it. `scripted` is the `ScriptedPath` of a robot that the
     simulator moves along waypoints (no planner; its `goal` is the last waypoint), else None.
+    `kinematics` is 'holonomic' or 'unicycle'; the acceleration limits are inf when unlimited;
+    `start_yaw` [rad] is the heading at the start (None: facing the goal).
     """
 
     name: str
@@ -104,6 +118,11 @@ class RobotSpec:
     noise: NoiseSpec
     planner: dict
     scripted: ScriptedPath = None
+    kinematics: str = 'holonomic'
+    max_angular_speed: float = DEFAULT_MAX_ANGULAR_SPEED
+    max_acceleration: float = math.inf
+    max_angular_acceleration: float = math.inf
+    start_yaw: float | None = None
 
 
 @dataclass(frozen=True)
@@ -308,6 +327,22 @@ def _robot(check, entry, key, file_noise, file_planner):
     # A planner gets both as its parameters of the same name: the same rules apply.
     radius = check.planner_parameter('radius', entry['radius'], f'{key}.radius')
     max_speed = check.planner_parameter('max_speed', entry['max_speed'], f'{key}.max_speed')
+    start = check.point(entry['start'], f'{key}.start')
+    kinematics = entry.get('kinematics', 'holonomic')
+    if kinematics not in KINEMATICS:
+        check.fail(f'{key}.kinematics', f'must be one of {", ".join(KINEMATICS)}, '
+                   f'got {kinematics!r} (robot {name!r})')
+    if kinematics == 'holonomic':
+        for limit in _UNICYCLE_ONLY:
+            if limit in entry:
+                check.fail(f'{key}.{limit}', f'only for kinematics: unicycle (robot {name!r} is '
+                           'holonomic)')
+    limits = {limit: check.number(entry[limit], f'{key}.{limit}', 0.0, MAX_LIMIT,
+                                  low_open=True)
+              for limit in ('max_angular_speed', 'max_acceleration', 'max_angular_acceleration')
+              if limit in entry}
+    start_yaw = (check.number(entry['start_yaw'], f'{key}.start_yaw', -2.0 * math.pi,
+                              2.0 * math.pi) if 'start_yaw' in entry else None)
     path = None
     if scripted:
         for planned_only in ('goal', 'planner'):
@@ -315,12 +350,14 @@ def _robot(check, entry, key, file_noise, file_planner):
                 check.fail(f'{key}.{planned_only}',
                            f'robot {name!r} is scripted: it has no {planned_only} '
                            f'(it follows scripted.waypoints)')
+        if kinematics != 'holonomic':
+            check.fail(f'{key}.kinematics', f'robot {name!r} is scripted: it moves holonomic '
+                       f'along its waypoints, got {kinematics!r}')
         path = _scripted_path(check, entry['scripted'], f'{key}.scripted', name, max_speed)
+    goal = path.waypoints[-1] if path is not None else check.point(entry['goal'], f'{key}.goal')
     return RobotSpec(
-        name=name, start=check.point(entry['start'], f'{key}.start'),
-        goal=path.waypoints[-1] if path is not None else check.point(entry['goal'],
-                                                                     f'{key}.goal'),
-        radius=radius, max_speed=max_speed,
+        name=name, start=start, goal=goal, kinematics=kinematics, start_yaw=start_yaw,
+        **limits, radius=radius, max_speed=max_speed,
         noise=NoiseSpec(**{field: noise.get(field, 0.0) for field in _NOISE_KEYS}),
         planner={} if path is not None else {
             **file_planner, **check.planner(entry.get('planner'), f'{key}.planner')},

@@ -49,7 +49,7 @@ from prvo_msgs_util import (
     seconds_to_stamp,
     spin_events,
 )
-from prvo_sim.commands import command_velocity
+from prvo_sim.commands import command_velocity, unicycle_command
 from prvo_sim.observers import ObserverGate, observer_name_fault
 from prvo_sim.scenario import ScenarioError, find_scenario, load_scenario
 from prvo_sim.world import TeamWorld
@@ -227,7 +227,15 @@ class SimNode(Node):
     def _on_cmd_vel(self, index, msg):
         robot = self._robots[index]
         try:
-            robot.command = command_velocity(msg, index, robot.base_frame, self._world)
+            if self._world.unicycle[index]:
+                robot.command, sideways = unicycle_command(msg, robot.base_frame, self._world)
+                if sideways != 0.0:
+                    robot.logger.warning(
+                        f'{robot.cmd_vel_topic}: linear.y {sideways:.3f} m/s dropped: '
+                        f'{robot.name} is a unicycle (linear.x and angular.z only)',
+                        throttle_duration_sec=_WARNING_THROTTLE)
+            else:
+                robot.command = command_velocity(msg, index, robot.base_frame, self._world)
         except MessageFault as fault:
             robot.logger.warning(f'skipping {robot.cmd_vel_topic}: {fault}',
                                  throttle_duration_sec=_WARNING_THROTTLE)

@@ -1,5 +1,8 @@
 """The world of a scenario without ROS: every robot's state, its noise and its contacts.
 
+Holonomic robots execute world-frame velocities; unicycle (differential-drive) robots execute a
+forward speed and a turn rate along exact arcs. Either kind may have acceleration limits.
+
 `TeamWorld` is what the `sim` node steps; it draws from one seeded generator in a fixed order
 (the t_0 odometry, then per step the actuation noise and the odometry of the new state), so a
 seed gives the same trajectories whoever drives it.
@@ -29,14 +32,15 @@ class Contact:
 
 
 class TeamWorld:
-    """Every robot of SCENARIO, stepped with single-integrator kinematics and seeded noise.
+    """Every robot of SCENARIO, stepped with its kinematics and seeded noise.
 
     Attributes (arrays over robots, in the scenario's order): `positions`, `velocities` (the
-    executed velocities of the last step), `yaws` (ground truth), `measured_positions`,
-    `measured_velocities` (the noisy odometry of the current state), `radii`, `max_speeds`,
-    `goals`, `position_std`, `velocity_std`, `actuation_std`; `step_count`, `contact_count`;
-    `followers`, {index: `scripted.WaypointFollower`} of the scripted robots, whose commands the
-    world makes itself.
+    executed world-frame velocities of the last step), `yaws` (ground truth), `turn_rates`
+    (executed, 0 for holonomic robots), `unicycle` (bool), `measured_positions`,
+    `measured_velocities`, `measured_turn_rates` (the noisy odometry of the current state),
+    `radii`, `max_speeds`, `goals`, `position_std`, `velocity_std`, `actuation_std`;
+    `step_count`, `contact_count`; `followers`, {index: `scripted.WaypointFollower`} of the
+    scripted robots, whose commands the world makes itself.
     """
 
     def __init__(self, scenario, seed=None):
@@ -54,11 +58,24 @@ class TeamWorld:
         self.positions = np.array([spec.start for spec in specs], dtype=float)
         self.velocities = np.zeros_like(self.positions)
         self.followers = scripted.followers_of(specs)
-        # A robot placed at its start faces its goal (a scripted one its first waypoint) until
-        # it first moves.
+        # A robot placed at its start faces its goal (a scripted one its first waypoint, any
+        # robot its start_yaw if given) until it first moves.
         to_goal = np.array([spec.goal if spec.scripted is None else spec.scripted.waypoints[0]
                             for spec in specs]) - self.positions
         self.yaws = np.arctan2(to_goal[:, 1], to_goal[:, 0])
+        for index, spec in enumerate(specs):
+            if spec.start_yaw is not None:
+                self.yaws[index] = spec.start_yaw
+        self.unicycle = np.array([spec.kinematics == 'unicycle' for spec in specs])
+        self.max_accelerations = np.array([spec.max_acceleration for spec in specs])
+        self.unicycle_limits = kinematics.UnicycleLimits(
+            *(np.array([getattr(spec, name) for spec in specs])[self.unicycle] for name in (
+                'max_speed', 'max_angular_speed', 'max_acceleration',
+                'max_angular_acceleration')))
+        self.turn_rates = np.zeros(len(specs))
+        # What each robot executed last before noise, in its own command space (world-frame
+        # velocity, or forward speed and turn rate): acceleration limits act on its change.
+        self._last_commands = np.zeros_like(self.positions)
         self.final_step = math.ceil(scenario.duration / scenario.dt - 1e-9)
         self.step_count = 0
         self.contact_count = 0
@@ -77,23 +94,45 @@ class TeamWorld:
         return self.step_count >= self.final_step
 
     def step(self, commands):
-        """Execute COMMANDS (N, 2), world-frame velocities, for one dt; return new `Contact`s.
+        """Execute COMMANDS (N, 2) for one dt; return new `Contact`s.
 
-        Each command is clamped to its robot's max speed and disturbed by actuation noise, the
-        heading follows the executed velocity, and the odometry of the new state is drawn. A
-        scripted robot's row is ignored: it executes its follower's command.
+        A holonomic robot's row is a world-frame velocity: clamped to its max speed, its change
+        limited by its max acceleration, disturbed by actuation noise; its heading follows the
+        executed velocity. A unicycle's row is (forward speed, turn rate): clamped and rate
+        limited likewise, disturbed on both, integrated along the arc. A scripted robot's row
+        is ignored: it executes its follower's command. Then the odometry of the new state is
+        drawn.
         """
         commands = np.asarray(commands, dtype=float)
         if commands.shape != self.positions.shape or not np.all(np.isfinite(commands)):
             raise ValueError(
                 f'commands must be finite, of shape {self.positions.shape}, got {commands!r}')
-        commands = scripted.scripted_commands(self.followers, commands, self.positions,
-                                              self.scenario.dt)
-        self.positions, self.velocities = kinematics.step(
-            self.positions, commands, self.max_speeds, self.actuation_std, self.scenario.dt,
-            self.rng)
+        dt = self.scenario.dt
+        commands = scripted.scripted_commands(self.followers, commands, self.positions, dt)
+        limited = kinematics.rate_limited(commands, self._last_commands,
+                                          np.where(self.unicycle, np.inf,
+                                                   self.max_accelerations * dt))
+        holonomic = ~self.unicycle
+        limited[holonomic] = kinematics.clamp_speed(limited[holonomic],
+                                                    self.max_speeds[holonomic])
+        forward, turn = kinematics.unicycle_commands(
+            commands[self.unicycle, 0], commands[self.unicycle, 1],
+            self._last_commands[self.unicycle, 0], self._last_commands[self.unicycle, 1],
+            self.unicycle_limits, dt)
+        limited[self.unicycle, 0], limited[self.unicycle, 1] = forward, turn
+        self._last_commands = limited
+        noise = self.rng.standard_normal(self.positions.shape) * self.actuation_std[:, None]
+        executed = limited + noise
+        positions = self.positions + executed * dt
+        (positions[self.unicycle], self.yaws[self.unicycle], executed_forward,
+         self.turn_rates[self.unicycle]) = kinematics.unicycle_step(
+            self.positions[self.unicycle], self.yaws[self.unicycle], forward, turn,
+            noise[self.unicycle], dt)
+        executed[self.unicycle] = executed_forward[:, None] * np.stack(
+            [np.cos(self.yaws[self.unicycle]), np.sin(self.yaws[self.unicycle])], axis=1)
+        self.positions, self.velocities = positions, executed
         self.step_count += 1
-        moving = np.linalg.norm(self.velocities, axis=1) > HEADING_MIN_SPEED
+        moving = holonomic & (np.linalg.norm(self.velocities, axis=1) > HEADING_MIN_SPEED)
         self.yaws[moving] = np.arctan2(self.velocities[moving, 1], self.velocities[moving, 0])
         contacts = self._new_contacts()
         self._record_state()
@@ -113,6 +152,18 @@ class TeamWorld:
         self._yaw_history.pop(self.step_count - YAW_HISTORY, None)
         self.measured_positions, self.measured_velocities = kinematics.noisy_odometry(
             self.positions, self.velocities, self.position_std, self.velocity_std, self.rng)
+        self.measured_turn_rates = self.turn_rates.copy()
+        if self.unicycle.any():
+            # A unicycle's odometry errs along its heading and in its turn rate, never sideways:
+            # the same draws, read in its body frame.
+            body_noise = self.measured_velocities - self.velocities
+            rows = self.unicycle
+            cos_yaw, sin_yaw = np.cos(self.yaws[rows]), np.sin(self.yaws[rows])
+            forward = (self.velocities[rows, 0] * cos_yaw + self.velocities[rows, 1] * sin_yaw
+                       + body_noise[rows, 0])
+            self.measured_velocities[rows] = forward[:, None] * np.stack([cos_yaw, sin_yaw],
+                                                                         axis=1)
+            self.measured_turn_rates[rows] += body_noise[rows, 1]
 
     def _new_contacts(self):
         pairs = kinematics.contact_pairs(self.positions, self.radii)

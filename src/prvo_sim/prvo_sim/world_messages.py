@@ -17,19 +17,29 @@ from prvo_msgs_util import (
 def serialized_odometry(world):
     """Return [(noisy odometry, ground truth)] of every robot of WORLD, serialized.
 
-    Serialized messages are sent as they are, without rclpy converting a Python message.
+    Serialized messages are sent as they are, without rclpy converting a Python message. A
+    unicycle's twist is its forward speed and turn rate, each with variance velocity_std^2;
+    its sideways speed is exactly zero, and so is its variance.
     """
     messages = []
     for index, name in enumerate(world.names):
-        frames = {'frame_id': WORLD_FRAME, 'child_frame_id': f'{name}/base_link',
-                  'yaw': float(world.yaws[index])}
+        yaw = float(world.yaws[index])
+        frames = {'frame_id': WORLD_FRAME, 'child_frame_id': f'{name}/base_link', 'yaw': yaw}
+        variance = world.velocity_std[index] ** 2
+        if world.unicycle[index]:
+            heading = np.array([np.cos(yaw), np.sin(yaw)])
+            velocity_cov = variance * np.outer(heading, heading)
+            turn = {'turn_rate_variance': variance}
+        else:
+            velocity_cov = variance * np.eye(2)
+            turn = {}
         odometry = serialize_odometry(
             world.time, world.measured_positions[index], world.measured_velocities[index],
-            world.position_std[index] ** 2 * np.eye(2),
-            world.velocity_std[index] ** 2 * np.eye(2), **frames)
+            world.position_std[index] ** 2 * np.eye(2), velocity_cov,
+            turn_rate=float(world.measured_turn_rates[index]), **turn, **frames)
         ground_truth = serialize_odometry(
             world.time, world.positions[index], world.velocities[index], np.zeros((2, 2)),
-            np.zeros((2, 2)), **frames)
+            np.zeros((2, 2)), turn_rate=float(world.turn_rates[index]), **frames)
         messages.append((odometry, ground_truth))
     return messages
 

@@ -39,6 +39,13 @@ from .encounter import (
     model_moments,
 )
 from .feasibility import RayRows, achieved_margins, monte_carlo_probabilities, team_ray_gaps
+from .limits import (
+    VelocityLimits,
+    allowed_speed_grid,
+    fallback_choice,
+    free_choice,
+    relaxed_intervals,
+)
 from .moments import (
     NODES,
     bivariate_polynomials,
@@ -49,7 +56,9 @@ from .moments import (
 from .probability import eta_from_k
 
 
-def _validated_inputs(ego, neighbours, v_pref, config, previous):
+def _validated_inputs(ego, neighbours, v_pref, config, previous, limits):
+    if limits is not None and not isinstance(limits, VelocityLimits):
+        raise ValueError(f'limits must be VelocityLimits or None, got {limits!r}')
     if not isinstance(ego, AgentBelief):
         raise ValueError(f'ego must be an AgentBelief, got {ego!r}')
     neighbours = list(neighbours)
@@ -68,7 +77,7 @@ def _clip_speed(velocity, max_speed):
     return velocity * (max_speed / speed) if speed > max_speed else np.array(velocity)
 
 
-def plan_velocity(ego, neighbours, v_pref, config, previous=None):
+def plan_velocity(ego, neighbours, v_pref, config, previous=None, limits=None):
     """
     Choose the commanded velocity closest to ``v_pref`` that meets the chance constraints.
 
@@ -87,6 +96,8 @@ def plan_velocity(ego, neighbours, v_pref, config, previous=None):
         Planner parameters.
     previous : array_like or None
         The previous command, shape (2,), for ``config.inertia``; None for none.
+    limits : VelocityLimits or None
+        What the robot can command next (acceleration, tracking); None: any velocity.
 
     Returns
     -------
@@ -99,10 +110,10 @@ def plan_velocity(ego, neighbours, v_pref, config, previous=None):
         On invalid inputs.
 
     """
-    return plan_velocities([ego], [neighbours], [v_pref], [config], [previous])[0]
+    return plan_velocities([ego], [neighbours], [v_pref], [config], [previous], [limits])[0]
 
 
-def plan_velocities(egos, neighbours_per_ego, v_prefs, configs, previous=None):
+def plan_velocities(egos, neighbours_per_ego, v_prefs, configs, previous=None, limits=None):
     """
     Plan every robot of a team in few, large numpy calls.
 
@@ -123,6 +134,8 @@ def plan_velocities(egos, neighbours_per_ego, v_prefs, configs, previous=None):
         One configuration for every robot, or one per robot.
     previous : None or sequence of (array_like or None)
         Each robot's previous command; None: none for any robot.
+    limits : None or sequence of (VelocityLimits or None)
+        Each robot's limits; None: none for any robot.
 
     Returns
     -------
@@ -141,7 +154,8 @@ def plan_velocities(egos, neighbours_per_ego, v_prefs, configs, previous=None):
         configs = [configs] * count
     per_robot = {'neighbours_per_ego': list(neighbours_per_ego), 'v_prefs': list(v_prefs),
                  'configs': list(configs),
-                 'previous': [None] * count if previous is None else list(previous)}
+                 'previous': [None] * count if previous is None else list(previous),
+                 'limits': [None] * count if limits is None else list(limits)}
     for name, values in per_robot.items():
         if len(values) != count:
             raise ValueError(f'{name} must have one entry per ego ({count}), got {len(values)}')
@@ -151,12 +165,15 @@ def plan_velocities(egos, neighbours_per_ego, v_prefs, configs, previous=None):
         try:
             plan = _prepared_plan(egos[index], per_robot['neighbours_per_ego'][index],
                                   per_robot['v_prefs'][index], per_robot['configs'][index],
-                                  per_robot['previous'][index])
+                                  per_robot['previous'][index], per_robot['limits'][index])
         except ValueError as error:
             raise ValueError(f'robot {index}: {error}') from error
         if plan.encounter.origin.shape[0] == 0:
+            velocity = (_clip_speed(plan.v_pref, plan.config.max_speed) if plan.allowed is None
+                        else free_choice(plan.directions, *plan.allowed, plan.v_pref,
+                                         plan.config))
             results[index] = PlanResult(
-                velocity=_clip_speed(plan.v_pref, plan.config.max_speed), feasible=True,
+                velocity=velocity, feasible=True,
                 achieved_k=math.inf, eta_bound=1.0, num_constraints=0,
                 candidates_feasible=plan.directions.shape[0])
         elif plan.config.model == 'mc':
@@ -184,6 +201,8 @@ class _Plan:
     cov: np.ndarray
     radius: np.ndarray
     deterministic: bool
+    # Allowed t on each direction (lower, upper), (M,) each; None: [0, 1] everywhere.
+    allowed: tuple | None = None
 
     @property
     def structure(self):
@@ -193,32 +212,43 @@ class _Plan:
                 self.directions.shape[0])
 
 
-def _prepared_plan(ego, neighbours, v_pref, config, previous):
-    neighbours, v_pref, previous = _validated_inputs(ego, neighbours, v_pref, config, previous)
+def _prepared_plan(ego, neighbours, v_pref, config, previous, limits=None):
+    neighbours, v_pref, previous = _validated_inputs(ego, neighbours, v_pref, config, previous,
+                                                     limits)
     encounter = build_encounter(ego, neighbours, config)
     directions = candidate_directions(ego, v_pref, config)
+    allowed = None
+    if limits is not None:
+        directions = np.concatenate([directions, limits.extra_directions()])
+        allowed = relaxed_intervals(limits, directions, config.max_speed)
     layout = condition_layout(encounter, config) if encounter.origin.shape[0] else None
     cov, radius, deterministic = (model_moments(encounter, config)
                                   if layout is not None and config.model != 'mc'
                                   else (None, None, False))
     return _Plan(v_pref=v_pref, config=config, previous=previous, encounter=encounter,
                  directions=directions, preferred=directions @ v_pref / config.max_speed,
-                 layout=layout, cov=cov, radius=radius, deterministic=deterministic)
+                 layout=layout, cov=cov, radius=radius, deterministic=deterministic,
+                 allowed=allowed)
 
 
 def _monte_carlo_plan(plan):
     """Plan by the sampling baseline: probabilities estimated at a grid of candidate speeds."""
     encounter, config, directions = plan.encounter, plan.config, plan.directions
-    speeds, grid_costs = speed_grid(directions, plan.preferred, plan.v_pref, plan.previous,
-                                    config)
+    if plan.allowed is None:
+        speeds, grid_costs = speed_grid(directions, plan.preferred, plan.v_pref, plan.previous,
+                                        config)
+    else:
+        # Only allowed speeds are sampled; a ray with none gets an infinite cost.
+        speeds, grid_costs = allowed_speed_grid(plan, *plan.allowed)
     probabilities = monte_carlo_probabilities(encounter, plan.layout, directions, speeds,
                                                config, np.random.default_rng(config.seed))
-    feasible_points = np.all(probabilities >= encounter.eta, axis=0)
+    feasible_points = np.all(probabilities >= encounter.eta, axis=0) & np.isfinite(grid_costs)
     candidates_feasible = int(np.count_nonzero(np.any(feasible_points, axis=1)))
     if candidates_feasible:
         flat = int(np.argmin(np.where(feasible_points, grid_costs, np.inf)))
     else:
-        flat = best_ranked(np.min(probabilities, axis=0), grid_costs)
+        flat = best_ranked(np.where(np.isfinite(grid_costs), np.min(probabilities, axis=0),
+                                    -np.inf), grid_costs)
     direction_index, speed_index = np.unravel_index(flat, speeds.shape)
     velocity = config.max_speed * speeds[direction_index, speed_index] * \
         directions[direction_index]
@@ -272,7 +302,8 @@ def _solve_group(plans):
         ray_local=np.tile(np.arange(rays), robots),
         ray_robot=np.repeat(np.arange(robots), rays),
         preferred=np.concatenate([plan.preferred for plan in plans]))
-    gap_ray, lower, upper = team_ray_gaps(rows, layout, config.method, first.deterministic)
+    gap_ray, lower, upper = _allowed_gaps(
+        plans, *team_ray_gaps(rows, layout, config.method, first.deterministic))
     feasible_rays = np.bincount(gap_ray, minlength=robots * rays) > 0
     candidates_feasible = np.count_nonzero(feasible_rays.reshape(robots, rays), axis=1)
     chosen = _choose_on_gaps(plans, rows, gap_ray, lower, upper)
@@ -284,12 +315,26 @@ def _solve_group(plans):
     for robot, plan in enumerate(plans):
         direction_index[robot], chosen_t[robot] = (
             chosen[robot] if candidates_feasible[robot]
-            else _fallback_choice(plan, *per_robot[robot]))
+            else _fallback_choice(plan, *per_robot[robot]) if plan.allowed is None
+            else fallback_choice(plan, *per_robot[robot], *plan.allowed))
     max_speed = np.array([plan.config.max_speed for plan in plans])
     velocities = (max_speed * chosen_t)[:, None] * directions[np.arange(robots), direction_index]
     achieved = _achieved(plans, means, variances, direction_index, chosen_t, velocities)
     return [_result(plan, velocities[robot], int(candidates_feasible[robot]),
                     float(achieved[robot])) for robot, plan in enumerate(plans)]
+
+
+def _allowed_gaps(plans, gap_ray, lower, upper):
+    """Return the feasible intervals cut to their rays' allowed speeds, empty ones dropped."""
+    if all(plan.allowed is None for plan in plans):
+        return gap_ray, lower, upper
+    allowed_lower, allowed_upper = (np.concatenate([
+        np.full(plan.directions.shape[0], fill) if plan.allowed is None else plan.allowed[end]
+        for plan in plans]) for end, fill in ((0, 0.0), (1, 1.0)))
+    lower = np.maximum(lower, allowed_lower[gap_ray])
+    upper = np.minimum(upper, allowed_upper[gap_ray])
+    kept = lower <= upper
+    return gap_ray[kept], lower[kept], upper[kept]
 
 
 def _choose_on_gaps(plans, rows, gap_ray, lower, upper):

@@ -67,7 +67,7 @@ def run_inprocess(spec):
             np.array([step.time for step in steps]), np.array([step.states for step in steps]),
             np.array([step.commands for step in steps]),
             tuple(np.concatenate([step.plan_ms for step in steps]).tolist()),
-            deadline_misses=0)
+            deadline_misses=0, yaws=np.array([step.yaws for step in steps]))
     spec.out_dir.mkdir(parents=True, exist_ok=True)
     run_metrics = write_outputs(spec, recording, ending, failure, wall_time)
     return RunResult(ending, run_metrics, interrupted)

@@ -43,7 +43,8 @@ class Recording:
 
     `times` (T,) [s]; `states` (T, N, 4) ground truth x, y, vx, vy; `commands` (T, N, 2) the
     world-frame command answering each state, NaN where none; `plan_times_ms` every plan's
-    time [ms]; `deadline_misses` the simulator's count, None where unknown.
+    time [ms]; `deadline_misses` the simulator's count, None where unknown; `yaws` (T, N) the
+    ground-truth headings [rad], None where unknown.
     """
 
     times: np.ndarray
@@ -51,6 +52,7 @@ class Recording:
     commands: np.ndarray
     plan_times_ms: tuple = ()
     deadline_misses: int = None
+    yaws: np.ndarray = None
 
     @classmethod
     def empty(cls, robot_count):
@@ -123,14 +125,14 @@ def write_outputs(spec, recording, ending, failure, wall_time):
         run_metrics['failure'] = failure
     run_metrics = finite_or_none(run_metrics)
     files = {'trajectories.csv': lambda path: write_trajectories_csv(
-        path, times, names, states, commands)}
+        path, times, names, states, commands, recording.yaws)}
     if times.size:
         from prvo_sim.plotting import plot_run
 
         files['trajectories.png'] = lambda path: plot_run(
             path, times, states[..., :2],
             np.array([robot.start for robot in scenario.robots], dtype=float), goals, radii,
-            names, contacts, plot_title(run_metrics), scripted)
+            names, contacts, plot_title(run_metrics), scripted, yaws=recording.yaws)
     # Last: metrics.json says which run the folder holds.
     files['metrics.json'] = lambda path: write_json(path, run_metrics)
     replace_results(spec.out_dir, files, RUN_RESULTS)
@@ -179,22 +181,24 @@ def replace_results(folder, files, result_names=()):
             pathlib.Path(temporary).unlink(missing_ok=True)
 
 
-def write_trajectories_csv(path, times, names, states, commands):
-    """Write one row per time and robot: ground truth x, y, vx, vy and the command answering it.
+def write_trajectories_csv(path, times, names, states, commands, yaws=None):
+    """Write one row per time and robot: ground truth, the command answering it, the heading.
 
-    Numbers are written exactly (the shortest text that reads back as the same double), so that
-    runs can be compared to the last bit.
+    The columns are x, y, vx, vy, cmd_vx, cmd_vy and the ground-truth `yaw` (empty where YAWS
+    is None). Numbers are written exactly (the shortest text that reads back as the same
+    double), so that runs can be compared to the last bit.
     """
     with open(path, 'w', newline='') as csv_file:
         writer = csv.writer(csv_file)
-        writer.writerow(['time', 'robot', 'x', 'y', 'vx', 'vy', 'cmd_vx', 'cmd_vy'])
+        writer.writerow(['time', 'robot', 'x', 'y', 'vx', 'vy', 'cmd_vx', 'cmd_vy', 'yaw'])
         for step, time_s in enumerate(times):
             for robot, name in enumerate(names):
                 command = ['' if math.isnan(value) else repr(float(value))
                            for value in commands[step, robot]]
+                yaw = '' if yaws is None else repr(float(yaws[step, robot]))
                 writer.writerow([f'{time_s:.6g}', name,
                                  *(repr(float(value)) for value in states[step, robot]),
-                                 *command])
+                                 *command, yaw])
 
 
 def outcome(run_metrics):

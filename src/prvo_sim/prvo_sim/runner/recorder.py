@@ -321,7 +321,8 @@ class Recorder:
         status = self.sim_status
         return Recording(np.asarray(stamps, dtype=float) * 1e-9, states[..., :4], commands,
                          tuple(self.plan_times_ms),
-                         None if status is None else status.deadline_misses)
+                         None if status is None else status.deadline_misses,
+                         yaws=states[..., 4])
 
 
 def _deep(qos):

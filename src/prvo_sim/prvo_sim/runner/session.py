@@ -50,7 +50,8 @@ LOCKSTEP_SYNC = {'sync_timeout': 1.0, 'neighbor_timeout': 5.0}
 DOMAIN_CHECK_TIME = 3.5
 # Parameters the runner sets itself; a scenario's planner block cannot override them.
 RUNNER_PARAMETERS = ('use_sim_time', 'goal', 'radius', 'max_speed', 'actuation_std',
-                     'goal_tolerance', 'model', 'eta')
+                     'goal_tolerance', 'model', 'eta', 'kinematics', 'max_angular_speed',
+                     'max_acceleration', 'max_angular_acceleration')
 
 
 def run_topics(robot_names):
@@ -115,7 +116,14 @@ def runner_planner_values(robot, scenario, method, eta, mode='lockstep'):
         # Named rather than discovered: each planner waits for all of them from t_0, so a seed
         # reproduces its run.
         'neighbors': [other.name for other in scenario.robots if other.name != robot.name],
+        'kinematics': robot.kinematics,
     }
+    if robot.kinematics == 'unicycle':
+        values['max_angular_speed'] = float(robot.max_angular_speed)
+    # Unlimited is the planner's default (.inf); only limits are passed.
+    for limit in ('max_acceleration', 'max_angular_acceleration'):
+        if math.isfinite(getattr(robot, limit)):
+            values[limit] = float(getattr(robot, limit))
     if mode == 'lockstep':
         # The simulator waits for every answer, so a planner can wait for every neighbour's
         # odometry of the same stamp however loaded the machine: that makes runs reproducible.

@@ -1,0 +1,137 @@
+"""Velocity limits in the core: reachable speeds under an acceleration limit, trackable ones."""
+
+import math
+
+import numpy as np
+import pytest
+
+from prvo_planner.core import AgentBelief, PlannerConfig, VelocityLimits, plan_velocity
+from prvo_planner.tracking import TrackingModel, tracking_command
+
+COV = np.diag([0.01, 0.01, 0.02, 0.02])
+
+
+def unit(angle):
+    return np.array([math.cos(angle), math.sin(angle)])
+
+
+@pytest.mark.parametrize(('current', 'max_change'), [
+    ([0.6, 0.2], 0.1), ([0.0, 0.0], 0.3), ([0.05, 0.0], 0.2), ([-0.9, 0.3], 0.5),
+    ([0.3, 0.3], 0.0)])
+def test_reachable_interval_on_each_ray_is_the_chord_of_the_disc(current, max_change):
+    limits = VelocityLimits(current=np.array(current), max_change=max_change)
+    directions = np.array([unit(angle) for angle in np.linspace(-math.pi, math.pi, 181)])
+    directions = np.concatenate([directions, limits.extra_directions()])
+    lower, upper = limits.ray_intervals(directions, max_speed=1.0)
+    # Brute force: which speeds of a fine grid lie in the disc (and within max speed).
+    speeds = np.linspace(0.0, 1.0, 20001)
+    for direction, low, high in zip(directions, lower, upper, strict=True):
+        inside = np.linalg.norm(speeds[:, None] * direction - current, axis=1) <= max_change
+        if not inside.any():
+            assert low > high or high - low < 1e-3
+            continue
+        assert low <= speeds[inside].min() + 1e-4 and speeds[inside].max() <= high + 1e-4
+        assert speeds[inside].min() <= low + 1e-4 and high <= speeds[inside].max() + 1e-4
+    # The direction of the command in force is always among the candidates and reachable.
+    if max_change > 0.0 or np.any(current):
+        assert np.any(lower <= upper)
+
+
+def encounter():
+    ego = AgentBelief([0.0, 0.0], [0.8, 0.0], COV, radius=0.3)
+    others = [AgentBelief([3.0, 0.1], [-0.8, 0.0], COV, radius=0.3),
+              AgentBelief([2.0, -2.0], [0.0, 0.7], COV, radius=0.3)]
+    return ego, others
+
+
+@pytest.mark.parametrize('max_change', [0.02, 0.08, 0.3, 1.0])
+def test_an_accelerating_plan_stays_reachable_and_meets_k_when_feasible(max_change):
+    ego, others = encounter()
+    config = PlannerConfig(eta=0.8, actuation_cov=0.0025 * np.eye(2), inertia=0.5,
+                           passing_bias=0.1)
+    current = np.array([0.8, 0.0])
+    limits = VelocityLimits(current=current, max_change=max_change)
+    result = plan_velocity(ego, others, [1.0, 0.0], config, previous=current, limits=limits)
+    assert np.linalg.norm(result.velocity - current) <= max_change + 1e-9
+    free = plan_velocity(ego, others, [1.0, 0.0], config, previous=current)
+    if result.feasible:
+        assert result.achieved_k >= config.effective_k - 1e-6
+    else:
+        assert result.achieved_k < config.effective_k
+    # A limit that reaches the unlimited choice changes nothing.
+    if np.linalg.norm(free.velocity - current) < max_change - 1e-6:
+        assert result.feasible
+
+
+def test_without_neighbours_the_closest_reachable_velocity_is_chosen():
+    ego = AgentBelief([0.0, 0.0], [0.0, 0.0], COV, radius=0.3)
+    config = PlannerConfig(max_speed=1.0, num_directions=64)
+    current = np.array([0.0, 0.5])
+    result = plan_velocity(ego, [], [1.0, 0.0], config, previous=current,
+                           limits=VelocityLimits(current=current, max_change=0.2))
+    # The closest point of the disc to v_pref is current + 0.2 toward it.
+    toward = current + 0.2 * (np.array([1.0, 0.0]) - current) / np.linalg.norm(
+        np.array([1.0, 0.0]) - current)
+    assert np.linalg.norm(result.velocity - current) <= 0.2 + 1e-9
+    assert np.linalg.norm(result.velocity - toward) < 0.02
+
+
+def test_limits_that_are_not_limits_plan_as_before():
+    ego, others = encounter()
+    config = PlannerConfig(eta=0.8)
+    model = TrackingModel(100.0, 1e3, math.inf, math.inf, 1e-3, 10.0)
+    unlimited = plan_velocity(ego, others, [1.0, 0.0], config)
+    tracked = plan_velocity(ego, others, [1.0, 0.0], config, limits=VelocityLimits(
+        heading=0.0, trackable_speed=model.speed_function(0.1)))
+    assert tracked.feasible and unlimited.feasible
+    assert np.linalg.norm(tracked.velocity - [1.0, 0.0]) <= np.linalg.norm(
+        unlimited.velocity - [1.0, 0.0]) + 1e-6
+
+
+def independent_tracking_error(speed, angle, model, period, duration):
+    """Drive the controller in small Euler steps and return its largest distance from the path."""
+    substeps = 200
+    position, yaw, forward, turn = np.zeros(2), 0.0, 0.0, 0.0
+    velocity = speed * unit(angle)
+    largest = 0.0
+    for step in range(round(duration / period)):
+        forward, turn = tracking_command(velocity, yaw, forward, turn, model, period)
+        for substep in range(substeps):
+            position = position + forward * unit(yaw) * (period / substeps)
+            yaw += turn * period / substeps
+            now = step * period + (substep + 1) * period / substeps
+            largest = max(largest, float(np.linalg.norm(position - now * velocity)))
+    return largest
+
+
+@pytest.mark.parametrize('angle', [0.3, 1.0, 2.0, 3.1])
+@pytest.mark.parametrize('angular_acceleration', [math.inf, 4.0])
+def test_trackable_speeds_keep_the_tracking_error(angle, angular_acceleration):
+    model = TrackingModel(1.0, 2.0, math.inf, angular_acceleration, 0.5, 0.1)
+    speed = float(model.trackable_speeds(np.array([angle]), 0.1)[0])
+    assert 0.0 < speed < 1.0
+    error = independent_tracking_error(speed, angle, model, 0.1, 12.0)
+    assert error <= 0.1 * (1.0 + 1e-3)
+    # The bound is tight: 20% faster strays farther than the error.
+    assert independent_tracking_error(1.2 * speed, angle, model, 0.1, 12.0) > 0.1
+
+
+def test_the_tracking_command_turns_toward_and_drives_along_the_velocity():
+    model = TrackingModel(1.0, 2.0, 0.5, math.inf, 0.5, 0.1)
+    forward, turn = tracking_command(np.array([0.0, 1.0]), 0.0, 0.0, 0.0, model, 0.1)
+    assert turn == pytest.approx(2.0) and forward == 0.0  # 90 degrees off: turn in place
+    forward, turn = tracking_command(np.array([1.0, 0.1]), 0.0, 0.0, 0.0, model, 0.1)
+    assert forward == pytest.approx(0.05)  # rate limited from rest
+    assert turn == pytest.approx(math.atan2(0.1, 1.0) / 0.5)
+    assert tracking_command(np.zeros(2), 1.0, 0.0, 0.3, model, 0.1) == (0.0, 0.0)
+
+
+@pytest.mark.parametrize('model', ['mc', 'rvo', 'inflate'])
+def test_every_model_keeps_to_the_reachable_disc(model):
+    ego, others = encounter()
+    config = PlannerConfig(eta=0.8, model=model, mc_samples=200, seed=1,
+                           actuation_cov=0.0025 * np.eye(2))
+    current = np.array([0.2, 0.6])
+    result = plan_velocity(ego, others, [1.0, 0.0], config, previous=current,
+                           limits=VelocityLimits(current=current, max_change=0.05))
+    assert np.linalg.norm(result.velocity - current) <= 0.05 + 1e-9
