@@ -37,7 +37,8 @@ class StepRecord:
     `states` (N, 4) is every robot's ground truth [x, y, vx, vy] as a recorder reads it;
     `commands` (N, 2) the world-frame velocities commanded for the next dt; `plan_ms` (N,)
     each robot's share of the team's planning time [ms of wall time]; `contacts` the
-    `world.Contact`s the step made.
+    `world.Contact`s the step made; `odometry` every robot's serialized (odometry, ground
+    truth) of the state, as the simulator publishes them; `planned` every agent's `Command`.
     """
 
     time: float
@@ -45,6 +46,8 @@ class StepRecord:
     commands: np.ndarray
     plan_ms: np.ndarray
     contacts: tuple
+    odometry: tuple = ()
+    planned: tuple = ()
 
 
 def agent_of(name, values):
@@ -83,13 +86,7 @@ class InProcessTeam:
 
     def observe(self):
         """Return (odometry measurements, ground-truth states (N, 4)) of the current state."""
-        messages = serialized_odometry(self.world)
-        measurements = [serialized_odometry_to_measurement(odometry, expected_frame=WORLD_FRAME)
-                        for odometry, _ in messages]
-        truths = [serialized_odometry_to_measurement(truth, expected_frame=WORLD_FRAME)
-                  for _, truth in messages]
-        states = np.array([[*truth.position, *truth.velocity] for truth in truths])
-        return measurements, states
+        return _decoded(serialized_odometry(self.world))
 
     def do_step(self):
         """Plan every robot on the current state, then move the world by one dt.
@@ -98,7 +95,8 @@ class InProcessTeam:
         """
         world = self.world
         now = world.time
-        measurements, states = self.observe()
+        odometry = serialized_odometry(world)
+        measurements, states = _decoded(odometry)
         names = world.names
         for index, agent in enumerate(self.agents):
             agent.receive_own(measurements[index], now)
@@ -116,8 +114,10 @@ class InProcessTeam:
                 results[index] = result
         yaws = world.yaws_at(world.step_count)
         commands = np.empty((len(self.agents), 2))
+        planned = []
         for index, agent in enumerate(self.agents):
             command = agent.complete(requests[index], results[index])
+            planned.append(command)
             # The node publishes in the body frame; the simulator turns it back by the heading
             # at the command's stamp.
             commands[index] = body_to_world(world_to_body(command.velocity, command.yaw),
@@ -127,4 +127,15 @@ class InProcessTeam:
                           / len(self.agents))
         contacts = world.step(commands)
         return StepRecord(time=now, states=states, commands=commands, plan_ms=plan_ms,
-                          contacts=tuple(contacts))
+                          contacts=tuple(contacts), odometry=tuple(odometry),
+                          planned=tuple(planned))
+
+
+def _decoded(messages):
+    """Return (odometry measurements, ground-truth states (N, 4)) of serialized MESSAGES."""
+    measurements = [serialized_odometry_to_measurement(odometry, expected_frame=WORLD_FRAME)
+                    for odometry, _ in messages]
+    truths = [serialized_odometry_to_measurement(truth, expected_frame=WORLD_FRAME)
+              for _, truth in messages]
+    states = np.array([[*truth.position, *truth.velocity] for truth in truths])
+    return measurements, states

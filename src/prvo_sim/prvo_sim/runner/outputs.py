@@ -1,4 +1,4 @@
-"""The results of a run: metrics.json, trajectories.csv and trajectories.png, and the summaries.
+"""The results of a run: metrics.json, trajectories.csv, .png and .gif, the bag, the summaries.
 
 Results are written only by a run that started children, each file through a temporary file
 in the same folder, so that a folder never mixes files of two runs or holds a half-written one.
@@ -11,13 +11,14 @@ import json
 import math
 import os
 import pathlib
+import sys
 import tempfile
 
 import numpy as np
 
 from prvo_sim import metrics
 
-RUN_RESULTS = ('trajectories.csv', 'trajectories.png', 'metrics.json')
+RUN_RESULTS = ('trajectories.csv', 'trajectories.png', 'trajectories.gif', 'metrics.json')
 AGGREGATED_KEYS = ('success_rate', 'collisions', 'min_separation', 'makespan',
                    'mean_time_to_goal', 'planner_ms.median', 'planner_ms.p95', 'planner_ms.max',
                    'deadline_misses', 'sim_time', 'wall_time')
@@ -43,7 +44,8 @@ class Recording:
 
     `times` (T,) [s]; `states` (T, N, 4) ground truth x, y, vx, vy; `commands` (T, N, 2) the
     world-frame command answering each state, NaN where none; `plan_times_ms` every plan's
-    time [ms]; `deadline_misses` the simulator's count, None where unknown.
+    time [ms]; `deadline_misses` the simulator's count, None where unknown; `bag_messages` the
+    run's messages for its bag (`runner.bag.BagMessages`), None when not recorded.
     """
 
     times: np.ndarray
@@ -51,6 +53,7 @@ class Recording:
     commands: np.ndarray
     plan_times_ms: tuple = ()
     deadline_misses: int = None
+    bag_messages: object = None
 
     @classmethod
     def empty(cls, robot_count):
@@ -77,10 +80,11 @@ class RunResult:
 
 
 def write_outputs(spec, recording, ending, failure, wall_time):
-    """Write metrics.json, trajectories.csv and trajectories.png of a run; return its metrics.
+    """Write a run's results (RUN_RESULTS and its bag); return its metrics.
 
     RECORDING may be None (nothing recorded); FAILURE is the one-line reason of an ENDING that
-    is not completed.
+    is not completed. The bag (unless spec.bag is false) and the GIF (unless spec.animation is
+    false) are left out when nothing was recorded.
     """
     scenario = spec.scenario
     names = [robot.name for robot in scenario.robots]
@@ -119,16 +123,44 @@ def write_outputs(spec, recording, ending, failure, wall_time):
     files = {'trajectories.csv': lambda path: write_trajectories_csv(
         path, times, names, states, commands)}
     if times.size:
+        from prvo_sim.animation import animate_run
         from prvo_sim.plotting import plot_run
 
         files['trajectories.png'] = lambda path: plot_run(
             path, times, states[..., :2],
             np.array([robot.start for robot in scenario.robots], dtype=float), goals, radii,
             names, contacts, plot_title(run_metrics))
+        if spec.animation:
+            files['trajectories.gif'] = lambda path: animate_run(
+                path, times, states, goals, radii, names, plot_title(run_metrics),
+                position_std=[robot.noise.position_std for robot in scenario.robots],
+                scripted=[bool(getattr(robot, 'scripted', False)) for robot in scenario.robots])
+    write_run_bag(spec, recording)
     # Last: metrics.json says which run the folder holds.
     files['metrics.json'] = lambda path: write_json(path, run_metrics)
     replace_results(spec.out_dir, files, RUN_RESULTS)
     return run_metrics
+
+
+def write_run_bag(spec, recording):
+    """Write the bag of RECORDING into spec.out_dir, or remove an earlier run's bag.
+
+    A bag that cannot be written costs the run its bag only: the other results are written.
+    """
+    from rosbags.rosbag2 import WriterError
+
+    from prvo_sim.runner.bag import remove_bag, write_bag
+
+    messages = recording.bag_messages
+    if not spec.bag or messages is None or not any(messages.counts().values()):
+        remove_bag(spec.out_dir)
+        return
+    try:
+        write_bag(spec.out_dir, recording.bag_messages)
+    except (OSError, WriterError) as error:
+        remove_bag(spec.out_dir)
+        print(f'run_scenario: warning: could not write the bag in {spec.out_dir}: {error}',
+              file=sys.stderr)
 
 
 def finite_or_none(value):
