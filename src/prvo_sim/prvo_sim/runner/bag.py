@@ -132,7 +132,7 @@ def write_bag(out_dir, bag_messages):
     The bag is written in full into a temporary folder beside it first, so that OUT_DIR never
     holds half a bag. Messages go in time order (a topic's order is kept among equal stamps).
     """
-    from rosbags.rosbag2 import StoragePlugin, Writer
+    from rosbags.rosbag2 import CompressionFormat, CompressionMode, StoragePlugin, Writer
     from rosbags.typesys import Stores, get_typestore
 
     out_dir = pathlib.Path(out_dir)
@@ -140,7 +140,10 @@ def write_bag(out_dir, bag_messages):
     staging = pathlib.Path(tempfile.mkdtemp(dir=out_dir, prefix=f'.{BAG_FOLDER}-'))
     try:
         staged = staging / BAG_FOLDER
-        with Writer(staged, version=ROSBAG2_VERSION, storage_plugin=StoragePlugin.MCAP) as writer:
+        writer = Writer(staged, version=ROSBAG2_VERSION, storage_plugin=StoragePlugin.MCAP)
+        # zstd chunks inside the .mcap, which rosbag2's MCAP storage reads as it is.
+        writer.set_compression(CompressionMode.STORAGE, CompressionFormat.ZSTD)
+        with writer:
             connections = {
                 topic: writer.add_connection(topic, message_type, typestore=typestore,
                                              offered_qos_profiles=[_rosbags_qos(qos)])
