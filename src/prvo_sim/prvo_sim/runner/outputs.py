@@ -17,6 +17,8 @@ import tempfile
 import numpy as np
 
 from prvo_sim import metrics
+from prvo_sim.runner.bag import BAG_FOLDER
+from prvo_sim.runner.processes import INTERRUPTS
 
 RUN_RESULTS = ('trajectories.csv', 'trajectories.png', 'trajectories.gif', 'metrics.json')
 AGGREGATED_KEYS = ('success_rate', 'collisions', 'min_separation', 'makespan',
@@ -122,6 +124,7 @@ def write_outputs(spec, recording, ending, failure, wall_time):
     run_metrics = finite_or_none(run_metrics)
     files = {'trajectories.csv': lambda path: write_trajectories_csv(
         path, times, names, states, commands)}
+    animation = None
     if times.size:
         from prvo_sim.animation import animate_run
         from prvo_sim.plotting import plot_run
@@ -131,14 +134,20 @@ def write_outputs(spec, recording, ending, failure, wall_time):
             np.array([robot.start for robot in scenario.robots], dtype=float), goals, radii,
             names, contacts, plot_title(run_metrics))
         if spec.animation:
-            files['trajectories.gif'] = lambda path: animate_run(
+            animation = {'trajectories.gif': lambda path: animate_run(
                 path, times, states, goals, radii, names, plot_title(run_metrics),
                 position_std=[robot.noise.position_std for robot in scenario.robots],
-                scripted=[bool(getattr(robot, 'scripted', False)) for robot in scenario.robots])
-    write_run_bag(spec, recording)
-    # Last: metrics.json says which run the folder holds.
+                scripted=[bool(getattr(robot, 'scripted', False))
+                          for robot in scenario.robots])}
+    # Last of these: metrics.json says which run the folder holds.
     files['metrics.json'] = lambda path: write_json(path, run_metrics)
-    replace_results(spec.out_dir, files, RUN_RESULTS)
+    # A second Ctrl-C waits for these (a second or two); the slow animation comes after, so
+    # that an interruption while it is drawn costs the GIF only.
+    with INTERRUPTS.deferred():
+        write_run_bag(spec, recording)
+        replace_results(spec.out_dir, files, RUN_RESULTS)
+    if animation is not None:
+        replace_results(spec.out_dir, animation)
     return run_metrics
 
 
@@ -271,7 +280,10 @@ def print_summary(run_metrics, out_dir):
           f"{_format(planner_ms['p95'])}/{_format(planner_ms['max'])}; deadline misses "
           f"{run_metrics['deadline_misses']}; sim {_format(run_metrics['sim_time'], '', 1)} s "
           f"in {_format(run_metrics['wall_time'], '', 1)} s wall")
-    written = ', '.join(name for name in RUN_RESULTS if (out_dir / name).exists())
+    written = [name for name in RUN_RESULTS if (out_dir / name).exists()]
+    if (out_dir / BAG_FOLDER).is_dir():
+        written.append(f'{BAG_FOLDER}/')
+    written = ', '.join(written)
     logs = f' (child logs in {out_dir}/logs)' if run_metrics['engine'] == 'ros' else ''
     print(f'  results: {out_dir}/ {written}{logs}')
 
