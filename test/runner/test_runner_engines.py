@@ -58,7 +58,8 @@ def test_both_engines_give_the_same_trajectories(scenario, tmp_path, runners):
         if topic.endswith(('/odom', '/ground_truth')):
             assert messages == bags['ros'][topic][:step_count], topic
         elif topic.endswith('/cmd_vel'):
-            assert len(bags['ros'][topic]) >= step_count, topic
+            # Every step's command but perhaps the last (the ROS run may end before it).
+            assert len(bags['ros'][topic]) >= step_count - 1, topic
         elif topic.endswith('/prvo_markers'):
             assert messages and bags['ros'][topic], topic
 
