@@ -37,8 +37,7 @@ class StepRecord:
     `states` (N, 4) is every robot's ground truth [x, y, vx, vy] as a recorder reads it;
     `commands` (N, 2) the world-frame velocities commanded for the next dt; `plan_ms` (N,)
     each robot's share of the team's planning time [ms of wall time]; `contacts` the
-    `world.Contact`s the step made; `odometry` every robot's serialized (odometry, ground
-    truth) of the state, as the simulator publishes them; `planned` every agent's `Command`.
+    `world.Contact`s the step made.
     """
 
     time: float
@@ -46,8 +45,6 @@ class StepRecord:
     commands: np.ndarray
     plan_ms: np.ndarray
     contacts: tuple
-    odometry: tuple = ()
-    planned: tuple = ()
 
 
 def agent_of(name, values):
@@ -78,6 +75,10 @@ class InProcessTeam:
         self.world = TeamWorld(scenario, seed)
         self.agents = [agent_of(robot.name, values)
                        for robot, values in zip(scenario.robots, planner_values, strict=True)]
+        # What the ROS run publishes of the last step, kept for that step only (a recording
+        # takes it): each robot's serialized (odometry, ground truth), each agent's `Command`.
+        self.last_odometry = ()
+        self.last_commands = ()
 
     @property
     def finished(self):
@@ -126,9 +127,9 @@ class InProcessTeam:
         plan_ms = np.full(len(self.agents), (time.perf_counter() - started) * 1e3
                           / len(self.agents))
         contacts = world.step(commands)
+        self.last_odometry, self.last_commands = tuple(odometry), tuple(planned)
         return StepRecord(time=now, states=states, commands=commands, plan_ms=plan_ms,
-                          contacts=tuple(contacts), odometry=tuple(odometry),
-                          planned=tuple(planned))
+                          contacts=tuple(contacts))
 
 
 def _decoded(messages):

@@ -172,28 +172,29 @@ def remove_bag(out_dir):
 class TeamMessages:
     """The messages a ROS lockstep run publishes, built from an in-process team's steps.
 
-    Before each step, `add_state(world)` adds the simulator's /clock and /diagnostics of the
-    state about to be planned on; after it, `add_step(step)` adds that state's odometry and
-    ground truth (the engine's serialized messages) and each planner's cmd_vel, and every
+    Before each step, `add_state()` adds the simulator's /clock and /diagnostics of the state
+    about to be planned on; after it, `add_step(step)` adds that state's odometry and ground
+    truth (the engine's serialized messages) and each planner's cmd_vel, and every
     `status_period` of sim time (the node's period is wall time) its status and markers.
     """
 
-    def __init__(self, names, planner_values, agents):
-        """Build the messages of robots NAMES with the PLANNER_VALUES and AGENTS of a team."""
+    def __init__(self, names, planner_values, team):
+        """Build the messages of robots NAMES with the PLANNER_VALUES of TEAM (InProcessTeam)."""
         self.bag_messages = BagMessages(names)
         self._names = list(names)
         self._planner_values = list(planner_values)
-        self._agents = list(agents)
+        self._team = team
         self._status_at = [-math.inf] * len(self._names)
 
-    def add_state(self, world):
-        """Add the simulator's /clock and /diagnostics of WORLD's current state."""
+    def add_state(self):
+        """Add the simulator's /clock and /diagnostics of the team's current state."""
         from rclpy.serialization import serialize_message
         from rosgraph_msgs.msg import Clock
 
         from prvo_msgs_util import seconds_to_stamp
         from prvo_sim.world_messages import status_array
 
+        world = self._team.world
         self.bag_messages.add(CLOCK, serialize_message(
             Clock(clock=seconds_to_stamp(world.time))))
         message = 'finished' if world.finished else 'running'
@@ -201,21 +202,22 @@ class TeamMessages:
             world, message, 'lockstep', [0] * len(self._names))))
 
     def add_step(self, step):
-        """Add the odometry, ground truth and planners' messages of STEP (a StepRecord)."""
+        """Add the odometry, ground truth and planners' messages of the team's last STEP."""
         from rclpy.serialization import serialize_message
 
         from prvo_msgs_util import make_diagnostic_array, make_twist_stamped, world_to_body
         from prvo_planner.reports import plan_markers, plan_status
 
-        add = self.bag_messages.add
-        for name, (odometry, ground_truth) in zip(self._names, step.odometry, strict=True):
+        add, team = self.bag_messages.add, self._team
+        for name, (odometry, ground_truth) in zip(self._names, team.last_odometry, strict=True):
             add(robot_topic(name, ODOM), odometry)
             add(robot_topic(name, GROUND_TRUTH), ground_truth)
-        for index, (name, command) in enumerate(zip(self._names, step.planned, strict=True)):
+        for index, (name, command) in enumerate(zip(self._names, team.last_commands,
+                                                    strict=True)):
             add(robot_topic(name, CMD_VEL), serialize_message(make_twist_stamped(
                 command.stamp, world_to_body(command.velocity, command.yaw),
                 f'{name}/base_link')))
-            values, config = self._planner_values[index], self._agents[index].config
+            values, config = self._planner_values[index], team.agents[index].config
             if step.time - self._status_at[index] < values['status_period']:
                 continue
             self._status_at[index] = step.time

@@ -28,7 +28,7 @@ def run_inprocess(spec):
               for robot in scenario.robots]
     team = InProcessTeam(scenario, values, seed=spec.seed)
     # The messages the ROS run would publish, for the run's bag.
-    messages = (TeamMessages([robot.name for robot in scenario.robots], values, team.agents)
+    messages = (TeamMessages([robot.name for robot in scenario.robots], values, team)
                 if spec.bag else None)
     goals = team.world.goals
     steps = []
@@ -40,7 +40,7 @@ def run_inprocess(spec):
     try:
         while True:
             if messages is not None:
-                messages.add_state(team.world)
+                messages.add_state()
             step = team.do_step()
             steps.append(step)
             if messages is not None:
