@@ -15,7 +15,7 @@ setup(
         ('share/' + package_name, ['package.xml']),
         ('share/' + package_name + '/scenarios', glob('scenarios/*.yaml')),
     ],
-    install_requires=['setuptools'],
+    install_requires=['setuptools', 'rosbags'],
     zip_safe=True,
     maintainer='prvo maintainers',
     maintainer_email='maintainers@prvo.dev',

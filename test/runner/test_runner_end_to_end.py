@@ -6,6 +6,7 @@ import signal
 
 import numpy as np
 import pytest
+from rosbags.highlevel import AnyReader
 from runner_testing import HEADON, output, processes_with_token, start_runner, wait_for
 
 SCHEMA_KEYS = {'scenario', 'method', 'eta', 'seed', 'mode', 'engine', 'ending', 'robots',
@@ -72,3 +73,19 @@ def test_sigint_during_a_real_run_leaves_no_process(tmp_path, runners):
     recorded = json.loads((tmp_path / 'out' / 'metrics.json').read_text())
     assert recorded['failure'] == 'interrupted by SIGINT'
     assert recorded['sim_time'] >= 0.0
+    # The bag keeps everything recorded up to the signal: each robot's ground truth at every
+    # step of the CSV, from t_0, and each command the CSV has.
+    with open(tmp_path / 'out' / 'trajectories.csv') as csv_file:
+        rows = list(csv.DictReader(csv_file))
+    with AnyReader([tmp_path / 'out' / 'bag']) as reader:
+        stamps = {connection.topic: [] for connection in reader.connections}
+        for connection, timestamp, _ in reader.messages():
+            stamps[connection.topic].append(round(timestamp * 1e-6))
+    assert rows and min(float(row['time']) for row in rows) == 0.0
+    for robot in ('robot_0', 'robot_1'):
+        robot_rows = [row for row in rows if row['robot'] == robot]
+        times_ms = {round(float(row['time']) * 1e3) for row in robot_rows}
+        commanded_ms = {round(float(row['time']) * 1e3) for row in robot_rows if row['cmd_vx']}
+        assert times_ms <= set(stamps[f'/{robot}/ground_truth'])
+        assert commanded_ms <= set(stamps[f'/{robot}/cmd_vel'])
+    assert stamps['/clock'] and stamps['/diagnostics']

@@ -5,6 +5,7 @@ import json
 import pathlib
 
 import pytest
+from rosbags.highlevel import AnyReader
 from runner_testing import output, start_runner
 
 SCENARIOS = pathlib.Path(__file__).resolve().parents[2] / 'src/prvo_sim/scenarios'
@@ -78,3 +79,29 @@ def test_both_engines_give_the_same_trajectories(scenario, tmp_path, runners):
     # Makespans are first arrivals: within the common steps.
     for key in ('collisions', 'success_rate', 'makespan'):
         assert metrics['inprocess'][key] == pytest.approx(metrics['ros'][key], abs=1e-9)
+    # Both bags have the same topics, and the same odometry and ground truth, byte for byte,
+    # at every in-process step (the ROS run recorded every step, from t_0).
+    bags = {engine: serialized_messages(outs[engine] / 'bag') for engine in outs}
+    assert set(bags['inprocess']) == set(bags['ros'])
+    robots = {robot for _, robot in inprocess}
+    assert len(bags['ros']) == 2 + 4 * len(robots)
+    step_count = len(inprocess) // len(robots)
+    for topic, messages in bags['inprocess'].items():
+        if topic.endswith(('/odom', '/ground_truth')):
+            assert messages == bags['ros'][topic][:step_count], topic
+        elif topic.endswith('/cmd_vel'):
+            # Every step's command but perhaps the last (the ROS run may end before it).
+            assert len(bags['ros'][topic]) >= step_count - 1, topic
+        elif topic.endswith('/prvo_markers'):
+            assert messages and bags['ros'][topic], topic
+
+
+def serialized_messages(folder):
+    """Return {topic: [(log time ns, serialized message)]} of the bag in FOLDER."""
+    messages = {}
+    with AnyReader([folder]) as reader:
+        for connection in reader.connections:
+            messages[connection.topic] = []
+        for connection, timestamp, data in reader.messages():
+            messages[connection.topic].append((timestamp, bytes(data)))
+    return messages

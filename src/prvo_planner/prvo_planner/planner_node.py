@@ -15,7 +15,7 @@ import signal
 import sys
 import time
 
-from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
+from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import PoseStamped, Twist, TwistStamped
 from nav_msgs.msg import Odometry
 import numpy as np
@@ -47,9 +47,7 @@ from prvo_msgs_util import (
     MessageFault,
     QosWatch,
     freeze_startup_objects,
-    make_belief_markers,
     make_diagnostic_array,
-    make_diagnostic_status,
     make_twist,
     make_twist_stamped,
     pose_stamped_to_goal,
@@ -63,7 +61,6 @@ from prvo_msgs_util import (
     world_to_body,
 )
 from prvo_planner.agent import AgentSettings, PlannerAgent
-from prvo_planner.core.probability import confidence_ellipse_scale
 from prvo_planner.parameters import (
     BOOL,
     FLOAT,
@@ -77,6 +74,7 @@ from prvo_planner.parameters import (
     checked_parameters,
     planner_config_from,
 )
+from prvo_planner.reports import plan_markers, plan_status
 
 _WARN_PERIOD_SECONDS = 2.0
 _STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
@@ -387,29 +385,12 @@ class PlannerNode(Node):
         if self._marker_publisher.get_subscription_count() == 0:
             # Markers take about 0.6 ms to build: only for a listener (RViz).
             return
-        neighbours = command.neighbours
-        self._marker_publisher.publish(make_belief_markers(
-            command.stamp, self._values['frame_id'], self._robot, command.own.mean[:2],
-            command.velocity,
-            np.array([belief.mean[:2] for belief in neighbours]).reshape(-1, 2),
-            np.array([belief.covariance[:2, :2] for belief in neighbours]).reshape(-1, 2, 2),
-            np.full(len(neighbours), command.neighbour_radius),
-            confidence_ellipse_scale(self._config.effective_k)))
+        self._marker_publisher.publish(plan_markers(
+            self._robot, command, self._values['frame_id'], self._config.effective_k))
 
     def _publish_diagnostics(self, command, plan_time_ms):
-        result = command.result
-        feasible = True if result is None else bool(result.feasible)
-        achieved_k = math.inf if result is None else result.achieved_k
-        eta_bound = 1.0 if result is None else result.eta_bound
-        status = make_diagnostic_status(
-            f'prvo_planner/{self._robot}',
-            'ok' if feasible else 'no velocity meets the chance constraint',
-            {'achieved_k': achieved_k, 'eta_bound': eta_bound, 'feasible': feasible,
-             'neighbours_tracked': len(command.neighbours), 'plan_time_ms': plan_time_ms,
-             'arrived': command.arrived, 'model': self._config.model,
-             'planning_radius': self._agent.settings.planning_radius},
-            level=DiagnosticStatus.OK if feasible else DiagnosticStatus.WARN,
-            hardware_id=self._robot)
+        status = plan_status(self._robot, command, plan_time_ms, self._config.model,
+                             self._agent.settings.planning_radius)
         self._diagnostics_publisher.publish(make_diagnostic_array(command.stamp, [status]))
 
 

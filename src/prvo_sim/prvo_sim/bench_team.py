@@ -215,8 +215,10 @@ def run_options(mode):
         sim_command = shlex.join([
             *run_scenario.package_command('prvo_sim', 'sim', 'prvo_sim.sim_node'),
             '--ros-args', '-p', f'rate:={REALTIME_RATE!r}', '--'])
+    # The team is measured: no bag (whose markers the planners would build), no animation.
     return argparse.Namespace(method='prvo', mode=mode, timeout=None, quiet=False,
-                              sim_command=sim_command, planner_command=None)
+                              sim_command=sim_command, planner_command=None, bag=False,
+                              animation=False)
 
 
 def run_measured(scenario, mode, out_dir, domain_id):

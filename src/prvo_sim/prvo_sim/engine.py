@@ -99,6 +99,11 @@ class InProcessTeam:
             self.agents.append(agent_of(robot.name, values, table))
         self._planned = [(index, agent) for index, agent in enumerate(self.agents)
                          if agent is not None]
+        # What the ROS run publishes of the last step, kept for that step only (a recording
+        # takes it): each robot's serialized (odometry, ground truth), each robot's `Command`
+        # (None for a scripted robot).
+        self.last_odometry = ()
+        self.last_commands = ()
 
     @property
     def finished(self):
@@ -110,13 +115,7 @@ class InProcessTeam:
 
         A state is [x, y, vx, vy, yaw].
         """
-        messages = serialized_odometry(self.world)
-        measurements = [serialized_odometry_to_measurement(odometry, expected_frame=WORLD_FRAME)
-                        for odometry, _ in messages]
-        truths = [serialized_odometry_to_measurement(truth, expected_frame=WORLD_FRAME)
-                  for _, truth in messages]
-        states = np.array([[*truth.position, *truth.velocity, truth.yaw] for truth in truths])
-        return measurements, states
+        return _decoded(serialized_odometry(self.world))
 
     def do_step(self):
         """Plan every robot on the current state, then move the world by one dt.
@@ -125,7 +124,8 @@ class InProcessTeam:
         """
         world = self.world
         now = world.time
-        measurements, states = self.observe()
+        odometry = serialized_odometry(world)
+        measurements, states = _decoded(odometry)
         names = world.names
         for index, agent in self._planned:
             agent.receive_own(measurements[index], now)
@@ -146,9 +146,11 @@ class InProcessTeam:
         # and ignores its row of what is executed, which it wants finite.
         commands = np.full((len(self.agents), 2), np.nan)
         executed = np.zeros_like(commands)
+        planned = [None] * len(self.agents)
         for request, result, (index, agent) in zip(requests, results, self._planned,
                                                    strict=True):
             command = agent.complete(request, result)
+            planned[index] = command
             if command.drive is not None:
                 # A unicycle's node publishes linear.x and angular.z, executed as they are; a
                 # recorder sees the forward speed turned by the heading at the stamp.
@@ -164,5 +166,19 @@ class InProcessTeam:
         plan_ms = np.full(len(self._planned), (time.perf_counter() - started) * 1e3
                           / max(len(self._planned), 1))
         contacts = world.step(executed)
+        self.last_odometry, self.last_commands = tuple(odometry), tuple(planned)
         return StepRecord(time=now, states=states[:, :4], commands=commands, plan_ms=plan_ms,
                           contacts=tuple(contacts), yaws=states[:, 4])
+
+
+def _decoded(messages):
+    """Return (odometry measurements, ground-truth states (N, 5)) of serialized MESSAGES.
+
+    A state is [x, y, vx, vy, yaw].
+    """
+    measurements = [serialized_odometry_to_measurement(odometry, expected_frame=WORLD_FRAME)
+                    for odometry, _ in messages]
+    truths = [serialized_odometry_to_measurement(truth, expected_frame=WORLD_FRAME)
+              for _, truth in messages]
+    states = np.array([[*truth.position, *truth.velocity, truth.yaw] for truth in truths])
+    return measurements, states

@@ -320,7 +320,10 @@ def run_method_table(out_dir, scenarios, variants, seeds, timeout):
             run_dir = out_dir / 'runs' / scenario_name / label.replace(' ', '_')
             command = [sys.executable, '-m', 'prvo_sim.run_scenario', str(scenario_path),
                        '--out', str(run_dir), '--method', method, '--seeds', str(seeds),
-                       '--engine', 'inprocess', '--quiet', '--timeout', str(timeout)]
+                       '--engine', 'inprocess', '--quiet', '--timeout', str(timeout),
+                       # The tables need the metrics; a GIF and a bag per run would triple the
+                       # cost of hundreds of runs.
+                       '--no-animation', '--no-bag']
             if eta is not None:
                 command += ['--eta', str(eta)]
             started = time.monotonic()

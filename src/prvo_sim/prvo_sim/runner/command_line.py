@@ -1,7 +1,7 @@
 """The runner's command line: options, the domain claim, every seed's run and the exit code.
 
     run_scenario SCENARIO.yaml [--out DIR] [--method M] [--eta ETA] [--seed S] [--seeds N]
-                 [--engine ros|inprocess]
+                 [--engine ros|inprocess] [--no-bag] [--no-animation]
 
 Exit codes: 0 the run completed (collisions are a result, not an error), 1 a child failed, the
 run timed out or processes it did not start interfered, 2 refused (bad input, a domain held by
@@ -82,6 +82,10 @@ def build_parser():
                         help="command to start instead of prvo_sim's sim (ROS args appended)")
     parser.add_argument('--planner-command', default=None,
                         help="command to start instead of prvo_planner's planner")
+    parser.add_argument('--no-bag', dest='bag', action='store_false',
+                        help='record no rosbag2 bag (default: <out>/bag/, MCAP storage)')
+    parser.add_argument('--no-animation', dest='animation', action='store_false',
+                        help='draw no animation (default: <out>/trajectories.gif)')
     parser.add_argument('--quiet', action='store_true', help='no progress line')
     return parser
 

@@ -9,6 +9,7 @@ import time
 import numpy as np
 
 from prvo_sim.engine import InProcessTeam
+from prvo_sim.runner.bag import TeamMessages
 from prvo_sim.runner.outputs import Ending, Recording, RunResult, write_outputs
 from prvo_sim.runner.processes import RunInterruptedError
 from prvo_sim.runner.session import (
@@ -23,9 +24,12 @@ from prvo_sim.runner.session import (
 def run_inprocess(spec):
     """Run SPEC once on the in-process engine; write its outputs; return its `RunResult`."""
     scenario = spec.scenario
-    team = InProcessTeam(
-        scenario, [planner_values(robot, scenario, spec.method, spec.planner_eta, 'lockstep')
-                   for robot in scenario.robots], seed=spec.seed)
+    values = [planner_values(robot, scenario, spec.method, spec.planner_eta, 'lockstep')
+              for robot in scenario.robots]
+    team = InProcessTeam(scenario, values, seed=spec.seed)
+    # The messages the ROS run would publish, for the run's bag.
+    messages = (TeamMessages([robot.name for robot in scenario.robots], values, team)
+                if spec.bag else None)
     goals = team.world.goals
     # Scripted robots do not arrive: the planned ones end the run.
     planned = np.array([robot.scripted is None for robot in scenario.robots])
@@ -37,8 +41,12 @@ def run_inprocess(spec):
     settled_since = None
     try:
         while True:
+            if messages is not None:
+                messages.add_state()
             step = team.do_step()
             steps.append(step)
+            if messages is not None:
+                messages.add_step(step)
             arrived = (np.linalg.norm(step.states[:, :2] - goals, axis=1) <= (
                 scenario.goal_tolerance))[planned]
             now = time.monotonic()
@@ -67,7 +75,8 @@ def run_inprocess(spec):
             np.array([step.time for step in steps]), np.array([step.states for step in steps]),
             np.array([step.commands for step in steps]),
             tuple(np.concatenate([step.plan_ms for step in steps]).tolist()),
-            deadline_misses=0, yaws=np.array([step.yaws for step in steps]))
+            deadline_misses=0, yaws=np.array([step.yaws for step in steps]),
+            bag_messages=None if messages is None else messages.bag_messages)
     spec.out_dir.mkdir(parents=True, exist_ok=True)
     run_metrics = write_outputs(spec, recording, ending, failure, wall_time)
     return RunResult(ending, run_metrics, interrupted)

@@ -1,4 +1,4 @@
-"""The results of a run: metrics.json, trajectories.csv and trajectories.png, and the summaries.
+"""The results of a run: metrics.json, trajectories.csv, .png and .gif, the bag, the summaries.
 
 Results are written only by a run that started children, each file through a temporary file
 in the same folder, so that a folder never mixes files of two runs or holds a half-written one.
@@ -11,13 +11,16 @@ import json
 import math
 import os
 import pathlib
+import sys
 import tempfile
 
 import numpy as np
 
 from prvo_sim import metrics
+from prvo_sim.runner.bag import BAG_FOLDER
+from prvo_sim.runner.processes import INTERRUPTS
 
-RUN_RESULTS = ('trajectories.csv', 'trajectories.png', 'metrics.json')
+RUN_RESULTS = ('trajectories.csv', 'trajectories.png', 'trajectories.gif', 'metrics.json')
 AGGREGATED_KEYS = ('success_rate', 'collisions', 'min_separation', 'makespan',
                    'mean_time_to_goal', 'planner_ms.median', 'planner_ms.p95', 'planner_ms.max',
                    'deadline_misses', 'sim_time', 'wall_time')
@@ -44,7 +47,8 @@ class Recording:
     `times` (T,) [s]; `states` (T, N, 4) ground truth x, y, vx, vy; `commands` (T, N, 2) the
     world-frame command answering each state, NaN where none; `plan_times_ms` every plan's
     time [ms]; `deadline_misses` the simulator's count, None where unknown; `yaws` (T, N) the
-    ground-truth headings [rad], None where unknown.
+    ground-truth headings [rad], None where unknown; `bag_messages` the run's messages for its
+    bag (`runner.bag.BagMessages`), None when not recorded.
     """
 
     times: np.ndarray
@@ -53,6 +57,7 @@ class Recording:
     plan_times_ms: tuple = ()
     deadline_misses: int = None
     yaws: np.ndarray = None
+    bag_messages: object = None
 
     @classmethod
     def empty(cls, robot_count):
@@ -79,10 +84,11 @@ class RunResult:
 
 
 def write_outputs(spec, recording, ending, failure, wall_time):
-    """Write metrics.json, trajectories.csv and trajectories.png of a run; return its metrics.
+    """Write a run's results (RUN_RESULTS and its bag); return its metrics.
 
     RECORDING may be None (nothing recorded); FAILURE is the one-line reason of an ENDING that
-    is not completed.
+    is not completed. The bag (unless spec.bag is false) and the GIF (unless spec.animation is
+    false) are left out when nothing was recorded.
     """
     scenario = spec.scenario
     names = [robot.name for robot in scenario.robots]
@@ -126,17 +132,54 @@ def write_outputs(spec, recording, ending, failure, wall_time):
     run_metrics = finite_or_none(run_metrics)
     files = {'trajectories.csv': lambda path: write_trajectories_csv(
         path, times, names, states, commands, recording.yaws)}
+    animation = None
     if times.size:
+        from prvo_sim.animation import animate_run
         from prvo_sim.plotting import plot_run
 
         files['trajectories.png'] = lambda path: plot_run(
             path, times, states[..., :2],
             np.array([robot.start for robot in scenario.robots], dtype=float), goals, radii,
             names, contacts, plot_title(run_metrics), scripted, yaws=recording.yaws)
-    # Last: metrics.json says which run the folder holds.
+        if spec.animation:
+            # The animation draws headings from a fifth state column where they are known.
+            drawn = (states if recording.yaws is None
+                     else np.concatenate([states, recording.yaws[..., None]], axis=-1))
+            animation = {'trajectories.gif': lambda path: animate_run(
+                path, times, drawn, goals, radii, names, plot_title(run_metrics),
+                position_std=[robot.noise.position_std for robot in scenario.robots],
+                scripted=scripted)}
+    # Last of these: metrics.json says which run the folder holds.
     files['metrics.json'] = lambda path: write_json(path, run_metrics)
-    replace_results(spec.out_dir, files, RUN_RESULTS)
+    # A second Ctrl-C waits for these (a second or two); the slow animation comes after, so
+    # that an interruption while it is drawn costs the GIF only.
+    with INTERRUPTS.deferred():
+        write_run_bag(spec, recording)
+        replace_results(spec.out_dir, files, RUN_RESULTS)
+    if animation is not None:
+        replace_results(spec.out_dir, animation)
     return run_metrics
+
+
+def write_run_bag(spec, recording):
+    """Write the bag of RECORDING into spec.out_dir, or remove an earlier run's bag.
+
+    A bag that cannot be written costs the run its bag only: the other results are written.
+    """
+    from rosbags.rosbag2 import WriterError
+
+    from prvo_sim.runner.bag import remove_bag, write_bag
+
+    messages = recording.bag_messages
+    if not spec.bag or messages is None or not any(messages.counts().values()):
+        remove_bag(spec.out_dir)
+        return
+    try:
+        write_bag(spec.out_dir, recording.bag_messages)
+    except (OSError, WriterError) as error:
+        remove_bag(spec.out_dir)
+        print(f'run_scenario: warning: could not write the bag in {spec.out_dir}: {error}',
+              file=sys.stderr)
 
 
 def finite_or_none(value):
@@ -253,7 +296,10 @@ def print_summary(run_metrics, out_dir):
           f"{_format(planner_ms['p95'])}/{_format(planner_ms['max'])}; deadline misses "
           f"{run_metrics['deadline_misses']}; sim {_format(run_metrics['sim_time'], '', 1)} s "
           f"in {_format(run_metrics['wall_time'], '', 1)} s wall")
-    written = ', '.join(name for name in RUN_RESULTS if (out_dir / name).exists())
+    written = [name for name in RUN_RESULTS if (out_dir / name).exists()]
+    if (out_dir / BAG_FOLDER).is_dir():
+        written.append(f'{BAG_FOLDER}/')
+    written = ', '.join(written)
     logs = f' (child logs in {out_dir}/logs)' if run_metrics['engine'] == 'ros' else ''
     print(f'  results: {out_dir}/ {written}{logs}')
 

@@ -39,12 +39,15 @@ def _seconds_ns(seconds):
 class Recorder:
     """An rclpy node in a context of its own that records what the run needs to be measured."""
 
-    def __init__(self, domain_id, robot_names, role='recorder', planned_names=None):
+    def __init__(self, domain_id, robot_names, role='recorder', planned_names=None,
+                 record_bag=False):
         """Create the node on DOMAIN_ID, subscribed to what ROBOT_NAMES' run publishes.
 
         ROLE goes into the node's name, which is unique to the process and the instance.
         PLANNED_NAMES are the robots with a planner (default: all); the others are scripted,
-        moved by the simulator, and publish no cmd_vel or planner diagnostics.
+        moved by the simulator, and publish no cmd_vel or planner diagnostics. With
+        RECORD_BAG it also keeps, serialized, everything else of the run's bag (see
+        `bag_messages`): /clock, odometry and markers; planners build markers only then.
         """
         from diagnostic_msgs.msg import DiagnosticArray
         from geometry_msgs.msg import TwistStamped
@@ -107,9 +110,61 @@ class Recorder:
                     _deep(qos), event_callbacks=quiet_subscription_events(), raw=True)
                 if kind == 'commands':
                     self._command_subscriptions[name] = subscription
+        self._serialized_diagnostics = []
         self._diagnostics_subscription = self.node.create_subscription(
             DiagnosticArray, DIAGNOSTICS, self._on_diagnostics, _deep(DIAGNOSTICS_QOS),
-            event_callbacks=quiet_subscription_events())
+            event_callbacks=quiet_subscription_events(), raw=True)
+        self._bag_topics = None
+        if record_bag:
+            self._subscribe_bag_topics()
+
+    def _subscribe_bag_topics(self):
+        """Keep every message of the bag's topics that the recording does not keep already."""
+        from nav_msgs.msg import Odometry
+        from rosgraph_msgs.msg import Clock
+        from visualization_msgs.msg import MarkerArray
+
+        from prvo_msgs_util import (
+            CLOCK,
+            CLOCK_QOS,
+            CMD_VEL,
+            DIAGNOSTICS,
+            GROUND_TRUTH,
+            MARKER_QOS,
+            MARKERS,
+            ODOM,
+            ODOM_QOS,
+            quiet_subscription_events,
+            robot_topic,
+        )
+
+        self._bag_topics = {CLOCK: [], DIAGNOSTICS: self._serialized_diagnostics}
+        subscribed = [(CLOCK, Clock, CLOCK_QOS)]
+        for name in self.robot_names:
+            self._bag_topics[robot_topic(name, GROUND_TRUTH)] = (
+                self._serialized['ground_truth'][name])
+            self._bag_topics[robot_topic(name, CMD_VEL)] = self._serialized['commands'][name]
+            for leaf, message_type, qos in ((ODOM, Odometry, ODOM_QOS),
+                                            (MARKERS, MarkerArray, MARKER_QOS)):
+                topic = robot_topic(name, leaf)
+                self._bag_topics[topic] = []
+                subscribed.append((topic, message_type, qos))
+        for topic, message_type, qos in subscribed:
+            self.node.create_subscription(
+                message_type, topic, self._bag_topics[topic].append, _deep(qos),
+                event_callbacks=quiet_subscription_events(), raw=True)
+
+    def bag_messages(self):
+        """Return the run's `runner.bag.BagMessages` of everything received, None if not kept."""
+        from prvo_sim.runner.bag import BagMessages
+
+        if self._bag_topics is None:
+            return None
+        messages = BagMessages(self.robot_names)
+        for topic in messages.topics:
+            for data in self._bag_topics[topic]:
+                messages.add(topic, data)
+        return messages
 
     def unheard_planners(self):
         """Return the robots whose cmd_vel or diagnostics publisher this node has not matched.
@@ -171,11 +226,15 @@ class Recorder:
             counts[name] = len(received)
         return decoded
 
-    def _on_diagnostics(self, msg):
+    def _on_diagnostics(self, data):
+        from diagnostic_msgs.msg import DiagnosticArray
+        from rclpy.serialization import deserialize_message
+
         from prvo_msgs_util import diagnostic_values
         from prvo_sim.world_messages import sim_status_of
 
-        for status in msg.status:
+        self._serialized_diagnostics.append(data)
+        for status in deserialize_message(data, DiagnosticArray).status:
             if status.name == 'prvo_sim':
                 self.sim_status = sim_status_of(status)
             elif status.name.startswith('prvo_planner/'):
@@ -322,7 +381,7 @@ class Recorder:
         return Recording(np.asarray(stamps, dtype=float) * 1e-9, states[..., :4], commands,
                          tuple(self.plan_times_ms),
                          None if status is None else status.deadline_misses,
-                         yaws=states[..., 4])
+                         yaws=states[..., 4], bag_messages=self.bag_messages())
 
 
 def _deep(qos):

@@ -174,6 +174,9 @@ class RunSpec:
         self.method = options.method
         self.mode = options.mode
         self.engine = getattr(options, 'engine', 'ros')
+        # A rosbag2 recording (bag/) and an animation (trajectories.gif) of the run.
+        self.bag = getattr(options, 'bag', True)
+        self.animation = getattr(options, 'animation', True)
         self.eta = eta
         self.planner_eta = eta if isinstance(eta, (int, float)) else None
         self.seed = seed
@@ -331,7 +334,8 @@ def run_once(spec, domain_id, monitor=None):
     started = time.monotonic()
     try:
         recorder = Recorder(domain_id, [robot.name for robot in scenario.robots],
-                            planned_names=[robot.name for robot in planned_robots(scenario)])
+                            planned_names=[robot.name for robot in planned_robots(scenario)],
+                            record_bag=spec.bag)
         # The first file of the run: a run that never got here leaves the folder alone.
         log_dir.mkdir(parents=True, exist_ok=True)
         watch = _Watch(recorder, children, spec)
