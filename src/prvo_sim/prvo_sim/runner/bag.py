@@ -42,8 +42,13 @@ _STAMP_OFFSETS = {CLOCK_TYPE: 4, ODOMETRY_TYPE: 4, TWIST_STAMPED_TYPE: 4,
 _CDR_LITTLE_ENDIAN = 1  # the second byte of the encapsulation header: 0 big, 1 little endian
 
 
-def bag_topics(robot_names):
-    """Return {topic: (message type, publisher QoS profile)} of a run of ROBOT_NAMES, in order."""
+def bag_topics(robot_names, planned_names=None):
+    """Return {topic: (message type, publisher QoS profile)} of a run of ROBOT_NAMES, in order.
+
+    PLANNED_NAMES (default: all) are the robots with a planner: only they publish cmd_vel and
+    markers (a scripted robot is moved by the simulator).
+    """
+    planned_names = robot_names if planned_names is None else planned_names
     # In the order a step publishes them: the bag keeps it among messages of one stamp.
     topics = {CLOCK: (CLOCK_TYPE, CLOCK_QOS)}
     for leaf, message_type, qos in ((ODOM, ODOMETRY_TYPE, ODOM_QOS),
@@ -52,7 +57,7 @@ def bag_topics(robot_names):
     topics[DIAGNOSTICS] = (DIAGNOSTIC_ARRAY_TYPE, DIAGNOSTICS_QOS)
     for leaf, message_type, qos in ((CMD_VEL, TWIST_STAMPED_TYPE, CMD_VEL_QOS),
                                     (MARKERS, MARKER_ARRAY_TYPE, MARKER_QOS)):
-        topics.update({robot_topic(name, leaf): (message_type, qos) for name in robot_names})
+        topics.update({robot_topic(name, leaf): (message_type, qos) for name in planned_names})
     return topics
 
 
@@ -76,9 +81,9 @@ def _unpack(data, layout, offset):
 class BagMessages:
     """Every serialized message of a run's bag, by topic, each with its sim-time stamp [ns]."""
 
-    def __init__(self, robot_names):
+    def __init__(self, robot_names, planned_names=None):
         """Hold no message yet of any topic of a run of ROBOT_NAMES (see bag_topics)."""
-        self.topics = bag_topics(robot_names)
+        self.topics = bag_topics(robot_names, planned_names)
         self.messages = {topic: [] for topic in self.topics}
 
     def add(self, topic, data, stamp=None):
@@ -180,7 +185,9 @@ class TeamMessages:
 
     def __init__(self, names, planner_values, team):
         """Build the messages of robots NAMES with the PLANNER_VALUES of TEAM (InProcessTeam)."""
-        self.bag_messages = BagMessages(names)
+        self.bag_messages = BagMessages(names, [
+            name for name, values in zip(names, planner_values, strict=True)
+            if values is not None])
         self._names = list(names)
         self._planner_values = list(planner_values)
         self._team = team

@@ -160,7 +160,7 @@ class Recorder:
 
         if self._bag_topics is None:
             return None
-        messages = BagMessages(self.robot_names)
+        messages = BagMessages(self.robot_names, self.planned_names)
         for topic in messages.topics:
             for data in self._bag_topics[topic]:
                 messages.add(topic, data)
