@@ -15,14 +15,12 @@ from prvo_planner.parameters import (
     PARAMETERS,
     ParameterError,
     check_parameter,
+    goal_array,
     nearest_name,
+    neighbour_names,
     planner_config_from,
 )
-from prvo_planner.planner_node import (
-    _PARAMETERS,
-    _goal_from_parameter,
-    _neighbour_list,
-)
+from prvo_planner.planner_node import _PARAMETERS
 
 
 def test_defaults_give_a_valid_configuration():
@@ -95,10 +93,10 @@ def test_robots_standing_beyond_the_goal_do_not_block_it():
 
 def test_goal_accepts_any_sequence_of_numbers():
     """Rclpy hands a double array set at runtime over as array.array('d')."""
-    np.testing.assert_array_equal(_goal_from_parameter(array.array('d', [2.0, -1.0])),
+    np.testing.assert_array_equal(goal_array(array.array('d', [2.0, -1.0])),
                                   [2.0, -1.0])
-    np.testing.assert_array_equal(_goal_from_parameter([4, 0]), [4.0, 0.0])
-    assert _goal_from_parameter(None) is None
+    np.testing.assert_array_equal(goal_array([4, 0]), [4.0, 0.0])
+    assert goal_array(None) is None
 
 
 @pytest.mark.parametrize('value, reason', [
@@ -111,17 +109,17 @@ def test_goal_accepts_any_sequence_of_numbers():
 ])
 def test_bad_goals_are_refused_naming_goal_and_value(value, reason):
     with pytest.raises(ParameterError) as raised:
-        _goal_from_parameter(value)
+        goal_array(value)
     assert str(raised.value).startswith('goal') and reason in str(raised.value)
 
 
 def test_neighbour_names_must_be_robot_names():
-    assert _neighbour_list(['robot_1', '', 'robot_2']) == ['robot_1', 'robot_2']
-    assert _neighbour_list(None) is None
+    assert neighbour_names(['robot_1', '', 'robot_2']) == ['robot_1', 'robot_2']
+    assert neighbour_names(None) is None
     with pytest.raises(ParameterError, match="neighbors: robot name '2bad' is not a valid"):
-        _neighbour_list(['robot_1', '2bad'])
+        neighbour_names(['robot_1', '2bad'])
     with pytest.raises(ParameterError, match='neighbors: expected a list of strings'):
-        _neighbour_list([1, 2])
+        neighbour_names([1, 2])
 
 
 def test_a_zero_neighbour_radius_is_refused():

@@ -11,6 +11,9 @@ class SigintRecorder:
     the handler it found, this one. rclpy shuts its context down on another thread, so a
     message take in flight when Ctrl-C lands can fail with a RuntimeError while ``rclpy.ok()``
     is still true; ``received`` says that the failure is the shutdown that was asked for.
+
+    Only the first SIGINT raises: a second one (``ros2 launch`` and the terminal both pass
+    Ctrl-C on) would land in the node's teardown and end it with a traceback.
     """
 
     def __init__(self):
@@ -22,5 +25,7 @@ class SigintRecorder:
         return self
 
     def _on_sigint(self, signum, frame):
+        if self.received:
+            return
         self.received = True
         raise KeyboardInterrupt

@@ -24,6 +24,9 @@ _TIME_RESET_SECONDS = 1.0
 MAX_STAMP_JUMP_SECONDS = 10.0
 # Plans for a made-up encounter in warm_up().
 _WARM_UP_PLANS = 3
+# An arrival counts again only after the robot was this many goal tolerances from the goal:
+# odometry noise carries a robot standing at its goal in and out of the tolerance.
+DEPARTURE_TOLERANCES = 2.0
 
 
 def preferred_velocity(position, goal, max_speed, approach_time, goal_tolerance):
@@ -78,10 +81,11 @@ class AgentSettings:
 class Fusion:
     """What became of one measurement.
 
-    `status` is 'fused' or 'restarted' (accepted; 'restarted': its time went back, so the track
-    started over), 'duplicate' (the stamp of the last accepted one), or a fault that left the
-    track as it was: 'stale' (a little behind the last stamp), 'refused' (far ahead of it, or
-    numerically unusable). `detail` says why, with the values.
+    `status` is 'fused', 'restarted' or 'resumed' (accepted; 'restarted': its time went back, so
+    the track started over; 'resumed': a new track of a neighbour dropped before), 'duplicate'
+    (the stamp of the last accepted one), or a fault that left the track as it was: 'stale' (a
+    little behind the last stamp), 'refused' (far ahead of it, or numerically unusable).
+    `detail` says why, with the values.
     """
 
     status: str
@@ -90,7 +94,7 @@ class Fusion:
     @property
     def accepted(self):
         """Whether the measurement reached the track."""
-        return self.status in ('fused', 'restarted')
+        return self.status in ('fused', 'restarted', 'resumed')
 
 
 @dataclasses.dataclass(frozen=True)
@@ -99,7 +103,8 @@ class Command:
 
     `velocity` (2,) is in the world frame; `yaw` is the robot's yaw measured at `stamp`, to turn
     it into the body frame. `result` is the core's PlanResult, None when the robot stands still
-    (no goal, or arrived). `own` and `neighbours` are the `StateBelief`s at `stamp`.
+    (no goal, or arrived). `own` and `neighbours` are the `StateBelief`s at `stamp`. `arrival`
+    marks the first plan at the goal since the robot set off for it.
     """
 
     stamp: float
@@ -110,6 +115,7 @@ class Command:
     own: object
     neighbours: tuple
     neighbour_radius: float
+    arrival: bool = False
 
 
 @dataclasses.dataclass(frozen=True)
@@ -118,6 +124,7 @@ class PlanRequest:
 
     `problem` is the argument tuple of `prvo_planner.core.plan_velocity` (ego, neighbours,
     v_pref, config, previous), or None when the robot stands still (no goal, or arrived).
+    `arrival` as in `Command`.
     """
 
     stamp: float
@@ -125,6 +132,7 @@ class PlanRequest:
     neighbours: tuple
     neighbour_radius: float
     problem: tuple
+    arrival: bool = False
 
 
 class _Track:
@@ -175,8 +183,12 @@ class PlannerAgent:
         self.listed_neighbours = (
             None if listed_neighbours is None else set(listed_neighbours) - {name})
         self.arrived = False
+        # Whether this goal's arrival was reported, until the robot leaves the goal's vicinity.
+        self._arrival_reported = False
         self._own_track = None
         self._neighbour_tracks = {}
+        # Neighbours dropped for silence or absence: a new track of one of them is 'resumed'.
+        self._dropped = set()
         self._pending_stamp = None
         self._own_yaw = 0.0
         # The last planned velocity in the world frame, for the inertia term; None after a stop.
@@ -196,14 +208,21 @@ class PlannerAgent:
         return set(self._neighbour_tracks)
 
     def reconfigure(self, config, settings, goal):
-        """Take new parameters; the plan in progress and the tracks go on."""
+        """Take new parameters; the plan in progress and the tracks go on.
+
+        A GOAL other than the current one is taken as by `set_goal`; None keeps no goal.
+        """
         self.config, self.settings = config, settings
-        self.goal = None if goal is None else np.asarray(goal, dtype=float)
+        if goal is None:
+            self.goal = None
+        elif self.goal is None or not np.array_equal(self.goal, goal):
+            self.set_goal(goal)
 
     def set_goal(self, goal):
         """Head for a new GOAL (2,): not arrived, no previous command to stay close to."""
         self.goal = np.asarray(goal, dtype=float)
         self.arrived = False
+        self._arrival_reported = False
         self._previous_velocity = None
 
     # Measurements -----------------------------------------------------------------------------
@@ -226,6 +245,10 @@ class PlannerAgent:
         """Fuse neighbour ROBOT's MEASUREMENT; return its `Fusion`."""
         track, fusion = self._fuse(self._neighbour_tracks.get(robot), measurement, now)
         self._neighbour_tracks[robot] = track
+        if fusion.accepted and robot in self._dropped:
+            self._dropped.discard(robot)
+            return Fusion('resumed', f'tracking {robot} again from {measurement.stamp:.3f} s, '
+                          'after it was dropped')
         return fusion
 
     def forget_neighbours(self, now, wanted=None):
@@ -239,6 +262,7 @@ class PlannerAgent:
             if (wanted is not None and robot not in wanted) or (
                     silent > self.settings.neighbor_timeout):
                 del self._neighbour_tracks[robot]
+                self._dropped.add(robot)
                 dropped.append((robot, silent))
         return dropped
 
@@ -329,6 +353,7 @@ class PlannerAgent:
         v_pref, self.arrived = preferred_velocity(
             own.mean[:2], self.goal, max_speed, self.settings.approach_time,
             self.settings.goal_tolerance)
+        arrival = self._arrival(own.mean[:2])
         neighbour_beliefs = tuple(
             track.tracker.belief_at(stamp) for track in self._neighbour_tracks.values())
         problem = None
@@ -343,7 +368,17 @@ class PlannerAgent:
                 v_pref, dataclasses.replace(self.config, time_horizon=horizon),
                 self._previous_velocity)
         return PlanRequest(stamp=stamp, own=own, neighbours=neighbour_beliefs,
-                           neighbour_radius=neighbour_radius, problem=problem)
+                           neighbour_radius=neighbour_radius, problem=problem, arrival=arrival)
+
+    def _arrival(self, position):
+        """Return whether arriving now is this goal's first arrival; track the departures."""
+        if self.arrived:
+            first, self._arrival_reported = not self._arrival_reported, True
+            return first
+        if self.goal is not None and np.hypot(*(self.goal - position)) > (
+                DEPARTURE_TOLERANCES * self.settings.goal_tolerance):
+            self._arrival_reported = False
+        return False
 
     def complete(self, request, result):
         """Return the `Command` of REQUEST given the core's RESULT (None: stand still)."""
@@ -351,7 +386,7 @@ class PlannerAgent:
         self._previous_velocity = None if result is None else velocity
         return Command(stamp=request.stamp, velocity=velocity, yaw=self._own_yaw, result=result,
                        arrived=self.arrived, own=request.own, neighbours=request.neighbours,
-                       neighbour_radius=request.neighbour_radius)
+                       neighbour_radius=request.neighbour_radius, arrival=request.arrival)
 
     def warm_up(self):
         """Plan for a made-up encounter a few times; no state of the agent changes.
