@@ -15,7 +15,9 @@ from prvo_planner.parameters import (
     PARAMETERS,
     ParameterError,
     check_parameter,
+    check_parameter_update,
     goal_array,
+    is_dumped_unset,
     nearest_name,
     neighbour_names,
     planner_config_from,
@@ -191,3 +193,15 @@ def test_descriptors_state_the_specs_types_and_ranges():
     assert neighbours.read_only and neighbours.dynamic_typing
     _, horizon = _PARAMETERS['time_horizon']
     assert not horizon.floating_point_range
+
+
+def test_a_dumped_null_reads_as_unset_only_for_parameters_that_may_be_unset():
+    assert is_dumped_unset('neighbors', 'null') and is_dumped_unset('goal', '~')
+    assert not is_dumped_unset('model', 'null')
+    assert not is_dumped_unset('goal', None) and not is_dumped_unset('neighbors', ['null'])
+
+
+def test_a_running_planner_refuses_unsetting_a_parameter():
+    with pytest.raises(ParameterError, match='^goal: cannot be unset'):
+        check_parameter_update('goal', None)
+    assert check_parameter_update('goal', array.array('d', [2.0, -1.0])) == [2.0, -1.0]
