@@ -307,13 +307,9 @@ class PlannerNode(Node):
         except MessageFault as fault:
             self._warn('goal', f'ignoring goal on {robot_topic(self._robot, GOAL_POSE)}: {fault}')
             return
-        # Through the parameter: `goal` shows the goal in force, and other changes keep it.
-        result = self.set_parameters([Parameter('goal', Parameter.Type.DOUBLE_ARRAY,
-                                                goal.tolist())])[0]
-        if not result.successful:
-            self._warn('goal', f'ignoring goal on {robot_topic(self._robot, GOAL_POSE)}: '
-                       f'{result.reason}')
-            return
+        # Through the parameter: `goal` shows the goal in force, and other changes keep it. The
+        # parameter's rules hold: pose_stamped_to_goal checked the same coordinate bound.
+        self.set_parameters([Parameter('goal', Parameter.Type.DOUBLE_ARRAY, goal.tolist())])
         self.get_logger().info(f'new goal {goal.tolist()}')
 
     @_quiet_after_shutdown
