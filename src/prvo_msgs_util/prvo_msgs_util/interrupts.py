@@ -29,3 +29,16 @@ class SigintRecorder:
             return
         self.received = True
         raise KeyboardInterrupt
+
+
+def ignore_stop_signals():
+    """
+    Ignore SIGINT and SIGTERM from now on: call it last in main(), after rclpy.try_shutdown().
+
+    The node is stopped, so a further signal (``ros2 launch`` and the terminal both pass Ctrl-C
+    on) has nothing left to stop. A Python handler would not do: while the interpreter
+    finalizes, Python gives such a signal its default action back, and one landing while the
+    middleware tears down would kill the process (exit code -2). An ignored one stays ignored.
+    """
+    for signal_number in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(signal_number, signal.SIG_IGN)

@@ -48,6 +48,7 @@ from prvo_msgs_util import (
     MessageFault,
     QosWatch,
     freeze_startup_objects,
+    ignore_stop_signals,
     make_belief_markers,
     make_diagnostic_array,
     make_diagnostic_status,
@@ -460,6 +461,7 @@ def main(args=None):
         if node is not None:
             node.destroy_node()
         rclpy.try_shutdown()
+        ignore_stop_signals()
     return 0
 
 
