@@ -36,5 +36,8 @@ def test_colcon_build_of_ros2_ws(tmp_path):
         assert os.access(path, os.X_OK), f'{path} is not executable'
     scenarios = tmp_path / 'install' / 'prvo_sim' / 'share' / 'prvo_sim' / 'scenarios'
     assert (scenarios / 'circle8.yaml').is_file()
+    share = scenarios.parent
+    assert (share / 'launch' / 'scenario.launch.py').is_file()
+    assert (share / 'rviz' / 'prvo.rviz').is_file()
     # colcon builds out of tree: nothing may be left in the sources.
     assert not list((REPOSITORY / 'src').glob('*/build'))

@@ -4,6 +4,8 @@ import math
 import os
 import re
 import signal
+import subprocess
+import sys
 
 from diagnostic_msgs.msg import DiagnosticStatus
 import numpy as np
@@ -135,6 +137,10 @@ def test_sigint_recorder_remembers_the_signal_and_keeps_keyboard_interrupt():
             for _ in range(1000):
                 pass
         assert sigint.received is True
+        # A second SIGINT only records: it would land in the node's teardown.
+        os.kill(os.getpid(), signal.SIGINT)
+        for _ in range(1000):
+            pass
     finally:
         signal.signal(signal.SIGINT, previous)
 
@@ -183,3 +189,25 @@ def test_qos_watch_reports_each_incompatible_remote_endpoint_once(probe):
         assert watch.check() == []
     finally:
         watcher.destroy_node()
+
+
+# A process whose SIGINT handler was a Python function (as a node's is) and that gets SIGINT
+# while Python finalizes it, after main() returned: here from an object cleared at exit.
+_LATE_SIGINT = """
+import os, signal, sys
+from prvo_msgs_util import ignore_stop_signals
+class Late:
+    def __del__(self, kill=os.kill, pid=os.getpid()):
+        kill(pid, signal.SIGINT)
+late = Late()
+signal.signal(signal.SIGINT, lambda signal_number, frame: None)
+if sys.argv[1] == 'ignore':
+    ignore_stop_signals()
+sys.exit(0)
+"""
+
+
+@pytest.mark.parametrize('ending, returncode', [('handler', -signal.SIGINT), ('ignore', 0)])
+def test_ignored_stop_signals_stay_ignored_while_python_finalizes(ending, returncode):
+    finished = subprocess.run([sys.executable, '-c', _LATE_SIGINT, ending], timeout=60)
+    assert finished.returncode == returncode

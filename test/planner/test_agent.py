@@ -271,3 +271,37 @@ def test_an_accelerating_agent_changes_its_command_by_at_most_the_limit_and_brak
     # It arrived and came to rest at the limit, near the goal: no overshoot beyond braking.
     assert arrived_at is not None and np.all(previous == 0.0)
     assert abs(position[0] - 0.6) < 0.15
+
+
+def test_a_neighbour_heard_again_after_it_was_dropped_is_resumed():
+    agent = PlannerAgent('self', CONFIG, SETTINGS, GOAL)
+    data = team(t0=30.0)
+    assert agent.receive_neighbour('a', data['a'][0], 0.0).status == 'fused'
+    assert [robot for robot, _ in agent.forget_neighbours(10.0)] == ['a']
+    fusion = agent.receive_neighbour('a', team(t0=0.0)['a'][0], 10.5)
+    assert fusion.status == 'resumed' and fusion.accepted and 'again' in fusion.detail
+    assert agent.receive_neighbour('a', team(t0=0.0)['a'][1], 10.6).status == 'fused'
+
+
+def _plan_at(agent, stamp, position):
+    agent.receive_own(Measurement(stamp, np.asarray(position), np.zeros(2), 1e-8 * np.eye(4)),
+                      stamp)
+    return agent.plan()
+
+
+def test_an_arrival_counts_once_until_the_robot_left_the_goal_or_got_a_new_one():
+    agent = PlannerAgent('self', CONFIG, SETTINGS, GOAL)
+    tolerance = SETTINGS.goal_tolerance
+    # Measurements a second apart: the tracked position follows them closely.
+    offsets = [0.25, 1.5, 0.25, 1.5, 0.25, 3.0, 3.0, 3.0, 0.25, 0.25, 0.25, 0.25]
+    commands = [_plan_at(agent, float(step), GOAL - [offset * tolerance, 0.0])
+                for step, offset in enumerate(offsets, start=1)]
+    arrivals = [command.arrival for command in commands]
+    # Noise in and out of the tolerance: the first arrival only.
+    assert arrivals[:5] == [True, False, False, False, False]
+    assert [command.arrived for command in commands[:5]] == [True, False, True, False, True]
+    # Back from 0.6 m (three tolerances): one more arrival, once the robot is in again.
+    assert not any(command.arrived for command in commands[5:8])
+    assert sum(arrivals[8:]) == 1 and commands[-1].arrived
+    agent.set_goal(GOAL + [0.1, 0.0])
+    assert _plan_at(agent, 13.0, GOAL).arrival

@@ -15,14 +15,14 @@ from prvo_planner.parameters import (
     PARAMETERS,
     ParameterError,
     check_parameter,
+    check_parameter_update,
+    goal_array,
+    is_dumped_unset,
     nearest_name,
+    neighbour_names,
     planner_config_from,
 )
-from prvo_planner.planner_node import (
-    _PARAMETERS,
-    _goal_from_parameter,
-    _neighbour_list,
-)
+from prvo_planner.planner_node import _PARAMETERS
 
 
 def test_defaults_give_a_valid_configuration():
@@ -95,10 +95,10 @@ def test_robots_standing_beyond_the_goal_do_not_block_it():
 
 def test_goal_accepts_any_sequence_of_numbers():
     """Rclpy hands a double array set at runtime over as array.array('d')."""
-    np.testing.assert_array_equal(_goal_from_parameter(array.array('d', [2.0, -1.0])),
+    np.testing.assert_array_equal(goal_array(array.array('d', [2.0, -1.0])),
                                   [2.0, -1.0])
-    np.testing.assert_array_equal(_goal_from_parameter([4, 0]), [4.0, 0.0])
-    assert _goal_from_parameter(None) is None
+    np.testing.assert_array_equal(goal_array([4, 0]), [4.0, 0.0])
+    assert goal_array(None) is None
 
 
 @pytest.mark.parametrize('value, reason', [
@@ -111,17 +111,17 @@ def test_goal_accepts_any_sequence_of_numbers():
 ])
 def test_bad_goals_are_refused_naming_goal_and_value(value, reason):
     with pytest.raises(ParameterError) as raised:
-        _goal_from_parameter(value)
+        goal_array(value)
     assert str(raised.value).startswith('goal') and reason in str(raised.value)
 
 
 def test_neighbour_names_must_be_robot_names():
-    assert _neighbour_list(['robot_1', '', 'robot_2']) == ['robot_1', 'robot_2']
-    assert _neighbour_list(None) is None
+    assert neighbour_names(['robot_1', '', 'robot_2']) == ['robot_1', 'robot_2']
+    assert neighbour_names(None) is None
     with pytest.raises(ParameterError, match="neighbors: robot name '2bad' is not a valid"):
-        _neighbour_list(['robot_1', '2bad'])
+        neighbour_names(['robot_1', '2bad'])
     with pytest.raises(ParameterError, match='neighbors: expected a list of strings'):
-        _neighbour_list([1, 2])
+        neighbour_names([1, 2])
 
 
 def test_a_zero_neighbour_radius_is_refused():
@@ -193,3 +193,15 @@ def test_descriptors_state_the_specs_types_and_ranges():
     assert neighbours.read_only and neighbours.dynamic_typing
     _, horizon = _PARAMETERS['time_horizon']
     assert not horizon.floating_point_range
+
+
+def test_a_dumped_null_reads_as_unset_only_for_parameters_that_may_be_unset():
+    assert is_dumped_unset('neighbors', 'null') and is_dumped_unset('goal', '~')
+    assert not is_dumped_unset('model', 'null')
+    assert not is_dumped_unset('goal', None) and not is_dumped_unset('neighbors', ['null'])
+
+
+def test_a_running_planner_refuses_unsetting_a_parameter():
+    with pytest.raises(ParameterError, match='^goal: cannot be unset'):
+        check_parameter_update('goal', None)
+    assert check_parameter_update('goal', array.array('d', [2.0, -1.0])) == [2.0, -1.0]

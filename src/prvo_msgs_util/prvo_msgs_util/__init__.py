@@ -26,7 +26,7 @@ from prvo_msgs_util.diagnostics import (
     make_diagnostic_array,
     make_diagnostic_status,
 )
-from prvo_msgs_util.interrupts import SigintRecorder
+from prvo_msgs_util.interrupts import SigintRecorder, ignore_stop_signals
 from prvo_msgs_util.markers import make_belief_markers
 from prvo_msgs_util.qos import (
     CLOCK_QOS,
@@ -63,7 +63,7 @@ __all__ = [
     'MAX_SPEED_COMPONENT', 'MAX_VARIANCE', 'MAX_WORLD_COORDINATE',
     'MessageFault', 'ODOM', 'ODOM_LATEST_QOS', 'ODOM_QOS', 'OdometryMeasurement',
     'QosWatch', 'quiet_publisher_events', 'quiet_subscription_events',
-    'SigintRecorder', 'body_to_world', 'check_world_point',
+    'SigintRecorder', 'ignore_stop_signals', 'body_to_world', 'check_world_point',
     'diagnostic_values', 'freeze_startup_objects', 'spin_events',
     'make_belief_markers', 'make_diagnostic_array', 'make_diagnostic_status', 'make_odometry',
     'make_pose_stamped', 'make_twist', 'make_twist_stamped', 'odometry_to_measurement',

@@ -343,9 +343,12 @@ def twist_to_velocity(msg):
 def pose_stamped_to_goal(msg, expected_frame=WORLD_FRAME):
     """Return the x, y position of a PoseStamped goal.
 
-    Raises MessageFault on NaN/inf, a coordinate beyond MAX_WORLD_COORDINATE or a bad frame.
+    An empty frame_id (a message published without a header, as `ros2 topic pub` sends it) is
+    EXPECTED_FRAME. Raises MessageFault on NaN/inf, a coordinate beyond MAX_WORLD_COORDINATE or
+    another frame.
     """
-    _check_frame(msg.header.frame_id, expected_frame, 'header.frame_id')
+    if msg.header.frame_id:
+        _check_frame(msg.header.frame_id, expected_frame, 'header.frame_id')
     check_world_point((msg.pose.position.x, msg.pose.position.y), 'pose.position')
     return np.array([msg.pose.position.x, msg.pose.position.y])
 

@@ -19,6 +19,9 @@ from prvo_planner.tracks import TrackTable, fuse
 
 # Plans for a made-up encounter in warm_up().
 _WARM_UP_PLANS = 3
+# An arrival counts again only after the robot was this many goal tolerances from the goal:
+# odometry noise carries a robot standing at its goal in and out of the tolerance.
+DEPARTURE_TOLERANCES = 2.0
 
 
 def preferred_velocity(position, goal, max_speed, approach_time, goal_tolerance,
@@ -106,7 +109,7 @@ class Command:
     it into the body frame. `result` is the core's PlanResult, None when the robot stands still
     (no goal, or arrived). `own` and `neighbours` are the `StateBelief`s at `stamp`. `drive`
     is a unicycle's (forward speed, turn rate) that tracks `velocity`, None for a holonomic
-    robot.
+    robot. `arrival` marks the first plan at the goal since the robot set off for it.
     """
 
     stamp: float
@@ -118,6 +121,7 @@ class Command:
     neighbours: tuple
     neighbour_radius: float
     drive: tuple = None
+    arrival: bool = False
 
 
 @dataclasses.dataclass(frozen=True)
@@ -126,7 +130,7 @@ class PlanRequest:
 
     `problem` is the argument tuple of `prvo_planner.core.plan_velocity` (ego, neighbours,
     v_pref, config, previous, limits), or None when the robot stands still (no goal, or
-    arrived).
+    arrived). `arrival` as in `Command`.
     """
 
     stamp: float
@@ -134,6 +138,7 @@ class PlanRequest:
     neighbours: tuple
     neighbour_radius: float
     problem: tuple
+    arrival: bool = False
 
 
 class PlannerAgent:
@@ -174,6 +179,8 @@ class PlannerAgent:
         self.listed_neighbours = (
             None if listed_neighbours is None else set(listed_neighbours) - {name})
         self.arrived = False
+        # Whether this goal's arrival was reported, until the robot leaves the goal's vicinity.
+        self._arrival_reported = False
         self._own_track = None
         self._owns_tracks = neighbour_tracks is None
         self._neighbour_tracks = (
@@ -208,9 +215,15 @@ class PlannerAgent:
         return [robot for robot in self._neighbour_tracks.names() if robot != self.name]
 
     def reconfigure(self, config, settings, goal):
-        """Take new parameters; the plan in progress and the tracks go on."""
+        """Take new parameters; the plan in progress and the tracks go on.
+
+        A GOAL other than the current one is taken as by `set_goal`; None keeps no goal.
+        """
         self.config, self.settings = config, settings
-        self.goal = None if goal is None else np.asarray(goal, dtype=float)
+        if goal is None:
+            self.goal = None
+        elif self.goal is None or not np.array_equal(self.goal, goal):
+            self.set_goal(goal)
         if self._owns_tracks:
             self._neighbour_tracks.acceleration_std = settings.acceleration_std
             self._neighbour_tracks.neighbor_timeout = settings.neighbor_timeout
@@ -219,6 +232,7 @@ class PlannerAgent:
         """Head for a new GOAL (2,): not arrived, no previous command to stay close to."""
         self.goal = np.asarray(goal, dtype=float)
         self.arrived = False
+        self._arrival_reported = False
         self._previous_velocity = None
 
     # Measurements -----------------------------------------------------------------------------
@@ -291,6 +305,7 @@ class PlannerAgent:
         v_pref, self.arrived = preferred_velocity(
             own.mean[:2], self.goal, max_speed, self.settings.approach_time,
             self.settings.goal_tolerance, self.settings.max_acceleration)
+        arrival = self._arrival(own.mean[:2])
         tracks = [self._neighbour_tracks.track(robot) for robot in self._neighbour_names()]
         neighbour_beliefs = tuple(track.belief_at(stamp) for track in tracks)
         if self._command_stamp is not None and 0.0 < stamp - self._command_stamp:
@@ -307,7 +322,17 @@ class PlannerAgent:
                 v_pref, dataclasses.replace(self.config, time_horizon=horizon),
                 self._previous_velocity, self._limits(stamp))
         return PlanRequest(stamp=stamp, own=own, neighbours=neighbour_beliefs,
-                           neighbour_radius=neighbour_radius, problem=problem)
+                           neighbour_radius=neighbour_radius, problem=problem, arrival=arrival)
+
+    def _arrival(self, position):
+        """Return whether arriving now is this goal's first arrival; track the departures."""
+        if self.arrived:
+            first, self._arrival_reported = not self._arrival_reported, True
+            return first
+        if self.goal is not None and np.hypot(*(self.goal - position)) > (
+                DEPARTURE_TOLERANCES * self.settings.goal_tolerance):
+            self._arrival_reported = False
+        return False
 
     def complete(self, request, result):
         """Return the `Command` of REQUEST given the core's RESULT (None: stand still).
@@ -331,7 +356,8 @@ class PlannerAgent:
         self._command_in_force, self._command_stamp = velocity, request.stamp
         return Command(stamp=request.stamp, velocity=velocity, yaw=self._own_yaw, result=result,
                        arrived=self.arrived, own=request.own, neighbours=request.neighbours,
-                       neighbour_radius=request.neighbour_radius, drive=drive)
+                       neighbour_radius=request.neighbour_radius, drive=drive,
+                       arrival=request.arrival)
 
     def _period(self, request):
         """Return the time [s] the command for REQUEST will be in force (0 before any)."""

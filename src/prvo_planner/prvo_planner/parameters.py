@@ -15,6 +15,7 @@ import numbers
 
 import numpy as np
 
+from prvo_msgs_util import validate_robot_name
 from prvo_planner.core import PlannerConfig
 from prvo_planner.core.config import METHODS, MODELS, RISKS
 
@@ -176,6 +177,9 @@ _SPECS = (
 # Every planner parameter by name, in declaration order.
 PARAMETERS = {spec.name: spec for spec in _SPECS}
 DEFAULTS = {spec.name: spec.default for spec in _SPECS}
+# How `ros2 param dump` writes an unset parameter (YAML's null): a parameters file hands it to
+# the node as a string.
+_DUMPED_NULLS = ('null', 'Null', 'NULL', '~')
 
 
 def type_name(value):
@@ -289,6 +293,45 @@ def check_parameter(name, value):
     if reason is not None:
         raise ParameterError(name, reason)
     return typed
+
+
+def is_dumped_unset(name, value):
+    """Whether VALUE of the parameter NAME, which may be unset, is a dump's null read back."""
+    spec = PARAMETERS.get(name)
+    return (spec is not None and spec.default is None and isinstance(value, str)
+            and value in _DUMPED_NULLS)
+
+
+def check_parameter_update(name, value):
+    """Return VALUE of a change of NAME while the planner runs, typed; raise ParameterError.
+
+    Unlike at start-up, None is refused: a parameter set to nothing would be undeclared, and
+    every later change of it would fail.
+    """
+    if value is None:
+        raise ParameterError(name, 'cannot be unset or deleted while the planner runs; set a '
+                             'new value instead')
+    return check_parameter(name, value)
+
+
+def goal_array(value):
+    """Return the goal (2,) of the `goal` parameter's VALUE, None when unset; ParameterError."""
+    goal = check_parameter('goal', value)
+    return None if goal is None else np.array(goal, dtype=float)
+
+
+def neighbour_names(value):
+    """Return the `neighbors` parameter's VALUE as a list of names, None to discover them."""
+    names = check_parameter('neighbors', value)
+    if names is None:
+        return None
+    for name in names:
+        if name:
+            try:
+                validate_robot_name(name)
+            except ValueError as error:
+                raise ParameterError('neighbors', str(error)) from None
+    return [name for name in names if name]
 
 
 def checked_parameters(values):

@@ -9,6 +9,7 @@ converts messages through prvo_msgs_util, feeds the agent, waits at most `sync_t
 neighbours and publishes the agent's commands.
 """
 
+import copy
 import functools
 import math
 import signal
@@ -18,7 +19,6 @@ import time
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import PoseStamped, Twist, TwistStamped
 from nav_msgs.msg import Odometry
-import numpy as np
 from rcl_interfaces.msg import (
     FloatingPointRange,
     IntegerRange,
@@ -47,6 +47,7 @@ from prvo_msgs_util import (
     MessageFault,
     QosWatch,
     freeze_startup_objects,
+    ignore_stop_signals,
     make_diagnostic_array,
     make_twist,
     make_twist_stamped,
@@ -57,7 +58,6 @@ from prvo_msgs_util import (
     robot_topic,
     serialized_odometry_to_measurement,
     spin_events,
-    validate_robot_name,
     world_to_body,
 )
 from prvo_planner.agent import AgentSettings, PlannerAgent
@@ -70,8 +70,11 @@ from prvo_planner.parameters import (
     STRING,
     STRING_ARRAY,
     ParameterError,
-    check_parameter,
+    check_parameter_update,
     checked_parameters,
+    goal_array,
+    is_dumped_unset,
+    neighbour_names,
     planner_config_from,
 )
 from prvo_planner.reports import plan_markers, plan_status
@@ -108,26 +111,6 @@ def _descriptor(spec):
 _PARAMETERS = {name: (spec.default, _descriptor(spec)) for name, spec in PARAMETERS.items()}
 
 
-def _goal_from_parameter(value):
-    """Return the goal (2,) from the `goal` parameter, None when unset; raise ParameterError."""
-    goal = check_parameter('goal', value)
-    return None if goal is None else np.array(goal, dtype=float)
-
-
-def _neighbour_list(value):
-    """Return the `neighbors` parameter as a list of names, None to discover them."""
-    names = check_parameter('neighbors', value)
-    if names is None:
-        return None
-    for name in names:
-        if name:
-            try:
-                validate_robot_name(name)
-            except ValueError as error:
-                raise ParameterError('neighbors', str(error)) from None
-    return [name for name in names if name]
-
-
 def _quiet_after_shutdown(callback):
     """Wrap the node's CALLBACK so that a ROS error once the context is shut down ends it.
 
@@ -150,20 +133,14 @@ class PlannerNode(Node):
 
     def __init__(self):
         super().__init__('planner')
-        for name, (default, descriptor) in _PARAMETERS.items():
-            self.declare_parameter(name, default, descriptor)
-        self._values = checked_parameters(
-            {name: self.get_parameter(name).value for name in _PARAMETERS})
-        self._config = planner_config_from(self._values)
-        self._goal = _goal_from_parameter(self._values['goal'])
-        self._neighbours_listed = _neighbour_list(self._values['neighbors'])
+        try:
+            self._declare_parameters()
+        except (ParameterError, InvalidParameterTypeException,
+                InvalidParameterValueException) as error:
+            # Logged here, under the node's logger: the caller has no node to name.
+            self.get_logger().fatal(f'invalid parameter: {error}')
+            raise
         self.add_on_set_parameters_callback(self._on_set_parameters)
-
-        self._robot = self.get_namespace().strip('/')
-        if not self._robot or '/' in self._robot:
-            raise ParameterError(
-                '__ns', f'run the planner in a robot namespace (-r __ns:=/robot_0), '
-                f'got namespace {self.get_namespace()!r}')
         self._agent = PlannerAgent(
             self._robot, self._config, AgentSettings.from_parameters(self._values), self._goal,
             self._neighbours_listed)
@@ -215,15 +192,41 @@ class PlannerNode(Node):
 
     # Parameters -------------------------------------------------------------------------------
 
+    def _declare_parameters(self):
+        """Declare every parameter and check its start-up value; raise ParameterError."""
+        for name, (default, descriptor) in _PARAMETERS.items():
+            if default is None:
+                # Declared writable first, to be declared again: unset if its value is the null
+                # of a parameters file that `ros2 param dump` wrote.
+                writable = copy.copy(descriptor)
+                writable.read_only = False
+                value = self.declare_parameter(name, default, writable).value
+                self.undeclare_parameter(name)
+                self.declare_parameter(name, default, descriptor,
+                                       ignore_override=is_dumped_unset(name, value))
+            else:
+                self.declare_parameter(name, default, descriptor)
+        self._values = checked_parameters(
+            {name: self.get_parameter(name).value for name in _PARAMETERS})
+        self._config = planner_config_from(self._values)
+        self._goal = goal_array(self._values['goal'])
+        self._neighbours_listed = neighbour_names(self._values['neighbors'])
+        self._robot = self.get_namespace().strip('/')
+        if not self._robot or '/' in self._robot:
+            raise ParameterError(
+                '__ns', f'run the planner in a robot namespace (-r __ns:=/robot_0), '
+                f'got namespace {self.get_namespace()!r}')
+
     def _on_set_parameters(self, parameters):
         """Accept a parameter change only if the whole configuration stays valid."""
         values = dict(self._values)
         try:
             for parameter in parameters:
                 if parameter.name in values:
-                    values[parameter.name] = check_parameter(parameter.name, parameter.value)
+                    values[parameter.name] = check_parameter_update(parameter.name,
+                                                                    parameter.value)
             config = planner_config_from(values)
-            goal = _goal_from_parameter(values['goal'])
+            goal = goal_array(values['goal'])
         except ParameterError as error:
             return SetParametersResult(successful=False, reason=str(error))
         self._values, self._config, self._goal = values, config, goal
@@ -258,7 +261,7 @@ class PlannerNode(Node):
 
     def _report(self, fusion, topic):
         """Log what a fused measurement's outcome tells: faults throttled, restarts once."""
-        if fusion.status == 'restarted':
+        if fusion.status in ('restarted', 'resumed'):
             self.get_logger().info(f'odometry on {topic}: {fusion.detail}')
         elif fusion.status in ('stale', 'refused'):
             self._warn((topic, fusion.status), f'skipping odometry on {topic}: {fusion.detail}')
@@ -302,7 +305,9 @@ class PlannerNode(Node):
         except MessageFault as fault:
             self._warn('goal', f'ignoring goal on {robot_topic(self._robot, GOAL_POSE)}: {fault}')
             return
-        self._agent.set_goal(goal)
+        # Through the parameter: `goal` shows the goal in force, and other changes keep it. The
+        # parameter's rules hold: pose_stamped_to_goal checked the same coordinate bound.
+        self.set_parameters([Parameter('goal', Parameter.Type.DOUBLE_ARRAY, goal.tolist())])
         self.get_logger().info(f'new goal {goal.tolist()}')
 
     @_quiet_after_shutdown
@@ -352,11 +357,10 @@ class PlannerNode(Node):
     def _plan(self):
         """Plan for the pending stamp and publish the command, diagnostics and markers."""
         self._sync_timer.cancel()
-        was_arrived = self._agent.arrived
         started = time.perf_counter()
         command = self._agent.plan()
         plan_time_ms = (time.perf_counter() - started) * 1e3
-        if command.arrived and not was_arrived:
+        if command.arrival:
             self.get_logger().info(f'arrived at {self._agent.goal.tolist()}')
         # cmd_vel is in the body frame: rotate the world-frame plan by minus the robot's yaw; a
         # unicycle drives forward and turns (its tracking controller's command), nothing else.
@@ -425,9 +429,8 @@ def main(args=None):
             spin_events(node)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
-    except (ParameterError, InvalidParameterTypeException,
-            InvalidParameterValueException) as error:
-        rclpy.logging.get_logger('planner').fatal(f'invalid parameter: {error}')
+    except (ParameterError, InvalidParameterTypeException, InvalidParameterValueException):
+        # PlannerNode logged it.
         return 2
     except RuntimeError as error:
         if node is None and not rclpy.ok():
@@ -444,6 +447,7 @@ def main(args=None):
         if node is not None:
             node.destroy_node()
         rclpy.try_shutdown()
+        ignore_stop_signals()
     return 0
 
 

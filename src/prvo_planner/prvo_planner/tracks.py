@@ -26,10 +26,11 @@ MAX_STAMP_JUMP_SECONDS = 10.0
 class Fusion:
     """What became of one measurement.
 
-    `status` is 'fused' or 'restarted' (accepted; 'restarted': its time went back, so the track
-    started over), 'duplicate' (the stamp of the last accepted one), or a fault that left the
-    track as it was: 'stale' (a little behind the last stamp), 'refused' (far ahead of it, or
-    numerically unusable). `detail` says why, with the values.
+    `status` is 'fused', 'restarted' or 'resumed' (accepted; 'restarted': its time went back, so
+    the track started over; 'resumed': a new track of a robot dropped before), 'duplicate'
+    (the stamp of the last accepted one), or a fault that left the track as it was: 'stale' (a
+    little behind the last stamp), 'refused' (far ahead of it, or numerically unusable).
+    `detail` says why, with the values.
     """
 
     status: str
@@ -38,7 +39,7 @@ class Fusion:
     @property
     def accepted(self):
         """Whether the measurement reached the track."""
-        return self.status in ('fused', 'restarted')
+        return self.status in ('fused', 'restarted', 'resumed')
 
 
 class Track:
@@ -153,6 +154,8 @@ class TrackTable:
         self.acceleration_std = acceleration_std
         self.neighbor_timeout = neighbor_timeout
         self._tracks = {}
+        # Robots dropped for silence or absence: a new track of one of them is 'resumed'.
+        self._dropped = set()
 
     def __contains__(self, robot):
         return robot in self._tracks
@@ -170,6 +173,10 @@ class TrackTable:
         track, fusion = fuse(self._tracks.get(robot), measurement, now, self.acceleration_std,
                              self.neighbor_timeout)
         self._tracks[robot] = track
+        if fusion.accepted and robot in self._dropped:
+            self._dropped.discard(robot)
+            return Fusion('resumed', f'tracking {robot} again from {measurement.stamp:.3f} s, '
+                          'after it was dropped')
         return fusion
 
     def forget(self, now, wanted=None):
@@ -182,5 +189,6 @@ class TrackTable:
             silent = now - track.last_heard
             if (wanted is not None and robot not in wanted) or silent > self.neighbor_timeout:
                 del self._tracks[robot]
+                self._dropped.add(robot)
                 dropped.append((robot, silent))
         return dropped

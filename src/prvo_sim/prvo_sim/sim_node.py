@@ -43,6 +43,7 @@ from prvo_msgs_util import (
     QosWatch,
     SigintRecorder,
     freeze_startup_objects,
+    ignore_stop_signals,
     quiet_publisher_events,
     quiet_subscription_events,
     robot_topic,
@@ -410,6 +411,7 @@ def main(args=None):
         if node is not None:
             node.destroy_node()
         rclpy.try_shutdown()
+        ignore_stop_signals()
     return 0
 
 

@@ -208,13 +208,22 @@ def start_planners(children, spec):
         children.start(f'planner_{robot.name}', argv)
 
 
+def sim_parameters(scenario, mode, seed, observers=()):
+    """Return the `-p` parameters of the simulator running SCENARIO, ROS-formatted.
+
+    The simulator takes no step until every node in OBSERVERS listens to it.
+    """
+    parameters = {'scenario': str(pathlib.Path(scenario.path).resolve()), 'mode': mode,
+                  'seed': str(int(seed)), 'step_timeout': repr(STEP_TIMEOUT)}
+    if observers:
+        parameters['observers'] = '[' + ', '.join(f"'{name}'" for name in observers) + ']'
+    return parameters
+
+
 def start_sim(children, spec, observer):
     """Start the simulator, which takes no step until node OBSERVER listens to it."""
-    sim_parameters = {'scenario': str(pathlib.Path(spec.scenario.path).resolve()),
-                      'mode': spec.mode, 'seed': str(int(spec.seed)),
-                      'step_timeout': repr(STEP_TIMEOUT), 'observers': f"['{observer}']"}
     argv = [*spec.sim_command, '--ros-args', '-r', f'__node:={SIM_NODE}']
-    for key, value in sim_parameters.items():
+    for key, value in sim_parameters(spec.scenario, spec.mode, spec.seed, [observer]).items():
         argv += ['-p', f'{key}:={value}']
     children.start('sim', argv)
 
