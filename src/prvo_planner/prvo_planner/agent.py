@@ -3,9 +3,10 @@
 A `PlannerAgent` tracks its own robot and its neighbours from odometry measurements
 (`prvo_msgs_util.OdometryMeasurement` or anything with the same fields), waits for the
 neighbours' measurements of the stamp it plans for, applies the goal logic and plans with
-`prvo_planner.core.plan_velocity`. It never reads a clock: every call that needs the time of day
-takes `now`, monotonic seconds of the caller's choosing. The planner node wraps it in ROS
-endpoints; an in-process engine can feed it step by step.
+`prvo_planner.core.plan_velocity`, taking each neighbour's size and share of the avoidance from
+its announcements (`NeighbourAnnouncement`). It never reads a clock: every call that needs the
+time of day takes `now`, monotonic seconds of the caller's choosing. The planner node wraps it
+in ROS endpoints; an in-process engine can feed it step by step.
 """
 
 import dataclasses
@@ -13,6 +14,7 @@ import dataclasses
 import numpy as np
 
 from prvo_planner.core import AgentBelief, plan_velocity
+from prvo_planner.core.beliefs import validated_share
 from prvo_planner.estimation import ConstantVelocityTracker, TrackFault
 
 # A stamp this far behind a track's last one means its source restarted (e.g. the simulator):
@@ -24,6 +26,31 @@ _TIME_RESET_SECONDS = 1.0
 MAX_STAMP_JUMP_SECONDS = 10.0
 # Plans for a made-up encounter in warm_up().
 _WARM_UP_PLANS = 3
+# Every model of the core (prvo and its baselines rvo, inflate, mc) is reciprocal: it takes half
+# of a pair's avoidance against a neighbour that takes the other half.
+RECIPROCAL_SHARE = 0.5
+# A neighbour that has not announced its share is assumed not to avoid.
+UNANNOUNCED_SHARE = 0.0
+
+
+@dataclasses.dataclass(frozen=True)
+class NeighbourAnnouncement:
+    """What a robot states about itself: its disk radius [m] and its share of the avoidance.
+
+    `avoidance_share` is in [0, 1): 0.5 for a reciprocating planner, 0 for a robot that does
+    not avoid. Raises ValueError naming the field for a value the planner cannot use.
+    """
+
+    radius: float
+    avoidance_share: float
+
+    def __post_init__(self):
+        radius = float(self.radius)
+        if not (np.isfinite(radius) and radius > 0.0):
+            raise ValueError(f'radius must be finite and > 0, got {self.radius!r}')
+        object.__setattr__(self, 'radius', radius)
+        object.__setattr__(self, 'avoidance_share',
+                           validated_share(self.avoidance_share, 'avoidance_share'))
 
 
 def preferred_velocity(position, goal, max_speed, approach_time, goal_tolerance):
@@ -52,12 +79,12 @@ def goal_horizon(distance_to_goal, max_speed, approach_time, time_horizon):
 class AgentSettings:
     """The agent's settings besides the core's PlannerConfig; names as the node's parameters.
 
-    `neighbor_radius` < 0 means the same as `radius`; `neighbor_timeout` is in the seconds of
-    the `now` arguments.
+    `unknown_neighbor_radius` is assumed for a neighbour that announced no footprint;
+    `neighbor_timeout` is in the seconds of the `now` arguments.
     """
 
     radius: float = 0.3
-    neighbor_radius: float = -1.0
+    unknown_neighbor_radius: float = 0.5
     approach_time: float = 0.5
     goal_tolerance: float = 0.2
     acceleration_std: float = 1.0
@@ -67,11 +94,6 @@ class AgentSettings:
     def from_parameters(cls, values):
         """Return the settings named in the mapping VALUES (extra names are ignored)."""
         return cls(**{field.name: values[field.name] for field in dataclasses.fields(cls)})
-
-    @property
-    def neighbour_radius_in_force(self):
-        """Return the radius assumed for every neighbour [m]."""
-        return self.radius if self.neighbor_radius < 0.0 else self.neighbor_radius
 
 
 @dataclasses.dataclass(frozen=True)
@@ -99,7 +121,9 @@ class Command:
 
     `velocity` (2,) is in the world frame; `yaw` is the robot's yaw measured at `stamp`, to turn
     it into the body frame. `result` is the core's PlanResult, None when the robot stands still
-    (no goal, or arrived). `own` and `neighbours` are the `StateBelief`s at `stamp`.
+    (no goal). `own` and `neighbours` are the `StateBelief`s at `stamp`; `neighbour_names` and
+    `announcements` (`NeighbourAnnouncement`s, defaults for what was not announced) are in the
+    same order.
     """
 
     stamp: float
@@ -109,7 +133,16 @@ class Command:
     arrived: bool
     own: object
     neighbours: tuple
-    neighbour_radius: float
+    neighbour_names: tuple
+    announcements: tuple
+
+    def announcement_values(self):
+        """Return {'neighbour.<robot>.radius': m, 'neighbour.<robot>.avoidance_share': a}."""
+        values = {}
+        for robot, announcement in zip(self.neighbour_names, self.announcements, strict=True):
+            values[f'neighbour.{robot}.radius'] = announcement.radius
+            values[f'neighbour.{robot}.avoidance_share'] = announcement.avoidance_share
+        return values
 
 
 @dataclasses.dataclass(frozen=True)
@@ -117,13 +150,14 @@ class PlanRequest:
     """One plan about to be made: the beliefs at `stamp` and the core's problem.
 
     `problem` is the argument tuple of `prvo_planner.core.plan_velocity` (ego, neighbours,
-    v_pref, config, previous), or None when the robot stands still (no goal, or arrived).
+    v_pref, config, previous), or None when the robot stands still (no goal).
     """
 
     stamp: float
     own: object
     neighbours: tuple
-    neighbour_radius: float
+    neighbour_names: tuple
+    announcements: tuple
     problem: tuple
 
 
@@ -160,7 +194,8 @@ class PlannerAgent:
         Robots to wait for from the first own measurement on (for up to `neighbor_timeout`)
         before the first plan; None: plan with whoever has been heard.
 
-    Use: `receive_own` and `receive_neighbour` for every measurement; when `ready(now)`, or when
+    Use: `receive_own` and `receive_neighbour` for every measurement, `receive_footprint` and
+    `receive_share` for every announcement; when `ready(now)`, or when
     the caller's wait for neighbours (`sync_timeout`) ran out and `awaiting_listed(now)` is
     false, `plan()` returns the `Command` for the pending own stamp.
 
@@ -177,6 +212,9 @@ class PlannerAgent:
         self.arrived = False
         self._own_track = None
         self._neighbour_tracks = {}
+        # Announced by each neighbour: robot -> radius, robot -> share.
+        self._announced_radius = {}
+        self._announced_share = {}
         self._pending_stamp = None
         self._own_yaw = 0.0
         # The last planned velocity in the world frame, for the inertia term; None after a stop.
@@ -227,6 +265,43 @@ class PlannerAgent:
         track, fusion = self._fuse(self._neighbour_tracks.get(robot), measurement, now)
         self._neighbour_tracks[robot] = track
         return fusion
+
+    @property
+    def own_announcement(self):
+        """What this robot announces: its radius, and its share (none while it has no goal).
+
+        Without a goal it does not plan, so it takes no part in any avoidance.
+        """
+        return NeighbourAnnouncement(
+            self.settings.radius, UNANNOUNCED_SHARE if self.goal is None else RECIPROCAL_SHARE)
+
+    def receive_footprint(self, robot, radius):
+        """Take neighbour ROBOT's announced RADIUS [m].
+
+        Raises ValueError naming the value if it is not finite and > 0; the neighbour then keeps
+        what it had (its last valid announcement, else `unknown_neighbor_radius`).
+        """
+        self._announced_radius[robot] = NeighbourAnnouncement(
+            radius, UNANNOUNCED_SHARE).radius
+
+    def receive_share(self, robot, avoidance_share):
+        """Take neighbour ROBOT's announced share of the avoidance.
+
+        Raises ValueError naming the value if it is not in [0, 1); the neighbour then keeps what
+        it had (its last valid announcement, else not avoiding).
+        """
+        self._announced_share[robot] = validated_share(avoidance_share, 'avoidance_share')
+
+    def forget_announcements(self, robot):
+        """Drop what ROBOT announced (it left: a robot of that name may come back another)."""
+        self._announced_radius.pop(robot, None)
+        self._announced_share.pop(robot, None)
+
+    def announcement_of(self, robot):
+        """Return the `NeighbourAnnouncement` planned with for ROBOT, defaults filled in."""
+        return NeighbourAnnouncement(
+            self._announced_radius.get(robot, self.settings.unknown_neighbor_radius),
+            self._announced_share.get(robot, UNANNOUNCED_SHARE))
 
     def forget_neighbours(self, now, wanted=None):
         """Drop neighbours silent longer than neighbor_timeout, or not in WANTED (if given).
@@ -324,26 +399,33 @@ class PlannerAgent:
             raise RuntimeError('plan() without a pending own measurement')
         stamp, self._pending_stamp = self._pending_stamp, None
         own = self._own_track.tracker.belief_at(stamp)
-        neighbour_radius = self.settings.neighbour_radius_in_force
         max_speed = self.config.max_speed
         v_pref, self.arrived = preferred_velocity(
             own.mean[:2], self.goal, max_speed, self.settings.approach_time,
             self.settings.goal_tolerance)
+        names = tuple(self._neighbour_tracks)
         neighbour_beliefs = tuple(
-            track.tracker.belief_at(stamp) for track in self._neighbour_tracks.values())
+            self._neighbour_tracks[robot].tracker.belief_at(stamp) for robot in names)
+        announcements = tuple(self.announcement_of(robot) for robot in names)
         problem = None
-        if not (self.arrived or self.goal is None):
-            horizon = goal_horizon(
+        if self.goal is not None:
+            # At its goal the robot keeps planning, with v_pref = 0: it stands while nobody
+            # comes and takes its share of the avoidance when someone does, over the whole
+            # horizon (its neighbours count on that share).
+            horizon = self.config.time_horizon if self.arrived else goal_horizon(
                 float(np.hypot(*(self.goal - own.mean[:2]))), max_speed,
                 self.settings.approach_time, self.config.time_horizon)
             problem = (
                 AgentBelief(own.mean[:2], own.mean[2:], own.covariance, self.settings.radius),
                 [AgentBelief(belief.mean[:2], belief.mean[2:], belief.covariance,
-                             neighbour_radius) for belief in neighbour_beliefs],
+                             announcement.radius, announcement.avoidance_share)
+                 for belief, announcement in zip(neighbour_beliefs, announcements,
+                                                 strict=True)],
                 v_pref, dataclasses.replace(self.config, time_horizon=horizon),
                 self._previous_velocity)
         return PlanRequest(stamp=stamp, own=own, neighbours=neighbour_beliefs,
-                           neighbour_radius=neighbour_radius, problem=problem)
+                           neighbour_names=names, announcements=announcements,
+                           problem=problem)
 
     def complete(self, request, result):
         """Return the `Command` of REQUEST given the core's RESULT (None: stand still)."""
@@ -351,7 +433,8 @@ class PlannerAgent:
         self._previous_velocity = None if result is None else velocity
         return Command(stamp=request.stamp, velocity=velocity, yaw=self._own_yaw, result=result,
                        arrived=self.arrived, own=request.own, neighbours=request.neighbours,
-                       neighbour_radius=request.neighbour_radius)
+                       neighbour_names=request.neighbour_names,
+                       announcements=request.announcements)
 
     def warm_up(self):
         """Plan for a made-up encounter a few times; no state of the agent changes.

@@ -75,6 +75,13 @@ class InProcessTeam:
         self.world = TeamWorld(scenario, seed)
         self.agents = [agent_of(robot.name, values)
                        for robot, values in zip(scenario.robots, planner_values, strict=True)]
+        # What each planner node would announce, latched, before the first step.
+        for agent in self.agents:
+            for other in self.agents:
+                if other is not agent:
+                    announcement = other.own_announcement
+                    agent.receive_footprint(other.name, announcement.radius)
+                    agent.receive_share(other.name, announcement.avoidance_share)
 
     @property
     def finished(self):
