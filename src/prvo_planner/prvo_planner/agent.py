@@ -26,6 +26,8 @@ _TIME_RESET_SECONDS = 1.0
 MAX_STAMP_JUMP_SECONDS = 10.0
 # Plans for a made-up encounter in warm_up().
 _WARM_UP_PLANS = 3
+# A command below this [m/s] is standing still.
+_STANDING_SPEED = 1e-6
 # Every model of the core (prvo and its baselines rvo, inflate, mc) is reciprocal: it takes half
 # of a pair's avoidance against a neighbour that takes the other half.
 RECIPROCAL_SHARE = 0.5
@@ -75,6 +77,21 @@ def goal_horizon(distance_to_goal, max_speed, approach_time, time_horizon):
     return min(time_horizon, distance_to_goal / max_speed + approach_time)
 
 
+def nobody_comes(problem):
+    """Whether standing still meets every neighbour's condition on the mean states.
+
+    PROBLEM is the argument tuple of `plan_velocity`. Standing still is judged as the
+    deterministic RVO baseline judges it (means only, the neighbours' shares and sizes): under
+    noise the relative velocity of two robots that both stand has no mean direction, and no
+    chance constraint can certify it, although nobody comes.
+    """
+    ego, neighbours, v_pref, config, _ = problem
+    result = plan_velocity(ego, neighbours, v_pref,
+                           dataclasses.replace(config, model='rvo', inertia=0.0))
+    # The core keeps its choice a hair inside a feasible interval: zero comes out as ~1e-9 m/s.
+    return result.feasible and float(np.hypot(*result.velocity)) <= _STANDING_SPEED
+
+
 @dataclasses.dataclass(frozen=True)
 class AgentSettings:
     """The agent's settings besides the core's PlannerConfig; names as the node's parameters.
@@ -121,9 +138,9 @@ class Command:
 
     `velocity` (2,) is in the world frame; `yaw` is the robot's yaw measured at `stamp`, to turn
     it into the body frame. `result` is the core's PlanResult, None when the robot stands still
-    (no goal). `own` and `neighbours` are the `StateBelief`s at `stamp`; `neighbour_names` and
-    `announcements` (`NeighbourAnnouncement`s, defaults for what was not announced) are in the
-    same order.
+    (no goal, or at its goal while nobody comes). `own` and `neighbours` are the `StateBelief`s
+    at `stamp`; `neighbour_names` and `announcements` (`NeighbourAnnouncement`s, defaults for
+    what was not announced) are in the same order.
     """
 
     stamp: float
@@ -150,7 +167,8 @@ class PlanRequest:
     """One plan about to be made: the beliefs at `stamp` and the core's problem.
 
     `problem` is the argument tuple of `prvo_planner.core.plan_velocity` (ego, neighbours,
-    v_pref, config, previous), or None when the robot stands still (no goal).
+    v_pref, config, previous), or None when the robot stands still (no goal, or at its goal
+    while nobody comes).
     """
 
     stamp: float
@@ -268,12 +286,16 @@ class PlannerAgent:
 
     @property
     def own_announcement(self):
-        """What this robot announces: its radius, and its share (none while it has no goal).
+        """What this robot announces: its radius, and its share of the avoidance.
 
-        Without a goal it does not plan, so it takes no part in any avoidance.
+        On its way, the reciprocal share. Without a goal it does not plan, and at its goal it
+        stands until someone comes: its neighbours must not count on it mirroring their moves,
+        as a reciprocal planner does (a robot heading away from a standing one would otherwise
+        see the standing one's half coming after it), so it announces none.
         """
+        moving = self.goal is not None and not self.arrived
         return NeighbourAnnouncement(
-            self.settings.radius, UNANNOUNCED_SHARE if self.goal is None else RECIPROCAL_SHARE)
+            self.settings.radius, RECIPROCAL_SHARE if moving else UNANNOUNCED_SHARE)
 
     def receive_footprint(self, robot, radius):
         """Take neighbour ROBOT's announced RADIUS [m].
@@ -423,6 +445,8 @@ class PlannerAgent:
                                                  strict=True)],
                 v_pref, dataclasses.replace(self.config, time_horizon=horizon),
                 self._previous_velocity)
+            if self.arrived and nobody_comes(problem):
+                problem = None
         return PlanRequest(stamp=stamp, own=own, neighbours=neighbour_beliefs,
                            neighbour_names=names, announcements=announcements,
                            problem=problem)

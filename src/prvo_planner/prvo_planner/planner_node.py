@@ -381,6 +381,8 @@ class PlannerNode(Node):
         plan_time_ms = (time.perf_counter() - started) * 1e3
         if command.arrived and not was_arrived:
             self.get_logger().info(f'arrived at {self._agent.goal.tolist()}')
+        # Before the command: in lockstep, neighbours plan the next step with it.
+        self._announce()
         # cmd_vel is in the body frame: rotate the world-frame plan by minus the robot's yaw.
         velocity = world_to_body(command.velocity, command.yaw)
         if self._stamped:

@@ -75,13 +75,23 @@ class InProcessTeam:
         self.world = TeamWorld(scenario, seed)
         self.agents = [agent_of(robot.name, values)
                        for robot, values in zip(scenario.robots, planner_values, strict=True)]
-        # What each planner node would announce, latched, before the first step.
-        for agent in self.agents:
+        self._announced = [None] * len(self.agents)
+        self._announce()
+
+    def _announce(self):
+        """Give every agent what each other agent announces now, where it changed.
+
+        As a planner node does: at start-up, then after each plan, before its command.
+        """
+        for index, agent in enumerate(self.agents):
+            announcement = agent.own_announcement
+            if announcement == self._announced[index]:
+                continue
+            self._announced[index] = announcement
             for other in self.agents:
                 if other is not agent:
-                    announcement = other.own_announcement
-                    agent.receive_footprint(other.name, announcement.radius)
-                    agent.receive_share(other.name, announcement.avoidance_share)
+                    other.receive_footprint(agent.name, announcement.radius)
+                    other.receive_share(agent.name, announcement.avoidance_share)
 
     @property
     def finished(self):
@@ -129,6 +139,7 @@ class InProcessTeam:
             # at the command's stamp.
             commands[index] = body_to_world(world_to_body(command.velocity, command.yaw),
                                             yaws[index])
+        self._announce()
         # One call plans the team: each robot is charged an equal share of it.
         plan_ms = np.full(len(self.agents), (time.perf_counter() - started) * 1e3
                           / len(self.agents))
