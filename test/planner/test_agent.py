@@ -131,11 +131,14 @@ def test_a_bad_announcement_is_refused_and_the_neighbour_keeps_what_it_had(radiu
     assert agent.announcement_of('a') == NeighbourAnnouncement(0.4, 0.0)
 
 
-def test_the_robot_announces_its_radius_and_a_share_only_while_it_has_a_goal():
+def test_the_robot_announces_its_radius_and_a_share_only_on_its_way():
     agent = PlannerAgent('self', CONFIG, SETTINGS)
     assert agent.own_announcement == NeighbourAnnouncement(0.3, 0.0)
     agent.set_goal(GOAL)
     assert agent.own_announcement == NeighbourAnnouncement(0.3, 0.5)
+    agent.receive_own(standing(0.0, GOAL + [0.1, 0.0]), 0.0)
+    agent.plan()
+    assert agent.arrived and agent.own_announcement == NeighbourAnnouncement(0.3, 0.0)
 
 
 @pytest.mark.parametrize('far_stamp', [2.0 ** 31 - 1.0, 1.7e9, 1.0 + MAX_STAMP_JUMP_SECONDS + 0.1])
@@ -239,19 +242,21 @@ def test_a_robot_at_its_goal_stands_while_nobody_comes_and_steps_aside_when_some
     agent = PlannerAgent('self', CONFIG, SETTINGS, [0.0, 0.0])
     agent.receive_footprint('a', 0.3)
     agent.receive_share('a', 0.5)
-    # Nobody near: it keeps planning, with v_pref = 0, and stands.
+    # A neighbour standing 8 m away: nobody comes, it stands without a plan, announcing that
+    # it does not mirror anyone's moves.
     agent.receive_neighbour('a', standing(0.0, [8.0, 0.0]), 0.0)
     agent.receive_own(standing(0.0, [0.05, 0.0]), 0.0)
     command = agent.plan()
-    assert command.arrived and command.result is not None and command.result.feasible
-    assert not command.velocity.any()
+    assert command.arrived and command.result is None and not command.velocity.any()
+    assert agent.own_announcement == NeighbourAnnouncement(0.3, 0.0)
     # A neighbour heading straight at it, 3 s away: standing still would be a collision within
     # the horizon, so it moves (its share of the avoidance).
     coming = Measurement(0.1, np.array([3.0, 0.0]), np.array([-1.0, 0.0]), 0.0001 * np.eye(4))
     agent.receive_neighbour('a', coming, 0.1)
     agent.receive_own(standing(0.1, [0.05, 0.0]), 0.1)
     command = agent.plan()
-    assert command.arrived and np.hypot(*command.velocity) > 0.1
+    assert command.arrived and command.result is not None
+    assert np.hypot(*command.velocity) > 0.1
     # Sideways, not along the neighbour's line.
     assert abs(command.velocity[1]) > abs(command.velocity[0])
 
