@@ -195,12 +195,18 @@ def test_time_far_ahead_is_accepted_after_a_neighbour_timeout_without_usable_sta
 def test_plans_wait_for_every_neighbour_and_listed_ones_at_start():
     data = team()
     agent = PlannerAgent('self', CONFIG, SETTINGS, GOAL, listed_neighbours=['a', 'b', 'self'])
+    for robot in ('a', 'b'):
+        agent.receive_footprint(robot, 0.3)
+    agent.receive_share('a', 0.5)
     agent.receive_neighbour('a', data['a'][0], 0.0)
     agent.receive_own(data['self'][0], 0.0)
     # b is listed and not heard yet: wait for it, up to neighbor_timeout after the first odometry.
     assert agent.awaiting_listed(1.0) and not agent.ready(1.0)
     assert not agent.awaiting_listed(2.5) and agent.ready(2.5)
     agent.receive_neighbour('b', data['b'][0], 1.0)
+    # Heard in full only with its announcements: its share is still missing.
+    assert agent.awaiting_listed(1.0) and not agent.ready(1.0)
+    agent.receive_share('b', 0.5)
     assert agent.ready(1.0)
     agent.plan()
     assert agent.pending_stamp is None and not agent.ready(1.0)

@@ -34,7 +34,9 @@ def test_the_engine_gives_every_agent_what_the_others_announce():
         for name, radius in radii.items():
             if name != agent.name:
                 announced = agent.announcement_of(name)
-                assert (announced.radius, announced.avoidance_share) == (radius, 0.5)
+                # Through the footprint message: single precision, as a planner node reads it.
+                assert announced.radius == pytest.approx(radius, rel=1e-7)
+                assert announced.avoidance_share == 0.5
     # The large robot starts at its goal: once its plan finds it there, it stands and
     # announces no share (its planner's tolerance is tighter than the position noise).
     large = team.agents[0]

@@ -388,11 +388,16 @@ class PlannerAgent:
     # Planning ---------------------------------------------------------------------------------
 
     def awaiting_listed(self, now):
-        """Whether a listed neighbour has not been heard yet and may still turn up."""
+        """Whether a listed neighbour has not been heard in full yet and may still turn up.
+
+        In full: its odometry, its footprint and its share. Announcements travel apart from
+        odometry; without this, a team's first plans would depend on which came first.
+        """
         if (self.listed_neighbours is None or self._first_own_at is None
                 or now - self._first_own_at > self.settings.neighbor_timeout):
             return False
-        return any(name not in self._neighbour_tracks for name in self.listed_neighbours)
+        return any(name not in self._neighbour_tracks or name not in self._announced_radius
+                   or name not in self._announced_share for name in self.listed_neighbours)
 
     def ready(self, now):
         """Whether a stamp is pending and every neighbour has been measured at or after it."""

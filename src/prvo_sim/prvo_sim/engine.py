@@ -16,11 +16,16 @@ from dataclasses import dataclass
 import time
 
 import numpy as np
+from rclpy.serialization import deserialize_message, serialize_message
 
 from prvo_msgs_util import (
     WORLD_FRAME,
     body_to_world,
+    footprint_message,
+    radius_of_footprint,
     serialized_odometry_to_measurement,
+    share_message,
+    share_of,
     world_to_body,
 )
 from prvo_planner.agent import AgentSettings, PlannerAgent
@@ -45,6 +50,11 @@ class StepRecord:
     commands: np.ndarray
     plan_ms: np.ndarray
     contacts: tuple
+
+
+def _received(message):
+    """Return MESSAGE as a subscriber receives it: serialized and deserialized."""
+    return deserialize_message(serialize_message(message), type(message))
 
 
 def agent_of(name, values):
@@ -81,17 +91,21 @@ class InProcessTeam:
     def _announce(self):
         """Give every agent what each other agent announces now, where it changed.
 
-        As a planner node does: at start-up, then after each plan, before its command.
+        As a planner node does: at start-up, then after each plan, before its command; through
+        the messages as they arrive (serialized: single-precision numbers).
         """
         for index, agent in enumerate(self.agents):
             announcement = agent.own_announcement
             if announcement == self._announced[index]:
                 continue
             self._announced[index] = announcement
+            radius = radius_of_footprint(_received(
+                footprint_message(announcement.radius, WORLD_FRAME)))
+            share = share_of(_received(share_message(announcement.avoidance_share)))
             for other in self.agents:
                 if other is not agent:
-                    other.receive_footprint(agent.name, announcement.radius)
-                    other.receive_share(agent.name, announcement.avoidance_share)
+                    other.receive_footprint(agent.name, radius)
+                    other.receive_share(agent.name, share)
 
     @property
     def finished(self):
