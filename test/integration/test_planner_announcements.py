@@ -39,8 +39,9 @@ class Latest:
 
 def test_a_planner_announces_itself_and_plans_with_what_its_neighbours_announce(
         children, ros2_executable, probe):
-    planner = FedPlanner(children, ros2_executable, probe, radius=0.3,
-                         unknown_neighbor_radius=0.7, status_period=0.0)
+    # Its listed neighbours do not announce in full: it waits for them neighbor_timeout long.
+    planner = FedPlanner(children, ros2_executable, probe, announce=False, radius=0.3,
+                         unknown_neighbor_radius=0.7, status_period=0.0, neighbor_timeout=1.0)
     # Latched: a probe subscribing after the planner published still receives both.
     footprint, share = Latest(), Latest()
     probe.node.create_subscription(PolygonStamped, robot_topic('robot_0', 'footprint'),

@@ -122,13 +122,31 @@ def test_a_bad_announcement_is_refused_and_the_neighbour_keeps_what_it_had(radiu
         0.4 if radius != 0.6 else 0.6, 0.0)
     agent.receive_footprint('a', 0.8)
     agent.receive_share('a', 0.5)
+    agent.receive_own(standing(0.0, [0.0, 0.0]), 0.0)
+    assert agent.announcement_of('a') == NeighbourAnnouncement(0.8, 0.5)
     with pytest.raises(ValueError, match=fault):
         agent.receive_footprint('a', radius)
         agent.receive_share('a', share)
+    agent.receive_own(standing(0.1, [0.0, 0.0]), 0.1)
     assert agent.announcement_of('a') == NeighbourAnnouncement(
         0.8 if radius != 0.6 else 0.6, 0.5)
     agent.forget_announcements('a')
     assert agent.announcement_of('a') == NeighbourAnnouncement(0.4, 0.0)
+
+
+def test_a_first_announcement_counts_at_once_a_change_from_the_next_own_measurement():
+    agent = PlannerAgent('self', CONFIG, SETTINGS, GOAL)
+    agent.receive_footprint('a', 0.6)
+    agent.receive_share('a', 0.5)
+    assert agent.announcement_of('a') == NeighbourAnnouncement(0.6, 0.5)
+    agent.receive_own(standing(0.0, [0.0, 0.0]), 0.0)
+    # Announced while this stamp is planned (in lockstep: by a neighbour planning the same
+    # step): the plan of this stamp does not see it, the next one does.
+    agent.receive_share('a', 0.0)
+    agent.receive_footprint('a', 0.7)
+    assert agent.announcement_of('a') == NeighbourAnnouncement(0.6, 0.5)
+    agent.receive_own(standing(0.1, [0.0, 0.0]), 0.1)
+    assert agent.announcement_of('a') == NeighbourAnnouncement(0.7, 0.0)
 
 
 def test_the_robot_announces_its_radius_and_a_share_only_on_its_way():

@@ -45,6 +45,10 @@ def test_the_engine_gives_every_agent_what_the_others_announce():
         if large.arrived:
             break
     assert large.arrived
+    # As in lockstep: what it announced with this step's plan counts from the next step on.
+    assert all(agent.announcement_of('large').avoidance_share == 0.5
+               for agent in team.agents[1:])
+    team.do_step()
     assert all(agent.announcement_of('large').avoidance_share == 0.0
                for agent in team.agents[1:])
     assert all(agent.announcement_of('small_0').avoidance_share == 0.5

@@ -230,9 +230,12 @@ class PlannerAgent:
         self.arrived = False
         self._own_track = None
         self._neighbour_tracks = {}
-        # Announced by each neighbour: robot -> radius, robot -> share.
+        # Announced by each neighbour: robot -> radius, robot -> share; and changes received
+        # since the last own measurement, which take effect with the next one.
         self._announced_radius = {}
         self._announced_share = {}
+        self._changed_radius = {}
+        self._changed_share = {}
         self._pending_stamp = None
         self._own_yaw = 0.0
         # The last planned velocity in the world frame, for the inertia term; None after a stop.
@@ -272,6 +275,10 @@ class PlannerAgent:
         """
         self._own_track, fusion = self._fuse(self._own_track, measurement, now)
         if fusion.accepted:
+            self._announced_radius.update(self._changed_radius)
+            self._announced_share.update(self._changed_share)
+            self._changed_radius.clear()
+            self._changed_share.clear()
             if self._first_own_at is None:
                 self._first_own_at = now
             self._pending_stamp = measurement.stamp
@@ -300,24 +307,39 @@ class PlannerAgent:
     def receive_footprint(self, robot, radius):
         """Take neighbour ROBOT's announced RADIUS [m].
 
-        Raises ValueError naming the value if it is not finite and > 0; the neighbour then keeps
-        what it had (its last valid announcement, else `unknown_neighbor_radius`).
+        A neighbour's first announcement counts at once; a change, from the next own
+        measurement on (see `receive_share`). Raises ValueError naming the value if it is not
+        finite and > 0; the neighbour then keeps what it had (its last valid announcement, else
+        `unknown_neighbor_radius`).
         """
-        self._announced_radius[robot] = NeighbourAnnouncement(
-            radius, UNANNOUNCED_SHARE).radius
+        self._take(robot, NeighbourAnnouncement(radius, UNANNOUNCED_SHARE).radius,
+                   self._announced_radius, self._changed_radius)
 
     def receive_share(self, robot, avoidance_share):
         """Take neighbour ROBOT's announced share of the avoidance.
 
-        Raises ValueError naming the value if it is not in [0, 1); the neighbour then keeps what
-        it had (its last valid announcement, else not avoiding).
+        A neighbour's first announcement counts at once; a change, from the next own
+        measurement on: in lockstep every robot plans a step at the same time, and a change
+        that a neighbour announces while planning one step then counts from the next step for
+        every robot, whichever plan it reached first. Raises ValueError naming the value if it
+        is not in [0, 1); the neighbour then keeps what it had (its last valid announcement,
+        else not avoiding).
         """
-        self._announced_share[robot] = validated_share(avoidance_share, 'avoidance_share')
+        self._take(robot, validated_share(avoidance_share, 'avoidance_share'),
+                   self._announced_share, self._changed_share)
+
+    @staticmethod
+    def _take(robot, value, announced, changed):
+        if robot in announced:
+            changed[robot] = value
+        else:
+            announced[robot] = value
 
     def forget_announcements(self, robot):
         """Drop what ROBOT announced (it left: a robot of that name may come back another)."""
-        self._announced_radius.pop(robot, None)
-        self._announced_share.pop(robot, None)
+        for values in (self._announced_radius, self._announced_share, self._changed_radius,
+                       self._changed_share):
+            values.pop(robot, None)
 
     def announcement_of(self, robot):
         """Return the `NeighbourAnnouncement` planned with for ROBOT, defaults filled in."""
