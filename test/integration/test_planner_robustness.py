@@ -3,11 +3,21 @@
 import signal
 import threading
 
-from geometry_msgs.msg import TwistStamped
+from geometry_msgs.msg import PolygonStamped, TwistStamped
 import numpy as np
 import pytest
+from std_msgs.msg import Float32
 
-from prvo_msgs_util import CMD_VEL_QOS, ODOM_QOS, make_odometry, robot_topic, stamp_to_seconds
+from prvo_msgs_util import (
+    ANNOUNCEMENT_QOS,
+    CMD_VEL_QOS,
+    ODOM_QOS,
+    footprint_message,
+    make_odometry,
+    robot_topic,
+    share_message,
+    stamp_to_seconds,
+)
 
 pytestmark = pytest.mark.integration
 
@@ -16,9 +26,13 @@ NOISE = 0.0025 * np.eye(2)
 
 
 class FedPlanner:
-    """A planner for robot_0 with neighbours robot_1 and robot_2, whose odometry a probe sends."""
+    """A planner for robot_0 with neighbours robot_1 and robot_2, whose odometry a probe sends.
 
-    def __init__(self, children, ros2_executable, probe, **parameters):
+    With ANNOUNCE, the probe also announces the neighbours as planners do (radius 0.3, share
+    0.5, latched): a planner waits for its listed neighbours' announcements before it plans.
+    """
+
+    def __init__(self, children, ros2_executable, probe, announce=True, **parameters):
         values = {'goal': '[5.0, 0.0]', 'neighbors': '[robot_1, robot_2]',
                   'sync_timeout': 0.3, 'neighbor_timeout': 3600.0}
         values.update(parameters)
@@ -35,6 +49,14 @@ class FedPlanner:
         self.publishers = {robot: probe.node.create_publisher(
             type(make_odometry(0.0, [0, 0], [0, 0], NOISE, NOISE)), robot_topic(robot, 'odom'),
             ODOM_QOS) for robot in ROBOTS}
+        if announce:
+            for robot in ROBOTS[1:]:
+                probe.node.create_publisher(
+                    PolygonStamped, robot_topic(robot, 'footprint'), ANNOUNCEMENT_QOS).publish(
+                    footprint_message(0.3, f'{robot}/base_link'))
+                probe.node.create_publisher(
+                    Float32, robot_topic(robot, 'avoidance_share'), ANNOUNCEMENT_QOS).publish(
+                    share_message(0.5))
         probe.wait_until(
             lambda: all(p.get_subscription_count() > 0 for p in self.publishers.values())
             or self.process.poll() is not None, timeout=60.0, what='the planner subscribing')

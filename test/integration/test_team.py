@@ -108,10 +108,12 @@ def test_markers_show_each_neighbour_with_its_confidence_ellipse(make_team, obse
     team.start_planners()
     # Markers are built only for a subscriber: this one.
     markers = probe.wait_for_message(
-        MarkerArray, '/robot_0/prvo_markers', lambda msg: len(msg.markers) == 3, timeout=30.0,
+        MarkerArray, '/robot_0/prvo_markers', lambda msg: len(msg.markers) == 4, timeout=30.0,
         qos=MARKER_QOS)
-    delete_all, arrow, ellipse = markers.markers
+    delete_all, arrow, ellipse, label = markers.markers
     assert delete_all.action == Marker.DELETEALL and arrow.type == Marker.ARROW
+    # The size and share robot_1 announced (on its way: reciprocal).
+    assert label.type == Marker.TEXT_VIEW_FACING and label.text == 'r 0.30 m, share 0.50'
     assert ellipse.type == Marker.CYLINDER and ellipse.header.frame_id == 'map'
     # The neighbour's disc (radius 0.3) grown by its eta = 0.8 ellipse: the 2-dof chi-square
     # quantile scales the tracked standard deviation, which is the sensors' 0.05 m at the first

@@ -41,17 +41,24 @@ def test_belief_markers_match_chi2_ellipse():
     factors = rng.normal(size=(3, 2, 2))
     covariances = factors @ np.transpose(factors, (0, 2, 1))
     radii = np.array([0.3, 0.25, 0.4])
+    shares = [0.5, 0.0, 0.5]
     markers = make_belief_markers(
         7.5, 'map', 'robot_0', [1.0, 2.0], [0.5, -0.2], positions, covariances, radii,
-        confidence_ellipse_scale(k_from_eta(0.9))).markers
+        confidence_ellipse_scale(k_from_eta(0.9)), shares).markers
 
     assert markers[0].action == Marker.DELETEALL
     arrow = markers[1]
     assert (arrow.type, arrow.action, arrow.ns) == (Marker.ARROW, Marker.ADD, 'robot_0')
     assert [(point.x, point.y) for point in arrow.points] == [(1.0, 2.0), (1.5, 1.8)]
-    ellipses = markers[2:]
-    assert len(ellipses) == 3
-    assert len({marker.id for marker in markers[1:]}) == 4
+    ellipses, labels = markers[2:5], markers[5:]
+    assert len(labels) == 3
+    assert len({marker.id for marker in markers[1:]}) == 7
+    # Each neighbour's label states the size and share it is planned with, at its position.
+    assert [label.text for label in labels] == [
+        'r 0.30 m, share 0.50', 'r 0.25 m, share 0.00', 'r 0.40 m, share 0.50']
+    for label, position in zip(labels, positions, strict=True):
+        assert label.type == Marker.TEXT_VIEW_FACING
+        assert (label.pose.position.x, label.pose.position.y) == tuple(position)
     quantile = chi2.ppf(0.9, df=2)
     for marker, position, covariance, radius in zip(
             ellipses, positions, covariances, radii, strict=True):
@@ -74,7 +81,10 @@ def test_belief_markers_match_chi2_ellipse():
 def test_belief_markers_reject_mismatched_neighbours():
     with pytest.raises(ValueError, match='2 neighbour positions, 1 covariances'):
         make_belief_markers(0.0, 'map', 'r', [0, 0], [0, 0], np.zeros((2, 2)),
-                            [np.eye(2)], [0.3, 0.3], 1.0)
+                            [np.eye(2)], [0.3, 0.3], 1.0, [0.5, 0.5])
+    with pytest.raises(ValueError, match='2 radii and 1 shares'):
+        make_belief_markers(0.0, 'map', 'r', [0, 0], [0, 0], np.zeros((2, 2)),
+                            [np.eye(2)] * 2, [0.3, 0.3], 1.0, [0.5])
 
 
 def test_diagnostic_status_values_round_trip():

@@ -8,6 +8,7 @@ import pytest
 
 from prvo_planner.agent import (
     AgentSettings,
+    NeighbourAnnouncement,
     PlannerAgent,
 )
 from prvo_planner.core import AgentBelief, PlannerConfig, plan_velocity
@@ -15,8 +16,8 @@ from prvo_planner.estimation import ConstantVelocityTracker
 from prvo_planner.tracks import MAX_STAMP_JUMP_SECONDS, TrackTable
 
 GOAL = np.array([4.0, 0.5])
-SETTINGS = AgentSettings(radius=0.3, neighbor_radius=0.4, approach_time=0.5, goal_tolerance=0.2,
-                         acceleration_std=1.0, neighbor_timeout=2.0)
+SETTINGS = AgentSettings(radius=0.3, unknown_neighbor_radius=0.4, approach_time=0.5,
+                         goal_tolerance=0.2, acceleration_std=1.0, neighbor_timeout=2.0)
 CONFIG = PlannerConfig(eta=0.8, max_speed=1.0, actuation_cov=0.0025 * np.eye(2),
                        inertia=0.5, passing_bias=0.1)
 
@@ -64,9 +65,22 @@ def run(agent, data, steps, now=0.0):
     return commands
 
 
-def test_agent_plans_as_the_core_does_on_the_tracked_beliefs():
+# Per neighbour: what it announced (radius, share; None: nothing) and what is planned with.
+ANNOUNCED = {'a': ((0.7, 0.5), (0.7, 0.5)), 'b': ((None, None), (0.4, 0.0))}
+
+
+@pytest.mark.parametrize('announce', [False, True])
+def test_agent_plans_as_the_core_does_on_the_tracked_beliefs(announce):
     data = team()
-    commands = run(PlannerAgent('self', CONFIG, SETTINGS, GOAL), data, 12)
+    agent = PlannerAgent('self', CONFIG, SETTINGS, GOAL)
+    planned_with = {robot: (0.4, 0.0) for robot in ANNOUNCED}
+    if announce:
+        for robot, ((radius, share), expected) in ANNOUNCED.items():
+            if radius is not None:
+                agent.receive_footprint(robot, radius)
+                agent.receive_share(robot, share)
+            planned_with[robot] = expected
+    commands = run(agent, data, 12)
     trackers = {robot: ConstantVelocityTracker(1.0) for robot in data}
     previous = None
     for step, command in enumerate(commands):
@@ -79,14 +93,70 @@ def test_agent_plans_as_the_core_does_on_the_tracked_beliefs():
         # Far from the goal: full speed straight at it; the horizon is capped by the way there.
         v_pref = offset / distance * min(1.0, distance / 0.5)
         horizon = min(CONFIG.time_horizon, distance / 1.0 + 0.5)
-        neighbours = [AgentBelief(b.mean[:2], b.mean[2:], b.covariance, 0.4) for b in (
-            trackers[robot].belief_at(command.stamp) for robot in ('a', 'b'))]
+        neighbours = [AgentBelief(b.mean[:2], b.mean[2:], b.covariance, *planned_with[robot])
+                      for robot, b in ((robot, trackers[robot].belief_at(command.stamp))
+                                       for robot in ('a', 'b'))]
         expected = plan_velocity(
             AgentBelief(own.mean[:2], own.mean[2:], own.covariance, 0.3), neighbours, v_pref,
             dataclasses.replace(CONFIG, time_horizon=horizon), previous=previous)
         np.testing.assert_array_equal(command.velocity, expected.velocity)
         assert command.stamp == data['self'][step].stamp and command.yaw == 0.1
+        assert command.announcement_values() == {
+            f'neighbour.{robot}.{key}': value for robot in ('a', 'b')
+            for key, value in zip(('radius', 'avoidance_share'), planned_with[robot],
+                                  strict=True)}
         previous = expected.velocity
+
+
+@pytest.mark.parametrize('radius, share, fault', [
+    (0.0, 0.5, 'radius must be finite and > 0, got 0.0'),
+    (float('nan'), 0.5, 'radius must be finite and > 0, got nan'),
+    (0.6, 1.0, r'avoidance_share must be in \[0, 1\), got 1.0'),
+    (0.6, -0.1, r'avoidance_share must be in \[0, 1\), got -0.1')])
+def test_a_bad_announcement_is_refused_and_the_neighbour_keeps_what_it_had(radius, share, fault):
+    agent = PlannerAgent('self', CONFIG, SETTINGS, GOAL)
+    with pytest.raises(ValueError, match=fault):
+        agent.receive_footprint('a', radius)
+        agent.receive_share('a', share)
+    assert agent.announcement_of('a') == NeighbourAnnouncement(
+        0.4 if radius != 0.6 else 0.6, 0.0)
+    agent.receive_footprint('a', 0.8)
+    agent.receive_share('a', 0.5)
+    agent.receive_own(standing(0.0, [0.0, 0.0]), 0.0)
+    assert agent.announcement_of('a') == NeighbourAnnouncement(0.8, 0.5)
+    with pytest.raises(ValueError, match=fault):
+        agent.receive_footprint('a', radius)
+        agent.receive_share('a', share)
+    agent.receive_own(standing(0.1, [0.0, 0.0]), 0.1)
+    assert agent.announcement_of('a') == NeighbourAnnouncement(
+        0.8 if radius != 0.6 else 0.6, 0.5)
+    agent.forget_announcements('a')
+    assert agent.announcement_of('a') == NeighbourAnnouncement(0.4, 0.0)
+
+
+def test_a_first_announcement_counts_at_once_a_change_from_the_next_own_measurement():
+    agent = PlannerAgent('self', CONFIG, SETTINGS, GOAL)
+    agent.receive_footprint('a', 0.6)
+    agent.receive_share('a', 0.5)
+    assert agent.announcement_of('a') == NeighbourAnnouncement(0.6, 0.5)
+    agent.receive_own(standing(0.0, [0.0, 0.0]), 0.0)
+    # Announced while this stamp is planned (in lockstep: by a neighbour planning the same
+    # step): the plan of this stamp does not see it, the next one does.
+    agent.receive_share('a', 0.0)
+    agent.receive_footprint('a', 0.7)
+    assert agent.announcement_of('a') == NeighbourAnnouncement(0.6, 0.5)
+    agent.receive_own(standing(0.1, [0.0, 0.0]), 0.1)
+    assert agent.announcement_of('a') == NeighbourAnnouncement(0.7, 0.0)
+
+
+def test_the_robot_announces_its_radius_and_a_share_only_on_its_way():
+    agent = PlannerAgent('self', CONFIG, SETTINGS)
+    assert agent.own_announcement == NeighbourAnnouncement(0.3, 0.0)
+    agent.set_goal(GOAL)
+    assert agent.own_announcement == NeighbourAnnouncement(0.3, 0.5)
+    agent.receive_own(standing(0.0, GOAL + [0.1, 0.0]), 0.0)
+    agent.plan()
+    assert agent.arrived and agent.own_announcement == NeighbourAnnouncement(0.3, 0.0)
 
 
 @pytest.mark.parametrize('far_stamp', [2.0 ** 31 - 1.0, 1.7e9, 1.0 + MAX_STAMP_JUMP_SECONDS + 0.1])
@@ -143,12 +213,18 @@ def test_time_far_ahead_is_accepted_after_a_neighbour_timeout_without_usable_sta
 def test_plans_wait_for_every_neighbour_and_listed_ones_at_start():
     data = team()
     agent = PlannerAgent('self', CONFIG, SETTINGS, GOAL, listed_neighbours=['a', 'b', 'self'])
+    for robot in ('a', 'b'):
+        agent.receive_footprint(robot, 0.3)
+    agent.receive_share('a', 0.5)
     agent.receive_neighbour('a', data['a'][0], 0.0)
     agent.receive_own(data['self'][0], 0.0)
     # b is listed and not heard yet: wait for it, up to neighbor_timeout after the first odometry.
     assert agent.awaiting_listed(1.0) and not agent.ready(1.0)
     assert not agent.awaiting_listed(2.5) and agent.ready(2.5)
     agent.receive_neighbour('b', data['b'][0], 1.0)
+    # Heard in full only with its announcements: its share is still missing.
+    assert agent.awaiting_listed(1.0) and not agent.ready(1.0)
+    agent.receive_share('b', 0.5)
     assert agent.ready(1.0)
     agent.plan()
     assert agent.pending_stamp is None and not agent.ready(1.0)
@@ -171,18 +247,42 @@ def test_silent_and_unwanted_neighbours_are_forgotten():
     assert agent.neighbours == set()
 
 
-def test_no_goal_or_arrived_stands_still_without_a_plan():
+def test_no_goal_stands_still_without_a_plan():
     data = team()
     agent = PlannerAgent('self', CONFIG, SETTINGS)
     agent.receive_own(data['self'][0], 0.0)
     command = agent.plan()
     assert command.result is None and not command.velocity.any() and not command.arrived
-    agent.set_goal(data['self'][0].position + [0.05, 0.0])
-    agent.receive_own(data['self'][1], 0.0)
-    command = agent.plan()
-    assert command.arrived and command.result is None
     with pytest.raises(RuntimeError, match='pending'):
         agent.plan()
+
+
+def standing(stamp, position):
+    return Measurement(stamp, np.asarray(position, dtype=float), np.zeros(2),
+                       0.0001 * np.eye(4))
+
+
+def test_a_robot_at_its_goal_stands_while_nobody_comes_and_steps_aside_when_someone_does():
+    agent = PlannerAgent('self', CONFIG, SETTINGS, [0.0, 0.0])
+    agent.receive_footprint('a', 0.3)
+    agent.receive_share('a', 0.5)
+    # A neighbour standing 8 m away: nobody comes, it stands without a plan, announcing that
+    # it does not mirror anyone's moves.
+    agent.receive_neighbour('a', standing(0.0, [8.0, 0.0]), 0.0)
+    agent.receive_own(standing(0.0, [0.05, 0.0]), 0.0)
+    command = agent.plan()
+    assert command.arrived and command.result is None and not command.velocity.any()
+    assert agent.own_announcement == NeighbourAnnouncement(0.3, 0.0)
+    # A neighbour heading straight at it, 3 s away: standing still would be a collision within
+    # the horizon, so it moves (its share of the avoidance).
+    coming = Measurement(0.1, np.array([3.0, 0.0]), np.array([-1.0, 0.0]), 0.0001 * np.eye(4))
+    agent.receive_neighbour('a', coming, 0.1)
+    agent.receive_own(standing(0.1, [0.05, 0.0]), 0.1)
+    command = agent.plan()
+    assert command.arrived and command.result is not None
+    assert np.hypot(*command.velocity) > 0.1
+    # Sideways, not along the neighbour's line.
+    assert abs(command.velocity[1]) > abs(command.velocity[0])
 
 
 def test_the_agent_imports_no_ros(python_executable):

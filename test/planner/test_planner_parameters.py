@@ -124,11 +124,21 @@ def test_neighbour_names_must_be_robot_names():
         neighbour_names([1, 2])
 
 
-def test_a_zero_neighbour_radius_is_refused():
-    """0 used to pass and made every plan with a neighbour raise in AgentBelief."""
-    with pytest.raises(ParameterError, match=r'neighbor_radius: must be -1 \(= radius\) or > 0'):
-        planner_config_from(dict(DEFAULTS, neighbor_radius=0.0))
+@pytest.mark.parametrize('value', [0.0, 0.4])
+def test_the_retired_neighbour_radius_says_what_replaced_it(value):
+    """Neighbours announce their footprints; a launch file still setting it is told so."""
+    with pytest.raises(ParameterError, match=(
+            rf'^neighbor_radius: retired \(got {value}\): neighbours announce their own '
+            'footprints; set unknown_neighbor_radius for those that announce none$')):
+        planner_config_from(dict(DEFAULTS, neighbor_radius=value))
     assert check_parameter('neighbor_radius', -1.0) == -1.0
+
+
+@pytest.mark.parametrize('value', [0.0, -0.5, 101.0, float('nan'), float('inf')])
+def test_the_unknown_neighbour_radius_must_be_a_size(value):
+    with pytest.raises(ParameterError, match='^unknown_neighbor_radius: '):
+        check_parameter('unknown_neighbor_radius', value)
+    assert check_parameter('unknown_neighbor_radius', 0.8) == 0.8
 
 
 @pytest.mark.parametrize('name, value, reason', [

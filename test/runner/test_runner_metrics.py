@@ -66,13 +66,18 @@ def test_pairwise_separation_matches_distance_minus_radii():
     assert metrics.min_separation(positions, radii) == pytest.approx(-0.5)
 
 
-def test_arrival_is_the_first_step_from_which_the_robot_stays_at_its_goal():
-    # Along x towards a goal at 0 with tolerance 0.2: in, out, in again (index 3), stays.
+def test_arrival_is_the_first_step_at_the_goal_also_for_a_robot_pushed_aside_later():
+    # Along x towards a goal at 0 with tolerance 0.2: in (index 1), out, in again, stays; a
+    # robot at its goal keeps planning and may step aside, so its first arrival counts.
     positions = np.array([[[1.0, 0.0]], [[0.1, 0.0]], [[1.0, 0.0]], [[0.1, 0.0]],
                           [[0.05, 0.0]]])
-    assert metrics.arrival_indices(positions, [[0.0, 0.0]], 0.2) == [3]
-    positions_leaving = positions[::-1]
-    assert metrics.arrival_indices(positions_leaving, [[0.0, 0.0]], 0.2) == [None]
+    assert metrics.arrival_indices(positions, [[0.0, 0.0]], 0.2) == [1]
+    # Arrived, then pushed aside at the end of the run: still arrived, at its first arrival.
+    assert metrics.arrival_indices(positions[::-1], [[0.0, 0.0]], 0.2) == [0]
+    assert metrics.arrival_indices(positions[[0, 2]], [[0.0, 0.0]], 0.2) == [None]
+    run = metrics.run_metrics(np.arange(5) * 0.5, positions, [0.3], [[0.0, 0.0]], 0.2, ['a'])
+    assert run['robots']['a'] == {'arrived': True, 'time_to_goal': 0.5, 'path_length': 0.9,
+                                  'scripted': False}
 
 
 def test_run_metrics_of_the_hand_built_run():
@@ -81,15 +86,26 @@ def test_run_metrics_of_the_hand_built_run():
     assert result['robots']['a'] == {'arrived': True, 'time_to_goal': pytest.approx(3.7),
                                      'path_length': pytest.approx(3.7), 'scripted': False}
     assert result['robots']['b']['time_to_goal'] == pytest.approx(3.7)
-    # C passed through its goal and left: not arrived, path length of the whole run.
+    # C passed through its goal and left: it arrived at its first sample within tolerance
+    # (4.4 at t = 1.4; 4.3 lies a rounding error outside), its path running up to there.
+    assert result['robots']['c'] == {'arrived': True, 'time_to_goal': pytest.approx(1.4),
+                                     'path_length': pytest.approx(1.4), 'scripted': False}
+    assert result['success_rate'] == 1.0
+    assert result['collisions'] == 1
+    assert result['min_separation'] == pytest.approx(-0.5)
+    assert result['makespan'] == pytest.approx(3.7)
+    assert result['mean_time_to_goal'] == pytest.approx((3.7 + 3.7 + 1.4) / 3)
+    assert result['sim_time'] == pytest.approx(4.0)
+
+
+def test_a_robot_never_at_its_goal_has_not_arrived():
+    positions, radii, goals = crossing_ground_truth()
+    goals[2] = [1.0, 4.5]  # C passes 1 m from it
+    result = metrics.run_metrics(TIMES, positions, radii, goals, 0.2, ['a', 'b', 'c'])
     assert result['robots']['c'] == {'arrived': False, 'time_to_goal': None,
                                      'path_length': pytest.approx(4.0), 'scripted': False}
     assert result['success_rate'] == pytest.approx(2.0 / 3.0)
-    assert result['collisions'] == 1
-    assert result['min_separation'] == pytest.approx(-0.5)
     assert result['makespan'] is None
-    assert result['mean_time_to_goal'] == pytest.approx(3.7)
-    assert result['sim_time'] == pytest.approx(4.0)
     assert result['scripted_robots'] == []
 
 

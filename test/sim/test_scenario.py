@@ -214,7 +214,7 @@ BAD_FILES = [
     ('  eta: 0.8\n', '  eta: 0.8\n  neighbors: [robot_1, 2bad]\n', 'planner.neighbors',
      'not a valid ROS name'),
     ('  eta: 0.8\n', '  eta: 0.8\n  neighbor_radius: 0.0\n', 'planner.neighbor_radius',
-     'must be -1 (= radius) or > 0, got 0.0'),
+     'retired (got 0.0): neighbours announce their own footprints'),
     ('dt: 0.1\n', 'dt: 1e-300\n', 'dt', 'must be in [0.0001, 10], got 1e-300'),
     ('dt: 0.1\n', 'dt: 20.0\n', 'dt', 'must be in [0.0001, 10], got 20.0'),
     ('duration: 5.0\n', 'duration: 1.0e6\n', 'duration', 'more than 1000000 steps'),

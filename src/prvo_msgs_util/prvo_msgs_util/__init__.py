@@ -1,5 +1,13 @@
 """Conversions between ROS 2 messages and numpy arrays for the PRVO stack."""
 
+from prvo_msgs_util.announcements import (
+    Announcer,
+    footprint_message,
+    radius_of_footprint,
+    share_message,
+    share_of,
+    subscribe_announcements,
+)
 from prvo_msgs_util.conversions import (
     MAX_SPEED_COMPONENT,
     MAX_VARIANCE,
@@ -29,6 +37,7 @@ from prvo_msgs_util.diagnostics import (
 from prvo_msgs_util.interrupts import SigintRecorder, ignore_stop_signals
 from prvo_msgs_util.markers import make_belief_markers
 from prvo_msgs_util.qos import (
+    ANNOUNCEMENT_QOS,
     CLOCK_QOS,
     CMD_VEL_QOS,
     CONTACT_QOS,
@@ -43,10 +52,12 @@ from prvo_msgs_util.qos import (
 )
 from prvo_msgs_util.runtime import freeze_startup_objects, spin_events
 from prvo_msgs_util.topics import (
+    AVOIDANCE_SHARE,
     CLOCK,
     CMD_VEL,
     CONTACTS,
     DIAGNOSTICS,
+    FOOTPRINT,
     GOAL_POSE,
     GROUND_TRUTH,
     MARKERS,
@@ -58,6 +69,8 @@ from prvo_msgs_util.topics import (
 )
 
 __all__ = [
+    'ANNOUNCEMENT_QOS', 'AVOIDANCE_SHARE', 'FOOTPRINT', 'footprint_message',
+    'radius_of_footprint', 'share_message', 'share_of', 'Announcer', 'subscribe_announcements',
     'CLOCK', 'CLOCK_QOS', 'CMD_VEL', 'CMD_VEL_QOS', 'CONTACTS', 'CONTACT_QOS', 'DIAGNOSTICS',
     'DIAGNOSTICS_QOS', 'GOAL_POSE', 'GOAL_QOS', 'GROUND_TRUTH', 'MARKERS', 'MARKER_QOS',
     'MAX_SPEED_COMPONENT', 'MAX_VARIANCE', 'MAX_WORLD_COORDINATE',

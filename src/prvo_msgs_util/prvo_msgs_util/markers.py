@@ -1,4 +1,4 @@
-"""RViz markers of a planner's belief: neighbour confidence ellipses and the chosen velocity."""
+"""RViz markers of a planner's belief: neighbour ellipses, sizes, shares, the chosen velocity."""
 
 import math
 
@@ -15,6 +15,8 @@ _ARROW_COLOUR = ColorRGBA(r=0.1, g=0.8, b=0.1, a=1.0)
 _ARROW_SHAFT_DIAMETER = 0.05
 _ARROW_HEAD_DIAMETER = 0.1
 _ARROW_HEAD_LENGTH = 0.1
+_LABEL_COLOUR = ColorRGBA(r=1.0, g=1.0, b=1.0, a=0.9)
+_LABEL_HEIGHT = 0.15
 
 
 def _ellipse_marker(header, namespace, marker_id, position, covariance, radius, ellipse_scale):
@@ -37,23 +39,25 @@ def _ellipse_marker(header, namespace, marker_id, position, covariance, radius, 
 
 def make_belief_markers(stamp_seconds, frame_id, namespace, ego_position, chosen_velocity,
                         neighbour_positions, neighbour_position_covs, neighbour_radii,
-                        ellipse_scale):
-    """Return a MarkerArray: DELETEALL, one ARROW for the chosen velocity, one ellipse each.
+                        ellipse_scale, neighbour_shares):
+    """Return a MarkerArray: DELETEALL, the chosen velocity's ARROW, an ellipse and label each.
 
-    Each neighbour's CYLINDER spans its position ellipse of semi-axes ELLIPSE_SCALE
+    Each neighbour's CYLINDER (id 1 + i) spans its position ellipse of semi-axes ELLIPSE_SCALE
     sqrt(eigenvalue) (the planner's confidence ellipse:
     `prvo_planner.core.probability.confidence_ellipse_scale`) plus its radius, turned along
-    the major axis.
+    the major axis; its TEXT_VIEW_FACING label (id 1 + N + i) states the radius and share of
+    the avoidance (NEIGHBOUR_SHARES) it is planned with.
     """
     if not (math.isfinite(ellipse_scale) and ellipse_scale >= 0.0):
         raise ValueError(f'ellipse_scale must be finite and >= 0, got {ellipse_scale}')
     positions = np.asarray(neighbour_positions, dtype=float).reshape(-1, 2)
     covariances = np.asarray(neighbour_position_covs, dtype=float).reshape(-1, 2, 2)
     radii = np.asarray(neighbour_radii, dtype=float).reshape(-1)
-    if not len(positions) == len(covariances) == len(radii):
+    shares = np.asarray(neighbour_shares, dtype=float).reshape(-1)
+    if not len(positions) == len(covariances) == len(radii) == len(shares):
         raise ValueError(
-            f'{len(positions)} neighbour positions, {len(covariances)} covariances and '
-            f'{len(radii)} radii')
+            f'{len(positions)} neighbour positions, {len(covariances)} covariances, '
+            f'{len(radii)} radii and {len(shares)} shares')
     markers = MarkerArray()
     delete_all = Marker(ns=namespace, action=Marker.DELETEALL)
     delete_all.header.frame_id = frame_id
@@ -75,4 +79,13 @@ def make_belief_markers(stamp_seconds, frame_id, namespace, ego_position, chosen
             zip(positions, covariances, radii, strict=True)):
         markers.markers.append(_ellipse_marker(
             header, namespace, index + 1, position, covariance, float(radius), ellipse_scale))
+    for index, (position, radius, share) in enumerate(zip(positions, radii, shares, strict=True)):
+        label = Marker(header=header, ns=namespace, id=len(positions) + index + 1,
+                       type=Marker.TEXT_VIEW_FACING, action=Marker.ADD, color=_LABEL_COLOUR,
+                       text=f'r {radius:.2f} m, share {share:.2f}')
+        label.pose.position.x, label.pose.position.y = (float(value) for value in position)
+        label.pose.position.z = _LABEL_HEIGHT
+        label.pose.orientation.w = 1.0
+        label.scale.z = _LABEL_HEIGHT
+        markers.markers.append(label)
     return markers

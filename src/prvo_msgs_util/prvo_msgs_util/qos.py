@@ -32,6 +32,8 @@ MARKER_QOS = _reliable(1)
 # Transient local so a runner that subscribes late still receives every contact event.
 CONTACT_QOS = _reliable(100, DurabilityPolicy.TRANSIENT_LOCAL)
 GOAL_QOS = _reliable(1)
+# Latched: a planner that starts or discovers a robot later still receives its announcements.
+ANNOUNCEMENT_QOS = _reliable(1, DurabilityPolicy.TRANSIENT_LOCAL)
 
 
 def quiet_subscription_events():

@@ -3,9 +3,10 @@
 A `PlannerAgent` tracks its own robot and its neighbours from odometry measurements
 (`prvo_msgs_util.OdometryMeasurement` or anything with the same fields), waits for the
 neighbours' measurements of the stamp it plans for, applies the goal logic and plans with
-`prvo_planner.core.plan_velocity`. It never reads a clock: every call that needs the time of day
-takes `now`, monotonic seconds of the caller's choosing. The planner node wraps it in ROS
-endpoints; an in-process engine can feed it step by step.
+`prvo_planner.core.plan_velocity`, taking each neighbour's size and share of the avoidance from
+its announcements (`NeighbourAnnouncement`). It never reads a clock: every call that needs the
+time of day takes `now`, monotonic seconds of the caller's choosing. The planner node wraps it
+in ROS endpoints; an in-process engine can feed it step by step.
 """
 
 import dataclasses
@@ -14,6 +15,7 @@ import math
 import numpy as np
 
 from prvo_planner.core import AgentBelief, VelocityLimits, plan_velocity
+from prvo_planner.core.beliefs import validated_share
 from prvo_planner.tracking import TrackingModel, tracking_command
 from prvo_planner.tracks import TrackTable, fuse
 
@@ -22,6 +24,34 @@ _WARM_UP_PLANS = 3
 # An arrival counts again only after the robot was this many goal tolerances from the goal:
 # odometry noise carries a robot standing at its goal in and out of the tolerance.
 DEPARTURE_TOLERANCES = 2.0
+
+# A command below this [m/s] is standing still.
+_STANDING_SPEED = 1e-6
+# Every model of the core (prvo and its baselines rvo, inflate, mc) is reciprocal: it takes half
+# of a pair's avoidance against a neighbour that takes the other half.
+RECIPROCAL_SHARE = 0.5
+# A neighbour that has not announced its share is assumed not to avoid.
+UNANNOUNCED_SHARE = 0.0
+
+
+@dataclasses.dataclass(frozen=True)
+class NeighbourAnnouncement:
+    """What a robot states about itself: its disk radius [m] and its share of the avoidance.
+
+    `avoidance_share` is in [0, 1): 0.5 for a reciprocating planner, 0 for a robot that does
+    not avoid. Raises ValueError naming the field for a value the planner cannot use.
+    """
+
+    radius: float
+    avoidance_share: float
+
+    def __post_init__(self):
+        radius = float(self.radius)
+        if not (np.isfinite(radius) and radius > 0.0):
+            raise ValueError(f'radius must be finite and > 0, got {self.radius!r}')
+        object.__setattr__(self, 'radius', radius)
+        object.__setattr__(self, 'avoidance_share',
+                           validated_share(self.avoidance_share, 'avoidance_share'))
 
 
 def preferred_velocity(position, goal, max_speed, approach_time, goal_tolerance,
@@ -51,18 +81,33 @@ def goal_horizon(distance_to_goal, max_speed, approach_time, time_horizon):
     return min(time_horizon, distance_to_goal / max_speed + approach_time)
 
 
+def nobody_comes(problem):
+    """Whether standing still meets every neighbour's condition on the mean states.
+
+    PROBLEM is the argument tuple of `plan_velocity`. Standing still is judged as the
+    deterministic RVO baseline judges it (means only, the neighbours' shares and sizes): under
+    noise the relative velocity of two robots that both stand has no mean direction, and no
+    chance constraint can certify it, although nobody comes.
+    """
+    ego, neighbours, v_pref, config = problem[:4]
+    result = plan_velocity(ego, neighbours, v_pref,
+                           dataclasses.replace(config, model='rvo', inertia=0.0))
+    # The core keeps its choice a hair inside a feasible interval: zero comes out as ~1e-9 m/s.
+    return result.feasible and float(np.hypot(*result.velocity)) <= _STANDING_SPEED
+
+
 @dataclasses.dataclass(frozen=True)
 class AgentSettings:
     """The agent's settings besides the core's PlannerConfig; names as the node's parameters.
 
-    `neighbor_radius` < 0 means the same as `radius`; `neighbor_timeout` is in the seconds of
-    the `now` arguments. `kinematics` is 'holonomic' or 'unicycle' (which tracks its plans
-    within `tracking_error` and plans with its radius grown by it); the acceleration limits
-    are inf when unlimited.
+    `unknown_neighbor_radius` is assumed for a neighbour that announced no footprint;
+    `neighbor_timeout` is in the seconds of the `now` arguments. `kinematics` is 'holonomic' or
+    'unicycle' (which tracks its plans within `tracking_error` and plans, and announces itself,
+    with its radius grown by it); the acceleration limits are inf when unlimited.
     """
 
     radius: float = 0.3
-    neighbor_radius: float = -1.0
+    unknown_neighbor_radius: float = 0.5
     approach_time: float = 0.5
     goal_tolerance: float = 0.2
     acceleration_std: float = 1.0
@@ -78,11 +123,6 @@ class AgentSettings:
     def from_parameters(cls, values):
         """Return the settings named in the mapping VALUES (extra names are ignored)."""
         return cls(**{field.name: values[field.name] for field in dataclasses.fields(cls)})
-
-    @property
-    def neighbour_radius_in_force(self):
-        """Return the radius assumed for every neighbour [m]."""
-        return self.radius if self.neighbor_radius < 0.0 else self.neighbor_radius
 
     @property
     def unicycle(self):
@@ -107,9 +147,11 @@ class Command:
 
     `velocity` (2,) is in the world frame; `yaw` is the robot's yaw measured at `stamp`, to turn
     it into the body frame. `result` is the core's PlanResult, None when the robot stands still
-    (no goal, or arrived). `own` and `neighbours` are the `StateBelief`s at `stamp`. `drive`
-    is a unicycle's (forward speed, turn rate) that tracks `velocity`, None for a holonomic
-    robot. `arrival` marks the first plan at the goal since the robot set off for it.
+    (no goal, or at its goal while nobody comes). `own` and `neighbours` are the `StateBelief`s
+    at `stamp`; `neighbour_names` and `announcements` (`NeighbourAnnouncement`s, defaults for
+    what was not announced) are in the same order. `drive` is a unicycle's (forward speed, turn
+    rate) that tracks `velocity`, None for a holonomic robot. `arrival` marks the first plan at
+    the goal since the robot set off for it.
     """
 
     stamp: float
@@ -119,9 +161,18 @@ class Command:
     arrived: bool
     own: object
     neighbours: tuple
-    neighbour_radius: float
+    neighbour_names: tuple
+    announcements: tuple
     drive: tuple = None
     arrival: bool = False
+
+    def announcement_values(self):
+        """Return {'neighbour.<robot>.radius': m, 'neighbour.<robot>.avoidance_share': a}."""
+        values = {}
+        for robot, announcement in zip(self.neighbour_names, self.announcements, strict=True):
+            values[f'neighbour.{robot}.radius'] = announcement.radius
+            values[f'neighbour.{robot}.avoidance_share'] = announcement.avoidance_share
+        return values
 
 
 @dataclasses.dataclass(frozen=True)
@@ -129,14 +180,15 @@ class PlanRequest:
     """One plan about to be made: the beliefs at `stamp` and the core's problem.
 
     `problem` is the argument tuple of `prvo_planner.core.plan_velocity` (ego, neighbours,
-    v_pref, config, previous, limits), or None when the robot stands still (no goal, or
-    arrived). `arrival` as in `Command`.
+    v_pref, config, previous, limits), or None when the robot stands still (no goal, or at its
+    goal while nobody comes). `arrival` as in `Command`.
     """
 
     stamp: float
     own: object
     neighbours: tuple
-    neighbour_radius: float
+    neighbour_names: tuple
+    announcements: tuple
     problem: tuple
     arrival: bool = False
 
@@ -164,7 +216,8 @@ class PlannerAgent:
         hold the agent's own robot too: the agent never plans against itself); the caller
         then keeps its settings.
 
-    Use: `receive_own` and `receive_neighbour` for every measurement; when `ready(now)`, or when
+    Use: `receive_own` and `receive_neighbour` for every measurement, `receive_footprint` and
+    `receive_share` for every announcement; when `ready(now)`, or when
     the caller's wait for neighbours (`sync_timeout`) ran out and `awaiting_listed(now)` is
     false, `plan()` returns the `Command` for the pending own stamp.
 
@@ -186,6 +239,12 @@ class PlannerAgent:
         self._neighbour_tracks = (
             TrackTable(settings.acceleration_std, settings.neighbor_timeout)
             if neighbour_tracks is None else neighbour_tracks)
+        # Announced by each neighbour: robot -> radius, robot -> share; and changes received
+        # since the last own measurement, which take effect with the next one.
+        self._announced_radius = {}
+        self._announced_share = {}
+        self._changed_radius = {}
+        self._changed_share = {}
         self._pending_stamp = None
         self._own_yaw = 0.0
         # The last planned velocity in the world frame, for the inertia term; None after a stop.
@@ -247,6 +306,10 @@ class PlannerAgent:
                                        self.settings.acceleration_std,
                                        self.settings.neighbor_timeout)
         if fusion.accepted:
+            self._announced_radius.update(self._changed_radius)
+            self._announced_share.update(self._changed_share)
+            self._changed_radius.clear()
+            self._changed_share.clear()
             if self._first_own_at is None:
                 self._first_own_at = now
             self._pending_stamp = measurement.stamp
@@ -256,6 +319,64 @@ class PlannerAgent:
     def receive_neighbour(self, robot, measurement, now):
         """Fuse neighbour ROBOT's MEASUREMENT; return its `Fusion`."""
         return self._neighbour_tracks.receive(robot, measurement, now)
+
+    @property
+    def own_announcement(self):
+        """What this robot announces: its radius, and its share of the avoidance.
+
+        On its way, the reciprocal share. Without a goal it does not plan, and at its goal it
+        stands until someone comes: its neighbours must not count on it mirroring their moves,
+        as a reciprocal planner does (a robot heading away from a standing one would otherwise
+        see the standing one's half coming after it), so it announces none.
+        """
+        moving = self.goal is not None and not self.arrived
+        # A unicycle's path strays up to its tracking error from its plan: its neighbours must
+        # keep clear of the grown disc it plans with.
+        return NeighbourAnnouncement(
+            self.settings.planning_radius, RECIPROCAL_SHARE if moving else UNANNOUNCED_SHARE)
+
+    def receive_footprint(self, robot, radius):
+        """Take neighbour ROBOT's announced RADIUS [m].
+
+        A neighbour's first announcement counts at once; a change, from the next own
+        measurement on (see `receive_share`). Raises ValueError naming the value if it is not
+        finite and > 0; the neighbour then keeps what it had (its last valid announcement, else
+        `unknown_neighbor_radius`).
+        """
+        self._take(robot, NeighbourAnnouncement(radius, UNANNOUNCED_SHARE).radius,
+                   self._announced_radius, self._changed_radius)
+
+    def receive_share(self, robot, avoidance_share):
+        """Take neighbour ROBOT's announced share of the avoidance.
+
+        A neighbour's first announcement counts at once; a change, from the next own
+        measurement on: in lockstep every robot plans a step at the same time, and a change
+        that a neighbour announces while planning one step then counts from the next step for
+        every robot, whichever plan it reached first. Raises ValueError naming the value if it
+        is not in [0, 1); the neighbour then keeps what it had (its last valid announcement,
+        else not avoiding).
+        """
+        self._take(robot, validated_share(avoidance_share, 'avoidance_share'),
+                   self._announced_share, self._changed_share)
+
+    @staticmethod
+    def _take(robot, value, announced, changed):
+        if robot in announced:
+            changed[robot] = value
+        else:
+            announced[robot] = value
+
+    def forget_announcements(self, robot):
+        """Drop what ROBOT announced (it left: a robot of that name may come back another)."""
+        for values in (self._announced_radius, self._announced_share, self._changed_radius,
+                       self._changed_share):
+            values.pop(robot, None)
+
+    def announcement_of(self, robot):
+        """Return the `NeighbourAnnouncement` planned with for ROBOT, defaults filled in."""
+        return NeighbourAnnouncement(
+            self._announced_radius.get(robot, self.settings.unknown_neighbor_radius),
+            self._announced_share.get(robot, UNANNOUNCED_SHARE))
 
     def forget_neighbours(self, now, wanted=None):
         """Drop neighbours silent longer than neighbor_timeout, or not in WANTED (if given).
@@ -267,11 +388,16 @@ class PlannerAgent:
     # Planning ---------------------------------------------------------------------------------
 
     def awaiting_listed(self, now):
-        """Whether a listed neighbour has not been heard yet and may still turn up."""
+        """Whether a listed neighbour has not been heard in full yet and may still turn up.
+
+        In full: its odometry, its footprint and its share. Announcements travel apart from
+        odometry; without this, a team's first plans would depend on which came first.
+        """
         if (self.listed_neighbours is None or self._first_own_at is None
                 or now - self._first_own_at > self.settings.neighbor_timeout):
             return False
-        return any(robot not in self._neighbour_tracks for robot in self.listed_neighbours)
+        return any(robot not in self._neighbour_tracks or robot not in self._announced_radius
+                   or robot not in self._announced_share for robot in self.listed_neighbours)
 
     def ready(self, now):
         """Whether a stamp is pending and every neighbour has been measured at or after it."""
@@ -300,29 +426,37 @@ class PlannerAgent:
             raise RuntimeError('plan() without a pending own measurement')
         stamp, self._pending_stamp = self._pending_stamp, None
         own = self._own_track.belief_at(stamp)
-        neighbour_radius = self.settings.neighbour_radius_in_force
         max_speed = self.config.max_speed
         v_pref, self.arrived = preferred_velocity(
             own.mean[:2], self.goal, max_speed, self.settings.approach_time,
             self.settings.goal_tolerance, self.settings.max_acceleration)
         arrival = self._arrival(own.mean[:2])
-        tracks = [self._neighbour_tracks.track(robot) for robot in self._neighbour_names()]
+        names = tuple(self._neighbour_names())
+        tracks = [self._neighbour_tracks.track(robot) for robot in names]
         neighbour_beliefs = tuple(track.belief_at(stamp) for track in tracks)
+        announcements = tuple(self.announcement_of(robot) for robot in names)
         if self._command_stamp is not None and 0.0 < stamp - self._command_stamp:
             self._control_period = stamp - self._command_stamp
         problem = None
-        if not (self.arrived or self.goal is None):
-            horizon = goal_horizon(
+        if self.goal is not None:
+            # At its goal the robot keeps planning, with v_pref = 0: it stands while nobody
+            # comes and takes its share of the avoidance when someone does, over the whole
+            # horizon (its neighbours count on that share).
+            horizon = self.config.time_horizon if self.arrived else goal_horizon(
                 float(np.hypot(*(self.goal - own.mean[:2]))), max_speed,
                 self.settings.approach_time, self.config.time_horizon)
             problem = (
                 AgentBelief(own.mean[:2], own.mean[2:], own.covariance,
                             self.settings.planning_radius),
-                [track.agent_belief(stamp, neighbour_radius) for track in tracks],
+                [track.agent_belief(stamp, announcement.radius, announcement.avoidance_share)
+                 for track, announcement in zip(tracks, announcements, strict=True)],
                 v_pref, dataclasses.replace(self.config, time_horizon=horizon),
                 self._previous_velocity, self._limits(stamp))
+            if self.arrived and nobody_comes(problem):
+                problem = None
         return PlanRequest(stamp=stamp, own=own, neighbours=neighbour_beliefs,
-                           neighbour_radius=neighbour_radius, problem=problem, arrival=arrival)
+                           neighbour_names=names, announcements=announcements,
+                           problem=problem, arrival=arrival)
 
     def _arrival(self, position):
         """Return whether arriving now is this goal's first arrival; track the departures."""
@@ -356,7 +490,8 @@ class PlannerAgent:
         self._command_in_force, self._command_stamp = velocity, request.stamp
         return Command(stamp=request.stamp, velocity=velocity, yaw=self._own_yaw, result=result,
                        arrived=self.arrived, own=request.own, neighbours=request.neighbours,
-                       neighbour_radius=request.neighbour_radius, drive=drive,
+                       neighbour_names=request.neighbour_names,
+                       announcements=request.announcements, drive=drive,
                        arrival=request.arrival)
 
     def _period(self, request):

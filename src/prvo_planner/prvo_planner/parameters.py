@@ -80,9 +80,12 @@ def _k_rule(value):
         f'must be >= 0 (or -1 to use eta), got {_shown(value)}')
 
 
-def _neighbour_radius_rule(value):
-    return None if value == -1.0 or value > 0.0 else (
-        f'must be -1 (= radius) or > 0, got {_shown(value)}')
+def _retired_neighbour_radius(value):
+    # Kept declared so that a launch file or `ros2 param set` still using it is told why it no
+    # longer applies, instead of "unknown parameter".
+    return None if value == -1.0 else (
+        f'retired (got {_shown(value)}): neighbours announce their own footprints; set '
+        'unknown_neighbor_radius for those that announce none')
 
 
 def _goal_rule(value):
@@ -105,8 +108,12 @@ _SPECS = (
                   'eta when set. -1 = use eta.', (-1.0, 1.0e3), rule=_k_rule),
     ParameterSpec('radius', FLOAT, 0.3, "This robot's radius [m], in (0, 100].", (0.0, 100.0),
                   rule=_positive_up_to_100),
-    ParameterSpec('neighbor_radius', FLOAT, -1.0, 'Radius assumed for every neighbour [m], > 0; '
-                  '-1 = the same as radius.', (-1.0, 100.0), rule=_neighbour_radius_rule),
+    ParameterSpec('unknown_neighbor_radius', FLOAT, 0.5, 'Radius assumed for a neighbour that '
+                  'announces no footprint [m], in (0, 100]; choose it no smaller than the '
+                  'largest robot expected.', (0.0, 100.0), rule=_positive_up_to_100),
+    ParameterSpec('neighbor_radius', FLOAT, -1.0, 'Retired, must stay -1: neighbours announce '
+                  'their footprints (/<robot>/footprint); unknown_neighbor_radius covers those '
+                  'that do not.', (-1.0, 100.0), rule=_retired_neighbour_radius),
     ParameterSpec('max_speed', FLOAT, 1.0, 'Speed limit [m/s], in (0, 100].', (0.0, 100.0),
                   rule=_positive_up_to_100),
     ParameterSpec('num_directions', INTEGER, 64, 'Candidate headings evaluated per plan.',

@@ -6,10 +6,11 @@ Run one per robot, in the robot's namespace:
 
 The node is a thin shell around `prvo_planner.agent.PlannerAgent`: it declares parameters,
 converts messages through prvo_msgs_util, feeds the agent, waits at most `sync_timeout` for
-neighbours and publishes the agent's commands.
+neighbours and publishes the agent's commands and its announcements (footprint, share).
 """
 
 import copy
+import dataclasses
 import functools
 import math
 import signal
@@ -44,6 +45,7 @@ from prvo_msgs_util import (
     MARKERS,
     ODOM,
     ODOM_LATEST_QOS,
+    Announcer,
     MessageFault,
     QosWatch,
     freeze_startup_objects,
@@ -58,6 +60,7 @@ from prvo_msgs_util import (
     robot_topic,
     serialized_odometry_to_measurement,
     spin_events,
+    subscribe_announcements,
     world_to_body,
 )
 from prvo_planner.agent import AgentSettings, PlannerAgent
@@ -165,6 +168,8 @@ class PlannerNode(Node):
             event_callbacks=quiet_publisher_events())
         self._marker_publisher = self.create_publisher(
             MarkerArray, MARKERS, MARKER_QOS, event_callbacks=quiet_publisher_events())
+        self._announcer = Announcer(self, self._robot)
+        self._announce()
         self._own_odom_topic = robot_topic(self._robot, ODOM)
         # Odometry arrives serialized (raw): eight messages a step in an 8-robot team, and
         # reading the few fields needed from the bytes costs a fraction of deserializing them.
@@ -175,7 +180,8 @@ class PlannerNode(Node):
             PoseStamped, GOAL_POSE, self._on_goal_pose, GOAL_QOS,
             event_callbacks=quiet_subscription_events())
         for endpoint in (self._cmd_vel_publisher, self._diagnostics_publisher,
-                         self._marker_publisher, own_odometry, goal):
+                         self._marker_publisher, self._announcer.footprint_publisher,
+                         self._announcer.share_publisher, own_odometry, goal):
             self._qos_watch.watch(endpoint)
 
         # Wall-clock timers: under use_sim_time the simulator waits for us, so sim time would
@@ -231,9 +237,14 @@ class PlannerNode(Node):
             return SetParametersResult(successful=False, reason=str(error))
         self._values, self._config, self._goal = values, config, goal
         self._agent.reconfigure(config, AgentSettings.from_parameters(values), goal)
+        self._announce()
         if any(parameter.name == 'sync_timeout' for parameter in parameters):
             self._sync_timer.timer_period_ns = int(max(values['sync_timeout'], 1e-3) * 1e9)
         return SetParametersResult(successful=True)
+
+    def _announce(self):
+        """Publish the robot's footprint and share (latched) where they changed."""
+        self._announcer.announce(*dataclasses.astuple(self._agent.own_announcement))
 
     def warm_up(self):
         """Pay the first plans' one-off costs before spinning (see PlannerAgent.warm_up)."""
@@ -317,6 +328,10 @@ class PlannerNode(Node):
             return
         self._plan()
 
+    def _on_bad_announcement(self, topic, error):
+        # The agent keeps the neighbour's last valid announcement, else its default.
+        self._warn((topic, 'announcement'), f'ignoring announcement on {topic}: {error}')
+
     # Neighbours -------------------------------------------------------------------------------
 
     def _neighbour_names(self):
@@ -335,19 +350,24 @@ class PlannerNode(Node):
     def _maintain_neighbours(self):
         """Subscribe to robots that appeared, forget robots that went silent or vanished."""
         wanted = self._neighbour_names()
+        agent = self._agent
         for robot in wanted - set(self._neighbour_subscriptions):
             topic = robot_topic(robot, ODOM)
-            self._neighbour_subscriptions[robot] = self.create_subscription(
+            self._neighbour_subscriptions[robot] = [self.create_subscription(
                 Odometry, topic,
                 lambda data, robot=robot, topic=topic: self._on_neighbour_odometry(
                     data, robot, topic),
                 ODOM_LATEST_QOS, event_callbacks=quiet_subscription_events(), raw=True)
-            self._qos_watch.watch(self._neighbour_subscriptions[robot])
+            ] + subscribe_announcements(self, robot, agent.receive_footprint,
+                                        agent.receive_share, self._on_bad_announcement)
+            for subscription in self._neighbour_subscriptions[robot]:
+                self._qos_watch.watch(subscription)
             self.get_logger().info(f'tracking neighbour {robot}')
         for robot in set(self._neighbour_subscriptions) - wanted:
-            subscription = self._neighbour_subscriptions.pop(robot)
-            self._qos_watch.forget(subscription)
-            self.destroy_subscription(subscription)
+            for subscription in self._neighbour_subscriptions.pop(robot):
+                self._qos_watch.forget(subscription)
+                self.destroy_subscription(subscription)
+            agent.forget_announcements(robot)
         self._qos_watch.check()
         for robot, silent in self._agent.forget_neighbours(time.monotonic(), wanted):
             self.get_logger().info(f'dropped neighbour {robot}: silent for {silent:.1f} s')
@@ -362,6 +382,8 @@ class PlannerNode(Node):
         plan_time_ms = (time.perf_counter() - started) * 1e3
         if command.arrival:
             self.get_logger().info(f'arrived at {self._agent.goal.tolist()}')
+        # Before the command: in lockstep, neighbours plan the next step with it.
+        self._announce()
         # cmd_vel is in the body frame: rotate the world-frame plan by minus the robot's yaw; a
         # unicycle drives forward and turns (its tracking controller's command), nothing else.
         if command.drive is None:

@@ -27,7 +27,8 @@ def plan_status(robot, command, plan_time_ms, model, planning_radius):
         'ok' if feasible else 'no velocity meets the chance constraint',
         {'achieved_k': achieved_k, 'eta_bound': eta_bound, 'feasible': feasible,
          'neighbours_tracked': len(command.neighbours), 'plan_time_ms': plan_time_ms,
-         'arrived': command.arrived, 'model': model, 'planning_radius': planning_radius},
+         'arrived': command.arrived, 'model': model, 'planning_radius': planning_radius,
+         **command.announcement_values()},
         level=DiagnosticStatus.OK if feasible else DiagnosticStatus.WARN,
         hardware_id=robot)
 
@@ -42,5 +43,6 @@ def plan_markers(robot, command, frame_id, effective_k):
         command.stamp, frame_id, robot, command.own.mean[:2], command.velocity,
         np.array([belief.mean[:2] for belief in neighbours]).reshape(-1, 2),
         np.array([belief.covariance[:2, :2] for belief in neighbours]).reshape(-1, 2, 2),
-        np.full(len(neighbours), command.neighbour_radius),
-        confidence_ellipse_scale(effective_k))
+        [announcement.radius for announcement in command.announcements],
+        confidence_ellipse_scale(effective_k),
+        [announcement.avoidance_share for announcement in command.announcements])

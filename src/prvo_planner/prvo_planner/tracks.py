@@ -73,14 +73,17 @@ class Track:
             belief = self._beliefs[stamp] = self.tracker.belief_at(stamp)
         return belief
 
-    def agent_belief(self, stamp, radius):
-        """Return the core's `AgentBelief` of this robot at STAMP with RADIUS [m] (kept too)."""
-        key = (stamp, radius)
+    def agent_belief(self, stamp, radius, avoidance_share):
+        """Return the core's `AgentBelief` of this robot at STAMP (kept too).
+
+        RADIUS [m] and AVOIDANCE_SHARE are what the robot announced.
+        """
+        key = (stamp, radius, avoidance_share)
         belief = self._agent_beliefs.get(key)
         if belief is None:
             state = self.belief_at(stamp)
             belief = self._agent_beliefs[key] = AgentBelief(
-                state.mean[:2], state.mean[2:], state.covariance, radius)
+                state.mean[:2], state.mean[2:], state.covariance, radius, avoidance_share)
         return belief
 
     def update(self, measurement, now):

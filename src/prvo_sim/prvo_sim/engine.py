@@ -16,14 +16,24 @@ from dataclasses import dataclass
 import time
 
 import numpy as np
+from rclpy.serialization import deserialize_message, serialize_message
 
 from prvo_msgs_util import (
     WORLD_FRAME,
     body_to_world,
+    footprint_message,
+    radius_of_footprint,
     serialized_odometry_to_measurement,
+    share_message,
+    share_of,
     world_to_body,
 )
-from prvo_planner.agent import AgentSettings, PlannerAgent
+from prvo_planner.agent import (
+    UNANNOUNCED_SHARE,
+    AgentSettings,
+    NeighbourAnnouncement,
+    PlannerAgent,
+)
 from prvo_planner.core import plan_velocities
 from prvo_planner.parameters import planner_config_from
 from prvo_planner.tracks import TrackTable
@@ -49,6 +59,11 @@ class StepRecord:
     plan_ms: np.ndarray
     contacts: tuple
     yaws: np.ndarray = None
+
+
+def _received(message):
+    """Return MESSAGE as a subscriber receives it: serialized and deserialized."""
+    return deserialize_message(serialize_message(message), type(message))
 
 
 def agent_of(name, values, neighbour_tracks=None):
@@ -104,6 +119,34 @@ class InProcessTeam:
         # (None for a scripted robot).
         self.last_odometry = ()
         self.last_commands = ()
+        # What each robot announces: a planned one its agent's (it changes on arrival), a
+        # scripted one, as the simulator announces it, its radius and no share of the avoidance.
+        self._scripted_announcements = {
+            index: NeighbourAnnouncement(robot.radius, UNANNOUNCED_SHARE)
+            for index, robot in enumerate(scenario.robots) if robot.scripted is not None}
+        self._announced = [None] * len(self.agents)
+        self._announce()
+
+    def _announce(self):
+        """Give every agent what each other robot announces now, where it changed.
+
+        As a planner node does: at start-up, then after each plan, before its command; through
+        the messages as they arrive (serialized: single-precision numbers).
+        """
+        names = self.world.names
+        for index, agent in enumerate(self.agents):
+            announcement = (self._scripted_announcements[index] if agent is None
+                            else agent.own_announcement)
+            if announcement == self._announced[index]:
+                continue
+            self._announced[index] = announcement
+            radius = radius_of_footprint(_received(
+                footprint_message(announcement.radius, WORLD_FRAME)))
+            share = share_of(_received(share_message(announcement.avoidance_share)))
+            for _, other in self._planned:
+                if other is not agent:
+                    other.receive_footprint(names[index], radius)
+                    other.receive_share(names[index], share)
 
     @property
     def finished(self):
@@ -162,6 +205,7 @@ class InProcessTeam:
             commands[index] = body_to_world(world_to_body(command.velocity, command.yaw),
                                             yaws[index])
             executed[index] = commands[index]
+        self._announce()
         # One call plans the team: each planned robot is charged an equal share of it.
         plan_ms = np.full(len(self._planned), (time.perf_counter() - started) * 1e3
                           / max(len(self._planned), 1))

@@ -43,7 +43,7 @@ SNAPSHOT_DISTANCE = 2.0  # m from the meeting point: the robots are closing in a
 VALIDATION_KS = (1.0, 1.5)
 DEVIATION_KS = (0.5, 1.0, 1.5, 2.0, 3.0)
 CONFIDENCE_LEVELS = (0.68, 0.80)
-SCENARIOS = ('circle8', 'crossing4', 'headon2')
+SCENARIOS = ('circle8', 'crossing4', 'headon2', 'parked_large', 'mixed12')
 # (label, runner method, eta); eta None leaves the scenario's (rvo ignores it).
 METHOD_VARIANTS = (('prvo eta 0.5', 'prvo', 0.5), ('prvo eta 0.8', 'prvo', 0.8),
                    ('prvo eta 0.9', 'prvo', 0.9), ('rvo', 'rvo', None),

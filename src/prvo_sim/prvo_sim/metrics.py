@@ -55,21 +55,17 @@ def contact_events(times, positions, radii):
 
 
 def arrival_indices(positions, goals, tolerance):
-    """Return, per robot, the first step from which it stays within TOLERANCE of its goal.
+    """Return, per robot, the first step at which it is within TOLERANCE of its goal.
 
-    None for a robot that is not within tolerance at the last step (it has not arrived).
+    None for a robot that never is (it has not arrived). Robots at their goal keep planning
+    and may step aside for others: the first arrival is what counts.
     """
     distances = np.linalg.norm(np.asarray(positions, dtype=float) - np.asarray(goals)[None],
                                axis=-1)
     inside = distances <= tolerance
-    indices = []
-    for robot in range(inside.shape[1]):
-        if not inside[-1, robot]:
-            indices.append(None)
-            continue
-        outside_steps = np.nonzero(~inside[:, robot])[0]
-        indices.append(int(outside_steps[-1]) + 1 if outside_steps.size else 0)
-    return indices
+    reached = inside.any(axis=0)
+    first = inside.argmax(axis=0)
+    return [int(step) if arrived else None for step, arrived in zip(first, reached, strict=True)]
 
 
 def path_lengths(positions, end_indices=None):
@@ -97,10 +93,11 @@ def run_metrics(times, positions, radii, goals, goal_tolerance, robot_names, scr
 
     Keys: robots (arrived, time_to_goal, path_length, scripted per robot), scripted_robots,
     success_rate, collisions, min_separation, makespan, mean_time_to_goal, sim_time. Times are
-    measured from times[0]; a robot's path length runs up to its arrival (the whole run if it
-    did not arrive). SCRIPTED (N,) marks the robots that follow waypoints (default: none):
-    they count in collisions and min_separation, while success_rate, makespan and
-    mean_time_to_goal are over the others; their `arrived` and `time_to_goal` are None.
+    measured from times[0]; a robot's arrival is its first within the tolerance, and its path
+    length runs up to it (the whole run if it did not arrive). SCRIPTED (N,) marks the robots
+    that follow waypoints (default: none): they count in collisions and min_separation, while
+    success_rate, makespan and mean_time_to_goal are over the others; their `arrived` and
+    `time_to_goal` are None.
     """
     times = np.asarray(times, dtype=float)
     scripted = (np.zeros(len(robot_names), dtype=bool) if scripted is None

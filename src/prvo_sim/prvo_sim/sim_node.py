@@ -10,7 +10,7 @@ import sys
 import time
 
 from diagnostic_msgs.msg import DiagnosticArray
-from geometry_msgs.msg import Twist, TwistStamped
+from geometry_msgs.msg import PolygonStamped, Twist, TwistStamped
 from nav_msgs.msg import Odometry
 import numpy as np
 from rcl_interfaces.msg import (
@@ -26,8 +26,11 @@ from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rosgraph_msgs.msg import Clock as ClockMsg
+from std_msgs.msg import Float32
 
 from prvo_msgs_util import (
+    ANNOUNCEMENT_QOS,
+    AVOIDANCE_SHARE,
     CLOCK,
     CLOCK_QOS,
     CMD_VEL,
@@ -36,18 +39,21 @@ from prvo_msgs_util import (
     CONTACTS,
     DIAGNOSTICS,
     DIAGNOSTICS_QOS,
+    FOOTPRINT,
     GROUND_TRUTH,
     ODOM,
     ODOM_QOS,
     MessageFault,
     QosWatch,
     SigintRecorder,
+    footprint_message,
     freeze_startup_objects,
     ignore_stop_signals,
     quiet_publisher_events,
     quiet_subscription_events,
     robot_topic,
     seconds_to_stamp,
+    share_message,
     spin_events,
 )
 from prvo_sim.commands import command_velocity, unicycle_command
@@ -174,8 +180,18 @@ class SimNode(Node):
             robot.logger = self.get_logger().get_child(robot.name)
             endpoints += [robot.odom_publisher, robot.ground_truth_publisher]
             if robot.scripted:
-                # No planner speaks for a scripted robot: what planners announce of their
-                # robot to its neighbours is for this node to announce of it.
+                # No planner speaks for a scripted robot: this node announces its size and that
+                # it takes no share of the avoidance, latched, as a planner announces its own.
+                spec = scenario.robots[index]
+                footprint = self.create_publisher(
+                    PolygonStamped, robot_topic(robot.name, FOOTPRINT), ANNOUNCEMENT_QOS,
+                    event_callbacks=quiet())
+                footprint.publish(footprint_message(spec.radius, f'{robot.name}/base_link'))
+                share = self.create_publisher(
+                    Float32, robot_topic(robot.name, AVOIDANCE_SHARE), ANNOUNCEMENT_QOS,
+                    event_callbacks=quiet())
+                share.publish(share_message(0.0))
+                endpoints += [footprint, share]
                 continue
             endpoints.append(self.create_subscription(
                 command_type, robot.cmd_vel_topic,

@@ -117,6 +117,10 @@ class AgentBelief:
         Covariance over ``[x, y, vx, vy]``, shape (4, 4), cross terms allowed.
     radius : float
         Disk radius, metres, > 0.
+    avoidance_share : float
+        The share of a pair's avoidance this robot takes itself, in [0, 1): 0.5 for a
+        reciprocating planner, 0 for a robot that does not avoid (docs/method.md, section 11).
+        Only neighbours' shares are used.
 
     """
 
@@ -124,6 +128,7 @@ class AgentBelief:
     velocity: np.ndarray
     covariance: np.ndarray
     radius: float
+    avoidance_share: float = 0.5
 
     def __post_init__(self):
         object.__setattr__(self, 'position',
@@ -140,3 +145,23 @@ class AgentBelief:
         if radius <= 0.0:
             raise ValueError(f'AgentBelief.radius must be > 0, got {radius!r}')
         object.__setattr__(self, 'radius', radius)
+        object.__setattr__(self, 'avoidance_share', validated_share(
+            self.avoidance_share, 'AgentBelief.avoidance_share'))
+
+
+def validated_share(value, field):
+    """
+    Return ``value`` as a share of the avoidance: a float in [0, 1).
+
+    Raises
+    ------
+    ValueError
+        If it is not a number in [0, 1), naming ``field``.
+
+    """
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.floating, np.integer)):
+        raise ValueError(f'{field} must be a number in [0, 1), got {value!r}')
+    share = float(value)
+    if not 0.0 <= share < 1.0:
+        raise ValueError(f'{field} must be in [0, 1), got {share!r}')
+    return share

@@ -1,8 +1,8 @@
 """
 The neighbours of one plan as relative Gaussians, the candidate directions, and the conditions.
 
-``build_encounter`` turns beliefs into the mean and covariance of ``z = (r, u)`` per neighbour
-(docs/method.md, section 2); ``condition_layout`` says which of the alternatives
+``build_encounter`` turns beliefs into the mean and covariance of ``z = (r, w)`` per neighbour
+(docs/method.md, sections 2 and 11); ``condition_layout`` says which of the alternatives
 ``f``, ``g``, ``h1 and h2`` each neighbour is judged by; ``model_moments`` gives the covariance and
 radius each model plans with.
 """
@@ -19,14 +19,20 @@ from .probability import confidence_ellipse_scale, eta_from_k
 @dataclass(frozen=True)
 class Encounter:
     """
-    The neighbours a plan considers, as relative Gaussians (docs/method.md, section 2).
+    The neighbours a plan considers, as relative Gaussians (docs/method.md, sections 2, 11).
+
+    With ``rho = 1 - a_j`` the ego's share of the avoidance against a neighbour of share
+    ``a_j``, the relative velocity is ``w = (v_x - (1 - rho) v_i) / rho - v_j``: ``u`` of RVO for
+    ``rho = 1/2``, the plain relative velocity for ``rho = 1``.
 
     Attributes
     ----------
     origin : numpy.ndarray
-        Mean of ``z = (r, u)`` at zero command, shape (N, 4).
+        Mean of ``z = (r, w)`` at zero command, shape (N, 4).
     cov : numpy.ndarray
-        Covariance of ``z`` (with ``4 S_a`` in the velocity block), shape (N, 4, 4).
+        Covariance of ``z`` (with ``S_a / rho^2`` in the velocity block), shape (N, 4, 4).
+    lead : numpy.ndarray
+        ``1 / rho``, the factor of the command in ``w``, shape (N,).
     combined_radius : numpy.ndarray
         ``R = R_i + R_j + margin``, shape (N,).
     overlapping : numpy.ndarray
@@ -42,6 +48,7 @@ class Encounter:
 
     origin: np.ndarray
     cov: np.ndarray
+    lead: np.ndarray
     combined_radius: np.ndarray
     overlapping: np.ndarray
     margin: float
@@ -74,6 +81,7 @@ def build_encounter(ego, neighbours, config):
     velocities = np.array([belief.velocity for belief in neighbours]).reshape(-1, 2)
     covariances = np.array([belief.covariance for belief in neighbours]).reshape(-1, 4, 4)
     radii = np.array([belief.radius for belief in neighbours])
+    shares = np.array([belief.avoidance_share for belief in neighbours])
     relative_position = ego.position - positions
     distance = np.hypot(relative_position[:, 0], relative_position[:, 1])
     near = distance - ego.radius - radii <= config.neighbor_distance
@@ -82,17 +90,24 @@ def build_encounter(ego, neighbours, config):
     if config.risk == 'joint' and count > 0:
         # 1 - eta_j = (1 - eta) / n with 1 - eta = 1 / (1 + k^2), written in k to stay finite.
         margin = math.sqrt((1.0 + margin ** 2) * count - 1.0)
+    # rho = 1 - a_j; w = lead v_x - ego_weight v_i - v_j. At a_j = 1/2 both factors are exact
+    # (2 and 1), so the reciprocal case is computed bit for bit as with u = 2 v_x - v_i - v_j.
+    rho = 1.0 - shares[near]
+    lead = 1.0 / rho
+    ego_weight = (1.0 - rho) / rho
     cov = np.zeros((count, 4, 4))
     cov[:, :2, :2] = ego.covariance[:2, :2] + covariances[near, :2, :2]
-    cov[:, 2:, 2:] = (4.0 * config.actuation_cov + ego.covariance[2:, 2:]
+    cov[:, 2:, 2:] = ((lead ** 2)[:, None, None] * config.actuation_cov
+                      + (ego_weight ** 2)[:, None, None] * ego.covariance[2:, 2:]
                       + covariances[near, 2:, 2:])
-    cross = -ego.covariance[:2, 2:] + covariances[near, :2, 2:]
+    cross = -ego_weight[:, None, None] * ego.covariance[:2, 2:] + covariances[near, :2, 2:]
     cov[:, :2, 2:] = cross
     cov[:, 2:, :2] = cross.swapaxes(-1, -2)
     combined_radius = ego.radius + radii[near] + config.safety_margin
     return Encounter(
-        origin=np.concatenate([relative_position[near], -ego.velocity - velocities[near]], axis=1),
-        cov=cov, combined_radius=combined_radius,
+        origin=np.concatenate([relative_position[near],
+                               -ego_weight[:, None] * ego.velocity - velocities[near]], axis=1),
+        cov=cov, lead=lead, combined_radius=combined_radius,
         overlapping=distance[near] < combined_radius, margin=margin,
         # k' = sqrt((1 + eta) / (1 - eta)) with eta = k^2 / (1 + k^2).
         horizon_margin=math.sqrt(1.0 + 2.0 * margin ** 2), eta=eta_from_k(margin))

@@ -477,9 +477,10 @@ def monte_carlo_probabilities(encounter, layout, directions, speeds, config, rng
         Shape (N, M, T).
 
     """
-    velocity = 2.0 * config.max_speed * speeds[..., None] * directions[:, None, :]
+    command = config.max_speed * speeds[..., None] * directions[:, None, :]
     probabilities = []
     for index in range(encounter.origin.shape[0]):
+        velocity = encounter.lead[index] * command
         eigenvalues, eigenvectors = np.linalg.eigh(encounter.cov[index])
         root = eigenvectors * np.sqrt(np.maximum(eigenvalues, 0.0))
         z = encounter.origin[index] + rng.standard_normal((config.mc_samples, 4)) @ root.T

@@ -16,11 +16,12 @@ so ``E[f] = k2(q) + k1(q)^2 - R^2 E[p]`` and
 Every term is a trace (independent of the mean) plus a quadratic form ``mu'Xmu``.
 
 For the planner, ``E`` is a quadratic and ``Var`` a quartic polynomial in the commanded
-velocity ``v_c`` (``mu_u = 2 v_c - w``). Their coefficients are recovered exactly (to rounding)
-by evaluating the closed form on a 5 x 5 Chebyshev grid over ``[-v_max, v_max]^2`` and
-applying a fixed least-squares inverse of the bivariate quartic Vandermonde matrix (a
-well-conditioned, full-rank 25 x 15 system); restricted to a ray ``v_c = t v_max e`` they become
-polynomials in ``t`` by one matrix product with the direction monomials. This costs a few
+velocity ``v_c`` (``mu_w = v_c / rho + mu_w(0)``, ``1 / rho = 2`` for RVO). Their coefficients
+are recovered exactly (to rounding) by evaluating the closed form on a 5 x 5 Chebyshev grid over
+``[-v_max, v_max]^2`` and applying a fixed least-squares inverse of the bivariate quartic
+Vandermonde matrix (a well-conditioned, full-rank 25 x 15 system); restricted to a ray
+``v_c = t v_max e`` they become polynomials in ``t`` by one matrix product with the direction
+monomials. This costs a few
 hundred closed-form evaluations per plan, independent of the number of directions.
 """
 
@@ -208,7 +209,8 @@ def rvo_moments(mean, cov, radius):
     return rvo_moments_from_forms(forms, traces[..., :8], radius)
 
 
-def condition_moments(origin, cov, combined_radius, velocities, time_horizon, receding_gate):
+def condition_moments(origin, cov, combined_radius, velocities, time_horizon, receding_gate,
+                      lead=2.0):
     """
     Mean and variance of every condition at given commanded velocities.
 
@@ -229,6 +231,9 @@ def condition_moments(origin, cov, combined_radius, velocities, time_horizon, re
         ``tau`` (``inf`` drops ``h1`` and ``h2``).
     receding_gate : bool
         Whether ``g`` is a condition.
+    lead : float or numpy.ndarray
+        ``1 / rho``, the factor of the command in the relative velocity, per neighbour,
+        shape (N,) (2 for reciprocal avoidance).
 
     Returns
     -------
@@ -242,7 +247,8 @@ def condition_moments(origin, cov, combined_radius, velocities, time_horizon, re
     velocities = np.asarray(velocities, dtype=float)
     mean_t = np.empty((origin.shape[0], 4, velocities.shape[-2]))
     mean_t[:, :2] = origin[:, :2, None]
-    mean_t[:, 2:] = origin[:, 2:, None] + 2.0 * velocities.swapaxes(-1, -2)
+    mean_t[:, 2:] = origin[:, 2:, None] + np.reshape(lead, (-1, 1, 1)) * velocities.swapaxes(
+        -1, -2)
     # mu'X mu as (X mu) . mu with the points last: one (F 4, 4) x (4, P) product per neighbour,
     # contiguous reductions.
     count, forms_count = matrices.shape[:2]
@@ -287,7 +293,7 @@ _DEGREE_MASK = (_DEGREES[:, None] == np.arange(5)).astype(float)
 
 
 def ray_polynomials(origin, cov, combined_radius, directions, scale, time_horizon,
-                    receding_gate):
+                    receding_gate, lead=2.0):
     """
     Mean and variance polynomials in ``t`` of every condition on every (neighbour, ray) pair.
 
@@ -295,7 +301,7 @@ def ray_polynomials(origin, cov, combined_radius, directions, scale, time_horizo
 
     Parameters
     ----------
-    origin, cov, combined_radius, time_horizon, receding_gate
+    origin, cov, combined_radius, time_horizon, receding_gate, lead
         As for :func:`condition_moments`.
     directions : numpy.ndarray
         Unit directions ``e``, shape (M, 2).
@@ -311,7 +317,8 @@ def ray_polynomials(origin, cov, combined_radius, directions, scale, time_horizo
 
     """
     mean_fit, variance_fit = bivariate_polynomials(origin, cov, combined_radius,
-                                                   scale * NODES, time_horizon, receding_gate)
+                                                   scale * NODES, time_horizon, receding_gate,
+                                                   lead)
     count, conditions = mean_fit.shape[:2]
     return tuple(_coefficient_major(rows.reshape(count, conditions, -1, length))
                  for rows, length in zip(ray_rows(mean_fit[None], variance_fit[None],
@@ -319,7 +326,7 @@ def ray_polynomials(origin, cov, combined_radius, directions, scale, time_horizo
 
 
 def bivariate_polynomials(origin, cov, combined_radius, node_velocities, time_horizon,
-                          receding_gate):
+                          receding_gate, lead):
     """
     Coefficients of the mean (quadratic) and variance (quartic) of every condition in ``v_c``.
 
@@ -329,7 +336,7 @@ def bivariate_polynomials(origin, cov, combined_radius, node_velocities, time_ho
 
     Parameters
     ----------
-    origin, cov, combined_radius, time_horizon, receding_gate
+    origin, cov, combined_radius, time_horizon, receding_gate, lead
         As for :func:`condition_moments`.
     node_velocities : numpy.ndarray
         The grid at each neighbour's plan's ``v_max``, shape (25, 2) or (N, 25, 2).
@@ -343,7 +350,7 @@ def bivariate_polynomials(origin, cov, combined_radius, node_velocities, time_ho
 
     """
     means, variances = condition_moments(origin, cov, combined_radius, node_velocities,
-                                         time_horizon, receding_gate)
+                                         time_horizon, receding_gate, lead)
     return ((_FIT[:_QUADRATIC_TERMS] @ means).swapaxes(-1, -2),
             (_FIT @ variances).swapaxes(-1, -2))
 

@@ -254,7 +254,7 @@ def _monte_carlo_plan(plan):
         directions[direction_index]
     at_velocity = [moment[:, 0] for moment in condition_moments(
         encounter.origin, encounter.cov, encounter.combined_radius, velocity[None, :],
-        config.time_horizon, plan.layout.has_receding)]
+        config.time_horizon, plan.layout.has_receding, encounter.lead)]
     return _result(plan, velocity, candidates_feasible,
                    float(achieved_margins(*at_velocity, plan.layout,
                                           plan.layout.receding_enabled).min()))
@@ -280,7 +280,8 @@ def _solve_group(plans):
         np.concatenate([plan.encounter.origin for plan in plans]),
         np.concatenate([plan.cov for plan in plans]),
         np.concatenate([plan.radius for plan in plans]), np.repeat(nodes, pairs, axis=0),
-        config.time_horizon, layout.has_receding)
+        config.time_horizon, layout.has_receding,
+        np.concatenate([plan.encounter.lead for plan in plans]))
     conditions = mean_fit.shape[1]
     directions = np.stack([plan.directions for plan in plans])
     # Polynomials (L, B, N, M, C): every link's coefficients, coefficient-major.
@@ -390,5 +391,6 @@ def _achieved(plans, means, variances, direction_index, chosen_t, velocities):
             np.concatenate([plan.encounter.cov for plan in plans]),
             np.concatenate([plan.encounter.combined_radius for plan in plans]),
             np.repeat(velocities, pairs, axis=0)[:, None, :], first.config.time_horizon,
-            first.layout.has_receding)]
+            first.layout.has_receding,
+            np.concatenate([plan.encounter.lead for plan in plans]))]
     return achieved_margins(*at_velocity, first.layout, enabled).min(axis=1)

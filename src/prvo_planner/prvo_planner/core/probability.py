@@ -85,7 +85,9 @@ def confidence_ellipse_scale(k):
 
 def sample_relative_states(ego, neighbour, command, actuation_cov, n_samples, rng):
     """
-    Sample ``z = (r, u)`` for one pair by sampling both beliefs and the actuation noise.
+    Sample ``z = (r, w)`` for one pair by sampling both beliefs and the actuation noise.
+
+    ``w`` is the relative velocity at the neighbour's share of the avoidance (``u`` at 1/2).
 
     Parameters
     ----------
@@ -113,7 +115,10 @@ def sample_relative_states(ego, neighbour, command, actuation_cov, n_samples, rn
                                               method='eigh')
     noise = rng.multivariate_normal(np.zeros(2), actuation_cov, size=n_samples, method='eigh')
     relative_position = ego_state[:, :2] - neighbour_state[:, :2]
-    relative_velocity = 2.0 * (command + noise) - ego_state[:, 2:] - neighbour_state[:, 2:]
+    # w of docs/method.md, section 11: at the neighbour's share 1/2, u = 2 v_x - v_i - v_j.
+    rho = 1.0 - neighbour.avoidance_share
+    relative_velocity = ((command + noise) / rho - ((1.0 - rho) / rho) * ego_state[:, 2:]
+                         - neighbour_state[:, 2:])
     return np.concatenate([relative_position, relative_velocity], axis=1)
 
 
