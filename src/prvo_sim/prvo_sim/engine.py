@@ -37,7 +37,8 @@ class StepRecord:
     `states` (N, 4) is every robot's ground truth [x, y, vx, vy] as a recorder reads it;
     `commands` (N, 2) the world-frame velocities commanded for the next dt; `plan_ms` (N,)
     each robot's share of the team's planning time [ms of wall time]; `contacts` the
-    `world.Contact`s the step made.
+    `world.Contact`s the step made; `feasible` (N,) whether each robot's command met every
+    constraint (True for a robot standing still).
     """
 
     time: float
@@ -45,6 +46,7 @@ class StepRecord:
     commands: np.ndarray
     plan_ms: np.ndarray
     contacts: tuple
+    feasible: np.ndarray
 
 
 def agent_of(name, values):
@@ -126,5 +128,6 @@ class InProcessTeam:
         plan_ms = np.full(len(self.agents), (time.perf_counter() - started) * 1e3
                           / len(self.agents))
         contacts = world.step(commands)
+        feasible = np.array([result is None or result.feasible for result in results])
         return StepRecord(time=now, states=states, commands=commands, plan_ms=plan_ms,
-                          contacts=tuple(contacts))
+                          contacts=tuple(contacts), feasible=feasible)

@@ -2,7 +2,9 @@
 The choice among feasible velocities, and the ranking of candidates when none is feasible.
 
 The cost of a velocity is ``|v - v_pref| + inertia |v - previous| + passing_bias max(0,
-left(v))``; the extra terms only rank velocities that the constraints already admit.
+left(v))``; the extra terms only rank velocities that the constraints already admit. Without a
+feasible velocity, candidates are ranked by how fast they close on touching neighbours and how
+soon they would collide with the others (``fallback_measures``, ``fallback_index``).
 """
 
 from dataclasses import dataclass
@@ -10,12 +12,11 @@ import math
 
 import numpy as np
 
-from .feasibility import achieved_margins, horner_coefficient_major
+from .probability import confidence_ellipse_scale
 
 # Speeds, as fractions of v_max, tried on every direction when no direction is feasible (and by
 # the Monte Carlo baseline), besides the preferred speed on the direction.
 _SPEED_GRID = np.linspace(0.0, 1.0, 9)
-_SPEED_GRID_POWERS = _SPEED_GRID[:, None] ** np.arange(5)
 # The best speed on a ray under the inertia / passing-bias cost: a grid of 17 points over the
 # interval, zoomed 5 times onto the best point's two cells (1/8 of the span each time): to
 # 8^-5 (3e-5) of the interval.
@@ -183,49 +184,82 @@ def speed_grid(directions, preferred, v_pref, previous, config):
     return speeds, costs
 
 
-def grid_scores(means, variances, speeds, layout, deterministic):
+def ranking_radius(encounter, model):
     """
-    Ranked achieved ``k`` at candidate speeds, minimised over neighbours.
+    Radius of each neighbour the fallback ranks with, shape (N,).
+
+    The means' combined radius grown, as the ``inflate`` model does, by the ``k`` confidence
+    ellipse of the relative position, so that uncertain neighbours are kept further away; the
+    ``rvo`` model plans on the means alone and keeps the plain radius.
+    """
+    if model == 'rvo':
+        return encounter.combined_radius
+    spread = np.linalg.eigvalsh(encounter.cov[:, :2, :2])[:, -1]
+    return encounter.combined_radius + confidence_ellipse_scale(encounter.margin) * np.sqrt(
+        np.maximum(spread, 0.0))
+
+
+def fallback_measures(velocities, origin, radius, horizon):
+    """
+    Return the fallback's two measures of candidate commands against the neighbours' means.
+
+    With ``r`` a neighbour's mean relative position and ``u = 2 v + origin_u`` the reciprocal
+    relative velocity at command ``v`` (docs/method.md, section 2), a neighbour is *touching*
+    when ``|r| < R``. Both measures need no variance and stay defined in overlap.
 
     Parameters
     ----------
-    means, variances : numpy.ndarray
-        Condition polynomials, shapes (N, M, C, 3) and (N, M, C, 5).
-    speeds : numpy.ndarray
-        ``t`` per direction, shape (M, T).
-    layout : ConditionLayout
-        Column meaning.
-    deterministic : bool
-        All variances are zero: rank by the normalised margin (``achieved_margins``' ``rank``).
+    velocities : numpy.ndarray
+        Candidate commands, shape (K, 2).
+    origin : numpy.ndarray
+        ``(r, u)`` at zero command per neighbour, shape (N, 4) (``Encounter.origin``).
+    radius : numpy.ndarray
+        Radius ``R`` per neighbour, shape (N,).
+    horizon : float
+        Times to collision are capped here (``inf``: uncapped).
 
     Returns
     -------
-    numpy.ndarray
-        Shape (M, T).
+    closing : numpy.ndarray
+        Shape (K,): the fastest a touching neighbour closes in, ``max(0, -r . u / |r|)``
+        (0 without touching neighbours, or when each one recedes).
+    time_to_collision : numpy.ndarray
+        Shape (K,): the first ``t >= 0`` at which ``|r + t u| = R`` for a neighbour that is
+        not touching, smallest over those neighbours, capped at ``horizon``.
 
     """
-    count, directions, conditions = means.shape[:3]
-    # Speed 0 is each direction's own (Horner's rule, per direction); the others are the same
-    # grid on every direction: one product with the coefficient-major rows of every
-    # (neighbour, direction, condition). Grid values are laid out (T, N, M, C).
-    own = np.tile(np.repeat(speeds[:, 0], conditions), count)
-    grid = []
-    for polynomial in (means, variances):
-        rows = polynomial.transpose(3, 0, 1, 2).reshape(polynomial.shape[-1], -1)
-        values = np.empty((speeds.shape[1], rows.shape[1]))
-        values[1:] = _SPEED_GRID_POWERS[:, :rows.shape[0]] @ rows
-        values[0] = horner_coefficient_major(rows, own)
-        grid.append(values.reshape(speeds.shape[1], count, directions, conditions))
-    scores = np.min(achieved_margins(grid[0], grid[1], layout, layout.receding_enabled[:, None],
-                                     rank=deterministic, scratch=True), axis=1)
-    return scores.T
+    position = origin[:, None, :2]
+    relative = 2.0 * velocities[None, :, :] + origin[:, None, 2:]
+    along = np.sum(position * relative, axis=-1)
+    distance_sq = np.sum(origin[:, :2] * origin[:, :2], axis=1)
+    touching = distance_sq < radius * radius
+    distance = np.maximum(np.sqrt(distance_sq), 1e-12)[:, None]
+    closing = np.max(np.maximum(-along / distance, 0.0), axis=0, where=touching[:, None],
+                     initial=0.0)
+    # |r + t u|^2 = R^2: a t^2 + 2 b t + c = 0 with c > 0 (not touching); the first root is
+    # ahead only when approaching (b < 0) and the line passes within R (b^2 >= a c).
+    speed_sq = np.sum(relative * relative, axis=-1)
+    clearance = (distance_sq - radius * radius)[:, None]
+    discriminant = along * along - speed_sq * clearance
+    hits = (along < 0.0) & (discriminant >= 0.0) & ~touching[:, None]
+    with np.errstate(divide='ignore', invalid='ignore'):
+        # The smaller root as c / (-b + sqrt(disc)): no cancellation, and finite as a -> 0.
+        first = clearance / (-along + np.sqrt(np.maximum(discriminant, 0.0)))
+    time_to_collision = np.min(np.where(hits, first, np.inf), axis=0, initial=np.inf)
+    return closing, np.minimum(time_to_collision, horizon)
 
 
-def best_ranked(score, costs):
-    """Flat index of the largest score, ties (within rounding) broken by the smallest cost."""
-    best = np.max(score)
-    if np.isfinite(best):
-        ties = score >= best - 1e-9 * max(1.0, abs(best))
+def fallback_index(closing, time_to_collision, costs):
+    """
+    Index of the fallback's choice among candidates, all shape (K,).
+
+    Lexicographic: the least closing on touching neighbours (0 whenever some candidate recedes
+    from every one of them), then the longest time to collision, then the smallest cost.
+    """
+    ranked = closing <= np.min(closing) + 1e-9
+    longest = np.max(time_to_collision[ranked])
+    if np.isfinite(longest):
+        ranked &= time_to_collision >= longest - 1e-9 * max(1.0, longest)
     else:
-        ties = score == best
-    return int(np.argmin(np.where(ties, costs, np.inf)))
+        ranked &= time_to_collision == longest
+    return int(np.argmin(np.where(ranked, costs, np.inf)))
