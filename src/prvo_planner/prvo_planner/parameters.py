@@ -154,6 +154,9 @@ _SPECS = (
     ParameterSpec('passing_bias', FLOAT, 0.1, 'Cost per m/s of velocity left of the preferred '
                   'direction: every robot breaks the tie of a symmetric encounter the same way '
                   '(pass on the right). 0 = none.', (0.0, 10.0)),
+    ParameterSpec('progress_weight', FLOAT, 0.0, 'Share in [0, 1) of the goal term of the '
+                  'choice cost charging only speed lost towards the goal, not sideways speed. '
+                  '0 = |v - v_pref| alone.', (0.0, 0.99), rule=_below_one),
 )
 
 # Every planner parameter by name, in declaration order.
@@ -295,7 +298,8 @@ def planner_config_from(values):
             actuation_cov=merged['actuation_std'] ** 2 * np.eye(2),
             safety_margin=merged['safety_margin'], method=merged['method'],
             model=merged['model'], risk=merged['risk'], seed=None if seed < 0 else seed,
-            inertia=merged['inertia'], passing_bias=merged['passing_bias'])
+            inertia=merged['inertia'], passing_bias=merged['passing_bias'],
+            progress_weight=merged['progress_weight'])
     except ValueError as error:
         # The rules above cover PlannerConfig's; should they ever diverge, still one clear line.
         raise ParameterError('planner', str(error)) from error

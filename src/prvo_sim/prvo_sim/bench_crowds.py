@@ -146,7 +146,7 @@ def run_row(label, planner, times, positions, starts, goals, radii, max_speeds, 
         'run': label, 'planner': planner, 'robots': int(radii.size),
         'arrived': int(arrived.sum()), 'all_arrived': bool(arrived.all()),
         'makespan_s': None if makespan is None else round(makespan, 1),
-        'makespan_ratio': None if makespan is None else round(makespan / straight.max(), 2),
+        'makespan_ratio': None if makespan is None else round(float(makespan / straight.max()), 2),
         'mean_time_ratio': (round(float(arrivals.mean() / straight.mean()), 2)
                             if arrived.all() else None),
         'min_separation_m': round(min_separation(positions, radii), 3),

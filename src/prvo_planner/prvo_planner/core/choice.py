@@ -1,8 +1,9 @@
 """
 The choice among feasible velocities, and the ranking of candidates when none is feasible.
 
-The cost of a velocity is ``|v - v_pref| + inertia |v - previous| + passing_bias max(0,
-left(v))``; the extra terms only rank velocities that the constraints already admit. Without a
+The cost of a velocity is ``(1 - progress) |v - v_pref| + progress | |v_pref| - along(v) | +
+inertia |v - previous| + passing_bias max(0, left(v))``; the terms only rank velocities that the
+constraints already admit. Without a
 feasible velocity, candidates are ranked by how fast they close on touching neighbours and how
 soon they would collide with the others (``fallback_measures``, ``fallback_index``).
 """
@@ -22,6 +23,7 @@ _SPEED_GRID = np.linspace(0.0, 1.0, 9)
 # 8^-5 (3e-5) of the interval.
 _ZOOM_GRID = np.linspace(0.0, 1.0, 17)
 _ZOOM_LEVELS = 5
+_TERM_NAMES = ('v_pref', 'previous', 'inertia', 'bias', 'progress', 'norm', 'extra')
 # Chosen speeds stay this far (in t) inside a feasible interval so that rounding in the roots
 # cannot put them on the rejected side.
 INTERIOR = 1e-9
@@ -49,10 +51,13 @@ class CostTerms:
         Weight of ``|v - previous|``: 0 without a previous command.
     bias : numpy.ndarray or float
         Weight of ``max(0, left(v))``: 0 when ``v_pref`` has no direction.
+    progress : numpy.ndarray or float
+        Share ``p`` of the goal term given to ``| |v_pref| - along(v) |``: 0 when ``v_pref``
+        has no direction.
     norm : numpy.ndarray or float
-        ``|v_pref|`` (1 where ``bias`` is 0).
+        ``|v_pref|`` (1 where ``bias`` and ``progress`` are 0).
     extra : numpy.ndarray or bool
-        Whether either extra term is on.
+        Whether any term besides ``|v - v_pref|`` is on.
 
     """
 
@@ -60,6 +65,7 @@ class CostTerms:
     previous: np.ndarray
     inertia: np.ndarray
     bias: np.ndarray
+    progress: np.ndarray
     norm: np.ndarray
     extra: np.ndarray
 
@@ -69,30 +75,47 @@ class CostTerms:
         inertia = config.inertia if previous is not None else 0.0
         norm = math.hypot(v_pref[0], v_pref[1])
         bias = config.passing_bias if norm > 1e-9 else 0.0
+        progress = config.progress_weight if norm > 1e-9 else 0.0
         return cls(v_pref=v_pref, previous=v_pref if previous is None else previous,
-                   inertia=inertia, bias=bias, norm=norm if bias > 0.0 else 1.0,
-                   extra=inertia > 0.0 or bias > 0.0)
+                   inertia=inertia, bias=bias, progress=progress,
+                   norm=norm if bias > 0.0 or progress > 0.0 else 1.0,
+                   extra=inertia > 0.0 or bias > 0.0 or progress > 0.0)
+
+    @classmethod
+    def stacked(cls, terms, index):
+        """Return per-row terms: row ``r`` is ``terms[index[r]]`` (a sequence of CostTerms)."""
+        return cls(*(np.array([getattr(term, name) for term in terms])[index]
+                     for name in _TERM_NAMES))
 
     def take(self, index):
         """Return the terms of rows ``index`` (of per-row terms), one row per index."""
-        return CostTerms(*(np.asarray(value)[index] for value in (
-            self.v_pref, self.previous, self.inertia, self.bias, self.norm, self.extra)))
+        return CostTerms(*(np.asarray(getattr(self, name))[index] for name in _TERM_NAMES))
+
+    def rows(self):
+        """Return per-row terms with a trailing axis, to broadcast against a grid per row."""
+        return CostTerms(*(np.asarray(getattr(self, name))[:, None] for name in _TERM_NAMES))
 
     def costs(self, velocities):
         """
         Cost of commanded velocities, shape (..., 2) -> (...): smaller is better.
 
-        ``|v - v_pref|`` (docs/method.md, section 7), plus ``inertia |v - previous|`` and
-        ``bias max(0, left(v))`` with ``left`` the component of ``v`` to the left of
-        ``v_pref``'s direction. Both extra terms are convex in ``v`` and only rank velocities;
-        which ones are acceptable is decided by the constraints alone. A term of weight 0 adds
-        exactly 0.
+        ``(1 - progress) |v - v_pref| + progress | |v_pref| - along(v) |`` (docs/method.md,
+        section 7), plus ``inertia |v - previous|`` and ``bias max(0, left(v))``, with
+        ``along`` and ``left`` the components of ``v`` along and to the left of ``v_pref``'s
+        direction. The progress share charges only the speed lost towards the goal, not the
+        speed sideways: it prefers passing a crowd at speed to slowing down behind it. Every
+        term is convex in ``v`` and only ranks velocities; which ones are acceptable is decided
+        by the constraints alone. A term of weight 0 adds exactly 0.
         """
         costs = _distances(velocities, self.v_pref)
+        costs *= 1.0 - self.progress
         costs += self.inertia * _distances(velocities, self.previous)
         left = (self.v_pref[..., 0] * velocities[..., 1]
                 - self.v_pref[..., 1] * velocities[..., 0]) / self.norm
         costs += self.bias * np.maximum(left, 0.0)
+        along = (self.v_pref[..., 0] * velocities[..., 0]
+                 + self.v_pref[..., 1] * velocities[..., 1]) / self.norm
+        costs += self.progress * np.abs(self.norm - along)
         return costs
 
 
@@ -130,11 +153,11 @@ def best_speeds(directions, lower, upper, preferred, terms, max_speed, robot):
     extra = np.broadcast_to(terms.extra, projected.shape)
     if not extra.any():
         return projected
-    # The plain term alone, smallest at the projected t, bounds an interval's cost from below
-    # (the extra terms are >= 0); the full cost at a projected t bounds the plan's optimum from
-    # above.
+    # The plain term alone (its share of the cost), smallest at the projected t, bounds an
+    # interval's cost from below (the other terms are >= 0); the full cost at a projected t
+    # bounds the plan's optimum from above.
     at_projected = max_speed[:, None] * projected[:, None] * directions
-    plain = _distances(at_projected, terms.v_pref)
+    plain = _distances(at_projected, terms.v_pref) * (1.0 - terms.progress)
     full = terms.costs(at_projected)
     starts = np.flatnonzero(np.diff(robot, prepend=-1))
     bound = np.repeat(np.minimum.reduceat(full, starts), np.diff(np.append(starts, robot.size)))
@@ -149,8 +172,7 @@ def best_speeds(directions, lower, upper, preferred, terms, max_speed, robot):
 def _zoomed_speeds(directions, lower, upper, projected, terms, max_speed):
     """Minimise the cost on each ray's interval by a zoomed grid, shape (G,)."""
     velocity_directions = max_speed[:, None, None] * directions[:, None, :]
-    row_terms = CostTerms(*(np.asarray(value)[:, None] for value in (
-        terms.v_pref, terms.previous, terms.inertia, terms.bias, terms.norm, terms.extra)))
+    row_terms = terms.rows()
     low, high = lower, upper
     for _ in range(_ZOOM_LEVELS):
         grid = low[:, None] + (high - low)[:, None] * _ZOOM_GRID

@@ -300,9 +300,7 @@ def _choose_on_gaps(plans, rows, gap_ray, lower, upper):
         return {}
     gap_robot = rows.ray_robot[gap_ray]
     terms = [CostTerms.of_plan(plan.v_pref, plan.previous, plan.config) for plan in plans]
-    stacked = CostTerms(*(np.array([getattr(term, name) for term in terms])[gap_robot]
-                          for name in ('v_pref', 'previous', 'inertia', 'bias', 'norm',
-                                       'extra')))
+    stacked = CostTerms.stacked(terms, gap_robot)
     max_speed = np.array([plan.config.max_speed for plan in plans])[gap_robot]
     directions = np.concatenate([plan.directions for plan in plans])[gap_ray]
     # The best speed on a ray within one interval (the preferred one, projected, under the
