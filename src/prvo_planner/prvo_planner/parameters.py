@@ -154,7 +154,9 @@ _SPECS = (
     ParameterSpec('passing_bias', FLOAT, 0.1, 'Cost per m/s of velocity left of the preferred '
                   'direction: every robot breaks the tie of a symmetric encounter the same way '
                   '(pass on the right). 0 = none.', (0.0, 10.0)),
-    ParameterSpec('progress_weight', FLOAT, 0.0, 'Share in [0, 1) of the goal term of the '
+    # Charging the speed lost towards the goal rather than |v - v_pref| alone: crowds pass at
+    # speed instead of queueing (makespan of the noisy 24-robot 6 m circle 40.7 -> 27.6 s).
+    ParameterSpec('progress_weight', FLOAT, 0.5, 'Share in [0, 1) of the goal term of the '
                   'choice cost charging only speed lost towards the goal, not sideways speed. '
                   '0 = |v - v_pref| alone.', (0.0, 0.99), rule=_below_one),
 )
