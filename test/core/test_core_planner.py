@@ -283,33 +283,39 @@ def test_inertia_keeps_the_side_of_the_previous_command(side):
         plain.velocity)
 
 
+def ranked_cost(velocity, v_pref, previous, progress):
+    """Return the choice cost with inertia 0.6, passing bias 0.2 and PROGRESS, directly."""
+    heading = v_pref / np.hypot(*v_pref)
+    left = heading[0] * velocity[1] - heading[1] * velocity[0]
+    return ((1.0 - progress) * np.linalg.norm(velocity - v_pref)
+            + progress * abs(np.hypot(*v_pref) - velocity @ heading)
+            + 0.6 * np.linalg.norm(velocity - previous) + 0.2 * max(left, 0.0))
+
+
+@pytest.mark.parametrize('progress', (0.0, 0.5))
 @pytest.mark.parametrize('model', ('prvo', 'rvo', 'inflate'))
-def test_inertia_and_passing_bias_only_rank_velocities_that_meet_the_constraints(model):
+def test_cost_terms_only_rank_velocities_that_meet_the_constraints(model, progress):
     rng = np.random.default_rng(5)
     for _ in range(30):
         ego, neighbours = crowd(rng, 4, 0.05 if model == 'prvo' else 0.0)
         v_pref, previous = rng.uniform(-1.0, 1.0, 2), rng.uniform(-1.0, 1.0, 2)
         plain = plan_velocity(ego, neighbours, v_pref, PlannerConfig(model=model, k=1.0))
         ranked = plan_velocity(ego, neighbours, v_pref, PlannerConfig(
-            model=model, k=1.0, inertia=0.6, passing_bias=0.2), previous=previous)
+            model=model, k=1.0, inertia=0.6, passing_bias=0.2, progress_weight=progress),
+            previous=previous)
         assert ranked.candidates_feasible == plain.candidates_feasible
         if plain.feasible:
             assert ranked.feasible and ranked.achieved_k >= 1.0 - 1e-6
         assert np.hypot(*ranked.velocity) <= 1.0 + 1e-12
         # The ranked choice is no worse under its own cost than the plain one.
-        cost = (np.linalg.norm(ranked.velocity - v_pref)
-                + 0.6 * np.linalg.norm(ranked.velocity - previous))
-        plain_cost = (np.linalg.norm(plain.velocity - v_pref)
-                      + 0.6 * np.linalg.norm(plain.velocity - previous))
-        left = (v_pref[0] * np.array([ranked.velocity[1], plain.velocity[1]])
-                - v_pref[1] * np.array([ranked.velocity[0], plain.velocity[0]]))
-        left = 0.2 * np.maximum(left / np.hypot(*v_pref), 0.0)
         if plain.feasible:
-            assert cost + left[0] <= plain_cost + left[1] + 1e-9
+            assert (ranked_cost(ranked.velocity, v_pref, previous, progress)
+                    <= ranked_cost(plain.velocity, v_pref, previous, progress) + 1e-9)
 
 
 @pytest.mark.parametrize('field, value', [('inertia', 1.0), ('inertia', -0.1),
-                                          ('passing_bias', -0.1)])
+                                          ('passing_bias', -0.1), ('progress_weight', 1.0),
+                                          ('progress_weight', -0.1)])
 def test_choice_cost_weights_are_validated(field, value):
     with pytest.raises(ValueError, match=field):
         PlannerConfig(**{field: value})

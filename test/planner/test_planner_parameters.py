@@ -37,6 +37,7 @@ def test_defaults_give_a_valid_configuration():
                                                                 'time_horizon'),
     ('model', 'magic', 'model'), ('method', 'newton', 'method'), ('risk', 'yolo', 'risk'),
     ('inertia', 1.0, 'inertia'), ('passing_bias', -1.0, 'passing_bias'),
+    ('progress_weight', 1.0, 'progress_weight'),
 ])
 def test_invalid_values_are_rejected_by_name(name, value, named):
     values = dict(DEFAULTS, **{name: value})

@@ -95,7 +95,7 @@ TEAM_MAX_STEPS = 600
 def team_config():
     """Return the planner configuration of every robot of the circle swap (node defaults)."""
     return PlannerConfig(eta=0.8, max_speed=1.0, actuation_cov=TEAM_STD ** 2 * np.eye(2),
-                         inertia=0.5, passing_bias=0.1)
+                         inertia=0.5, passing_bias=0.1, progress_weight=0.5)
 
 
 def circle_swap(count, config, seed=0, planner=None):

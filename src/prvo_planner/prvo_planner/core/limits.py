@@ -19,8 +19,7 @@ import math
 
 import numpy as np
 
-from .choice import best_ranked, choice_costs
-from .feasibility import achieved_margins, horner_coefficient_major
+from .choice import choice_costs
 
 # Extra candidate directions spread over the reachable disc: with a small disc few of the evenly
 # spaced headings cross it.
@@ -140,41 +139,3 @@ def allowed_speed_grid(plan, lower, upper):
     costs = choice_costs(plan.config.max_speed * speeds[..., None] * plan.directions[:, None, :],
                          plan.v_pref, plan.previous, plan.config)
     return speeds, np.where(allowed[:, None], costs, np.inf)
-
-
-def fallback_choice(plan, means, variances, lower, upper):
-    """
-    No allowed feasible interval: the allowed candidate with the largest achieved ``k``.
-
-    Ties go to the smallest choice cost. Candidates are each allowed interval's preferred
-    speed (projected) and ``_FALLBACK_FRACTIONS`` of it; rays with an empty interval are never
-    chosen.
-
-    Parameters
-    ----------
-    plan
-        The planner's prepared plan (directions, preferred, v_pref, previous, config, layout,
-        deterministic).
-    means, variances : numpy.ndarray
-        Condition polynomials of the plan, shapes (N, M, C, 3) and (N, M, C, 5).
-    lower, upper : numpy.ndarray
-        Allowed ``t`` per ray, shape (M,).
-
-    Returns
-    -------
-    tuple
-        (direction index, ``t``).
-
-    """
-    speeds, costs = allowed_speed_grid(plan, lower, upper)
-    allowed = lower <= upper
-    # Values (T, N, M, C) of every condition at every candidate.
-    at_speeds = [horner_coefficient_major(polynomial.transpose(3, 0, 1, 2)[:, None],
-                                          speeds.T[:, None, :, None])
-                 for polynomial in (means, variances)]
-    score = np.min(achieved_margins(at_speeds[0], at_speeds[1], plan.layout,
-                                    plan.layout.receding_enabled[:, None],
-                                    rank=plan.deterministic), axis=1).T
-    score = np.where(allowed[:, None], score, -np.inf)
-    direction_index, speed_index = np.unravel_index(best_ranked(score, costs), speeds.shape)
-    return direction_index, speeds[direction_index, speed_index]

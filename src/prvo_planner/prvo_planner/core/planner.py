@@ -24,9 +24,10 @@ from .beliefs import AgentBelief, as_finite_array
 from .choice import (
     INTERIOR,
     CostTerms,
-    best_ranked,
     best_speeds,
-    grid_scores,
+    fallback_index,
+    fallback_measures,
+    ranking_radius,
     speed_grid,
 )
 from .config import PlannerConfig, PlanResult
@@ -42,7 +43,6 @@ from .feasibility import RayRows, achieved_margins, monte_carlo_probabilities, t
 from .limits import (
     VelocityLimits,
     allowed_speed_grid,
-    fallback_choice,
     free_choice,
     relaxed_intervals,
 )
@@ -245,11 +245,10 @@ def _monte_carlo_plan(plan):
     feasible_points = np.all(probabilities >= encounter.eta, axis=0) & np.isfinite(grid_costs)
     candidates_feasible = int(np.count_nonzero(np.any(feasible_points, axis=1)))
     if candidates_feasible:
-        flat = int(np.argmin(np.where(feasible_points, grid_costs, np.inf)))
+        direction_index, speed_index = np.unravel_index(
+            int(np.argmin(np.where(feasible_points, grid_costs, np.inf))), speeds.shape)
     else:
-        flat = best_ranked(np.where(np.isfinite(grid_costs), np.min(probabilities, axis=0),
-                                    -np.inf), grid_costs)
-    direction_index, speed_index = np.unravel_index(flat, speeds.shape)
+        direction_index, speed_index = _fallback_choice(plan, speeds, grid_costs)
     velocity = config.max_speed * speeds[direction_index, speed_index] * \
         directions[direction_index]
     at_velocity = [moment[:, 0] for moment in condition_moments(
@@ -308,16 +307,18 @@ def _solve_group(plans):
     feasible_rays = np.bincount(gap_ray, minlength=robots * rays) > 0
     candidates_feasible = np.count_nonzero(feasible_rays.reshape(robots, rays), axis=1)
     chosen = _choose_on_gaps(plans, rows, gap_ray, lower, upper)
-    # Each robot's polynomials, (N, M, C, L) views.
-    per_robot = [(means[:, robot].transpose(1, 2, 3, 0), variances[:, robot].transpose(1, 2, 3, 0))
-                 for robot in range(robots)]
     direction_index = np.empty(robots, dtype=int)
     chosen_t = np.empty(robots)
     for robot, plan in enumerate(plans):
-        direction_index[robot], chosen_t[robot] = (
-            chosen[robot] if candidates_feasible[robot]
-            else _fallback_choice(plan, *per_robot[robot]) if plan.allowed is None
-            else fallback_choice(plan, *per_robot[robot], *plan.allowed))
+        if candidates_feasible[robot]:
+            direction_index[robot], chosen_t[robot] = chosen[robot]
+            continue
+        # Under limits only reachable (and trackable) speeds are candidates.
+        speeds, costs = (speed_grid(plan.directions, plan.preferred, plan.v_pref, plan.previous,
+                                    plan.config) if plan.allowed is None
+                         else allowed_speed_grid(plan, *plan.allowed))
+        direction_index[robot], speed_index = _fallback_choice(plan, speeds, costs)
+        chosen_t[robot] = speeds[direction_index[robot], speed_index]
     max_speed = np.array([plan.config.max_speed for plan in plans])
     velocities = (max_speed * chosen_t)[:, None] * directions[np.arange(robots), direction_index]
     achieved = _achieved(plans, means, variances, direction_index, chosen_t, velocities)
@@ -344,9 +345,7 @@ def _choose_on_gaps(plans, rows, gap_ray, lower, upper):
         return {}
     gap_robot = rows.ray_robot[gap_ray]
     terms = [CostTerms.of_plan(plan.v_pref, plan.previous, plan.config) for plan in plans]
-    stacked = CostTerms(*(np.array([getattr(term, name) for term in terms])[gap_robot]
-                          for name in ('v_pref', 'previous', 'inertia', 'bias', 'norm',
-                                       'extra')))
+    stacked = CostTerms.stacked(terms, gap_robot)
     max_speed = np.array([plan.config.max_speed for plan in plans])[gap_robot]
     directions = np.concatenate([plan.directions for plan in plans])[gap_ray]
     # The best speed on a ray within one interval (the preferred one, projected, under the
@@ -363,14 +362,22 @@ def _choose_on_gaps(plans, rows, gap_ray, lower, upper):
             for best in firsts}
 
 
-def _fallback_choice(plan, means, variances):
-    """No feasible interval: the candidate with the largest achieved k, ties by cost."""
-    speeds, grid_costs = speed_grid(plan.directions, plan.preferred, plan.v_pref,
-                                    plan.previous, plan.config)
-    score = grid_scores(means, variances, speeds, plan.layout, plan.deterministic)
-    direction_index, speed_index = np.unravel_index(best_ranked(score, grid_costs),
-                                                    speeds.shape)
-    return direction_index, speeds[direction_index, speed_index]
+def _fallback_choice(plan, speeds, costs):
+    """
+    No feasible velocity: (direction index, speed index) of the fallback among SPEEDS.
+
+    SPEEDS (M, T) are ``t`` per candidate direction, COSTS (M, T) their choice costs; the
+    ranking is :func:`fallback_index` of the means against :func:`ranking_radius`.
+    """
+    config = plan.config
+    velocities = config.max_speed * speeds[..., None] * plan.directions[:, None, :]
+    closing, time_to_collision = fallback_measures(
+        velocities.reshape(-1, 2), plan.encounter.origin,
+        ranking_radius(plan.encounter, config.model), config.time_horizon)
+    # A candidate of infinite cost is out of reach (acceleration, tracking): never chosen.
+    closing = np.where(np.isfinite(costs.reshape(-1)), closing, np.inf)
+    return np.unravel_index(fallback_index(closing, time_to_collision, costs.reshape(-1)),
+                            speeds.shape)
 
 
 def _achieved(plans, means, variances, direction_index, chosen_t, velocities):

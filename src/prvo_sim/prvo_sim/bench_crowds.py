@@ -1,0 +1,339 @@
+"""Crowd benchmark: does every robot arrive, how soon, and how close do robots come.
+
+    python -m prvo_sim.bench_crowds [--circles 8 16 24 48] [--teams 4] [--method prvo]
+                                    [--json PATH] [--out DIR]
+
+Runs on the in-process engine, to completion or the scenario's duration:
+
+* circles of N robots swapping antipodal points under noise 0.05 (`bench_team.circle_document`
+  with the radii of CIRCLE_RADII: 4 m up to 16 robots, 6 m for 24, 7.7 m for 48);
+* seeded random heterogeneous teams of TEAM_SIZE robots (`random_team_document`): radii
+  0.2-0.45 m, speeds 0.6-1.2 m/s, starts and goals in a square of half-side 1 + 0.45 N m, every
+  two starts (and every two goals, and each robot's start and goal) at least 0.4 of the
+  half-side apart;
+* the noise-free 20-robot circle (radius 5 m) with `--method rvo`, the deterministic baseline
+  whose only recourse in a crowd is the fallback;
+* beside them, on the same circles without noise, ir-sim's sampled RVO
+  (`irsim.lib.algorithm.rvo`) and RVO2's ORCA (`pyrvo`) when they are importable; neither is a
+  dependency of prvo, and their rows say so when absent.
+
+Per run it prints one Markdown row: arrivals, makespan (the last robot's arrival) and its ratio
+to the straight-line time (the longest start-to-goal distance over max speed), the mean time to
+goal over the mean straight-line time, the minimum surface-to-surface separation, contacts, and
+the fraction of planned robot-steps without a feasible velocity.
+
+Exit codes: 0 every robot of the circles and teams arrived, 1 one did not, 2 bad input, 130
+when interrupted.
+"""
+
+import argparse
+import json
+import math
+import pathlib
+import sys
+
+import numpy as np
+
+from prvo_sim.bench_engine import run_team, table
+from prvo_sim.bench_team import DT, GOAL_TOLERANCE, NOISE_STD, circle_document, write_scenario
+
+CIRCLE_RADII = {8: 4.0, 16: 4.0, 24: 6.0, 48: 7.7}
+DEFAULT_CIRCLES = tuple(CIRCLE_RADII)
+DEFAULT_TEAMS = 4
+TEAM_SIZE = 14
+TEAM_SEED = 2026
+TEAM_RADII = (0.2, 0.45)  # m
+TEAM_SPEEDS = (0.6, 1.2)  # m/s
+TEAM_HALF_SIDE = (1.0, 0.45)  # m: 1 + 0.45 N
+TEAM_SPACING = 0.4  # of the half-side
+TEAM_DURATION = 90.0  # s
+FALLBACK_CIRCLE = (20, 5.0)  # robots, radius [m]: noise-free, --method rvo
+APPROACH_TIME = 0.5  # s: the peers slow down near the goal as the planner does (its default)
+PEER_TIME_HORIZON = 5.0  # s: the planner's default
+PEERS = ('irsim-rvo', 'orca')
+
+
+def circle_radius_of(count):
+    """Return the start circle's radius [m] of a COUNT robot crowd circle."""
+    return CIRCLE_RADII.get(count, max(4.0, count / 4.0))
+
+
+def crowd_circle_document(count, radius, noise_std=NOISE_STD):
+    """Return the scenario document of COUNT robots on a RADIUS circle with NOISE_STD noise."""
+    document = circle_document(count, radius=radius)
+    document['name'] = f'crowd_circle{count}'
+    document['noise'] = {'position_std': noise_std, 'velocity_std': noise_std,
+                         'actuation_std': noise_std}
+    return document
+
+
+def _spaced_points(rng, count, half_side, spacing, avoid=None):
+    """Draw COUNT points in the square, pairwise >= SPACING apart and from AVOID's rows."""
+    points = []
+    while len(points) < count:
+        candidate = rng.uniform(-half_side, half_side, size=2)
+        if any(np.hypot(*(candidate - point)) < spacing for point in points):
+            continue
+        if avoid is not None and np.hypot(*(candidate - avoid[len(points)])) < spacing:
+            continue
+        points.append(candidate)
+    return np.array(points)
+
+
+def random_team_document(index, count=TEAM_SIZE, seed=TEAM_SEED):
+    """Return random heterogeneous team INDEX (seeded by SEED and INDEX) of COUNT robots."""
+    rng = np.random.default_rng([seed, index])
+    half_side = TEAM_HALF_SIDE[0] + TEAM_HALF_SIDE[1] * count
+    spacing = TEAM_SPACING * half_side
+    starts = _spaced_points(rng, count, half_side, spacing)
+    goals = _spaced_points(rng, count, half_side, spacing, avoid=starts)
+    radii = rng.uniform(*TEAM_RADII, size=count)
+    speeds = rng.uniform(*TEAM_SPEEDS, size=count)
+    robots = [{'name': f'robot_{robot}',
+               'start': [round(float(value), 4) + 0.0 for value in starts[robot]],
+               'goal': [round(float(value), 4) + 0.0 for value in goals[robot]],
+               'radius': round(float(radii[robot]), 3),
+               'max_speed': round(float(speeds[robot]), 3)} for robot in range(count)]
+    return {
+        'name': f'crowd_team{index}',
+        'description': f'Random heterogeneous team {index} of {count} robots (crowd benchmark).',
+        'seed': seed + index, 'dt': DT, 'duration': TEAM_DURATION,
+        'goal_tolerance': GOAL_TOLERANCE,
+        'noise': {'position_std': NOISE_STD, 'velocity_std': NOISE_STD,
+                  'actuation_std': NOISE_STD},
+        'planner': {'eta': 0.8},
+        'robots': robots,
+    }
+
+
+def arrival_times(times, positions, goals, tolerance):
+    """Per robot, the time from which it stays within TOLERANCE of its goal (inf: never)."""
+    inside = np.linalg.norm(positions - goals[None], axis=2) <= tolerance
+    arrivals = np.full(goals.shape[0], math.inf)
+    for robot in range(goals.shape[0]):
+        outside = np.flatnonzero(~inside[:, robot])
+        first = 0 if outside.size == 0 else outside[-1] + 1
+        if first < times.size:
+            arrivals[robot] = times[first]
+    return arrivals
+
+
+def min_separation(positions, radii):
+    """Smallest surface-to-surface distance over steps and pairs, positions (T, N, 2)."""
+    offsets = positions[:, :, None, :] - positions[:, None, :, :]
+    gaps = np.linalg.norm(offsets, axis=-1) - (radii[:, None] + radii[None, :])
+    pairs = np.triu_indices(radii.size, 1)
+    return float(gaps[:, pairs[0], pairs[1]].min())
+
+
+def contact_count(positions, radii):
+    """Count the times two robots came into contact (a pair entering overlap counts once)."""
+    offsets = positions[:, :, None, :] - positions[:, None, :, :]
+    touching = np.linalg.norm(offsets, axis=-1) < radii[:, None] + radii[None, :]
+    pairs = np.triu_indices(radii.size, 1)
+    touching = touching[:, pairs[0], pairs[1]]
+    entered = touching[1:] & ~touching[:-1]
+    return int(touching[0].sum() + entered.sum())
+
+
+def run_row(label, planner, times, positions, starts, goals, radii, max_speeds, tolerance):
+    """Return the benchmark row of one run from its trajectory, positions (T, N, 2)."""
+    straight = np.linalg.norm(goals - starts, axis=1) / max_speeds
+    arrivals = arrival_times(times, positions, goals, tolerance)
+    arrived = np.isfinite(arrivals)
+    makespan = float(arrivals.max()) if arrived.all() else None
+    return {
+        'run': label, 'planner': planner, 'robots': int(radii.size),
+        'arrived': int(arrived.sum()), 'all_arrived': bool(arrived.all()),
+        'makespan_s': None if makespan is None else round(makespan, 1),
+        'makespan_ratio': None if makespan is None else round(float(makespan / straight.max()), 2),
+        'mean_time_ratio': (round(float(arrivals.mean() / straight.mean()), 2)
+                            if arrived.all() else None),
+        'min_separation_m': round(min_separation(positions, radii), 3),
+    }
+
+
+def prvo_run(label, scenario, method):
+    """Run SCENARIO on the in-process engine with METHOD; return its row."""
+    _, steps = run_team(scenario, method)
+    robots = scenario.robots
+    times = np.array([step.time for step in steps])
+    states = np.array([step.states for step in steps])
+    radii = np.array([robot.radius for robot in robots])
+    row = run_row(label, method, times, states[:, :, :2],
+                  np.array([robot.start for robot in robots]),
+                  np.array([robot.goal for robot in robots]), radii,
+                  np.array([robot.max_speed for robot in robots]), scenario.goal_tolerance)
+    moving = np.array([step.commands.any(axis=1) | ~step.feasible for step in steps])
+    feasible = np.array([step.feasible for step in steps])
+    row['contacts'] = contact_count(states[:, :, :2], radii)
+    row['infeasible_fraction'] = round(float((moving & ~feasible).sum() / max(moving.sum(), 1)),
+                                       4)
+    return row
+
+
+def preferred_velocities(positions, goals, max_speed, tolerance):
+    """Return the peers' preferred velocities, as the planner's agent computes them."""
+    offsets = goals - positions
+    distances = np.linalg.norm(offsets, axis=1)
+    speeds = np.minimum(max_speed, distances / APPROACH_TIME)
+    with np.errstate(invalid='ignore', divide='ignore'):
+        preferred = offsets * (speeds / distances)[:, None]
+    preferred[distances <= tolerance] = 0.0
+    return preferred
+
+
+def peer_step_function(peer, count, starts, radius, max_speed):
+    """Return step(positions, velocities, preferred) -> velocities of PEER, None if absent."""
+    if peer == 'irsim-rvo':
+        try:
+            from irsim.lib.algorithm.rvo import reciprocal_vel_obs
+        except ImportError:
+            return None
+
+        def step(positions, velocities, preferred):
+            chosen = np.empty_like(velocities)
+            for index in range(count):
+                state = [*positions[index], *velocities[index], radius, *preferred[index]]
+                others = [[*positions[other], *velocities[other], radius]
+                          for other in range(count) if other != index]
+                chosen[index] = reciprocal_vel_obs(
+                    state, others, vxmax=max_speed, vymax=max_speed, acce=1.0,
+                    factor=1.0).cal_vel('rvo')
+            speeds = np.linalg.norm(chosen, axis=1, keepdims=True)
+            return np.where(speeds > max_speed, chosen * max_speed / np.maximum(speeds, 1e-12),
+                            chosen)
+        return step
+    try:
+        import pyrvo
+    except ImportError:
+        return None
+    simulator = pyrvo.RVOSimulator(DT, 10.0, count, PEER_TIME_HORIZON, PEER_TIME_HORIZON,
+                                   radius, max_speed)
+    for start in starts:
+        simulator.add_agent(tuple(start))
+
+    def step(positions, velocities, preferred):
+        for index in range(count):
+            simulator.set_agent_position(index, tuple(positions[index]))
+            simulator.set_agent_velocity(index, tuple(velocities[index]))
+            simulator.set_agent_pref_velocity(index, tuple(preferred[index]))
+        simulator.do_step()
+        return np.array([simulator.get_agent_velocity(index).to_tuple()
+                         for index in range(count)])
+    return step
+
+
+def peer_run(peer, count, radius):
+    """Run PEER on the noise-free COUNT robot circle of RADIUS; return its row (None if absent)."""
+    document = crowd_circle_document(count, radius, noise_std=0.0)
+    starts = np.array([robot['start'] for robot in document['robots']], dtype=float)
+    goals = np.array([robot['goal'] for robot in document['robots']], dtype=float)
+    robot_radius = document['robots'][0]['radius']
+    max_speed = document['robots'][0]['max_speed']
+    step = peer_step_function(peer, count, starts, robot_radius, max_speed)
+    if step is None:
+        return None
+    positions, velocities = starts.copy(), np.zeros_like(starts)
+    times, trajectory = [], []
+    for index in range(int(round(document['duration'] / DT))):
+        times.append(index * DT)
+        trajectory.append(positions.copy())
+        if np.all(np.linalg.norm(goals - positions, axis=1) <= GOAL_TOLERANCE):
+            break
+        velocities = step(positions, velocities,
+                          preferred_velocities(positions, goals, max_speed, GOAL_TOLERANCE))
+        positions = positions + DT * velocities
+    trajectory = np.array(trajectory)
+    radii = np.full(count, robot_radius)
+    row = run_row(f'circle{count} r={radius:g} noise-free', peer, np.array(times), trajectory,
+                  starts, goals, radii, np.full(count, max_speed), GOAL_TOLERANCE)
+    row['contacts'] = contact_count(trajectory, radii)
+    return row
+
+
+COLUMNS = (('run', 'run'), ('planner', 'planner'), ('arrived', 'arrived'),
+           ('makespan_s', 'makespan s'), ('makespan_ratio', 'makespan / straight'),
+           ('mean_time_ratio', 'mean time / straight'),
+           ('min_separation_m', 'min separation m'), ('contacts', 'contacts'),
+           ('infeasible_fraction', 'infeasible steps'))
+
+
+def build_parser():
+    """Return the command-line parser of the crowd benchmark."""
+    parser = argparse.ArgumentParser(
+        prog='bench_crowds',
+        description='Crowd benchmark: circles and random heterogeneous teams, in process.')
+    parser.add_argument('--circles', type=int, nargs='*', default=list(DEFAULT_CIRCLES),
+                        help='circle team sizes (default: 8 16 24 48)')
+    parser.add_argument('--teams', type=int, default=DEFAULT_TEAMS,
+                        help=f'random teams of {TEAM_SIZE} robots (default: {DEFAULT_TEAMS})')
+    parser.add_argument('--method', default='prvo', choices=('prvo', 'rvo', 'inflate'),
+                        help='planner variant of the circles and teams (default: prvo)')
+    parser.add_argument('--no-fallback-circle', action='store_true',
+                        help='skip the noise-free 20-robot circle with --method rvo')
+    parser.add_argument('--no-peers', action='store_true',
+                        help="skip ir-sim's RVO and ORCA on the noise-free circles")
+    parser.add_argument('--json', type=pathlib.Path, default=None,
+                        help='also write {"runs": [...], "notes": [...]} to this file')
+    parser.add_argument('--out', type=pathlib.Path,
+                        default=pathlib.Path('results/bench_crowds'),
+                        help='folder of the scenarios (default: results/bench_crowds)')
+    return parser
+
+
+def planned_runs(options):
+    """Return the (label, scenario document, method) of every in-process run, in order."""
+    runs = [(f'circle{count} r={circle_radius_of(count):g}',
+             crowd_circle_document(count, circle_radius_of(count)), options.method)
+            for count in options.circles]
+    runs += [(f'team{index} N={TEAM_SIZE}', random_team_document(index), options.method)
+             for index in range(options.teams)]
+    if not options.no_fallback_circle:
+        count, radius = FALLBACK_CIRCLE
+        runs.append((f'circle{count} r={radius:g} noise-free',
+                     crowd_circle_document(count, radius, noise_std=0.0), 'rvo'))
+    return runs
+
+
+def main(argv=None):
+    """Run the crowd benchmark's command line; return the exit code."""
+    options = build_parser().parse_args(sys.argv[1:] if argv is None else argv)
+    for count in options.circles:
+        if count < 2:
+            print(f'bench_crowds: error: --circles: {count} is not a team (at least 2)',
+                  file=sys.stderr)
+            return 2
+    if options.teams < 0:
+        print(f'bench_crowds: error: --teams: {options.teams} is negative', file=sys.stderr)
+        return 2
+    rows, notes = [], []
+    try:
+        for label, document, method in planned_runs(options):
+            scenario = write_scenario(document, options.out / f'{document["name"]}.yaml')
+            rows.append(prvo_run(label, scenario, method))
+            print(f'{label} ({method}): {rows[-1]["arrived"]}/{rows[-1]["robots"]} arrived, '
+                  f'{rows[-1]["contacts"]} contacts', flush=True)
+        for peer in () if options.no_peers else PEERS:
+            for count in options.circles:
+                row = peer_run(peer, count, circle_radius_of(count))
+                if row is None:
+                    notes.append(f'{peer}: not importable here, skipped')
+                    break
+                rows.append(row)
+    except KeyboardInterrupt:
+        print('bench_crowds: interrupted', file=sys.stderr)
+        return 130
+    print(table(rows, COLUMNS))
+    for note in notes:
+        print(f'note: {note}')
+    if options.json is not None:
+        options.json.parent.mkdir(parents=True, exist_ok=True)
+        options.json.write_text(json.dumps({'runs': rows, 'notes': notes}, indent=2) + '\n')
+    # The deterministic baseline's circle is there for its separation, not its arrivals.
+    checked = [row for row in rows if row['planner'] == options.method]
+    return 0 if all(row['all_arrived'] for row in checked) else 1
+
+
+if __name__ == '__main__':
+    sys.exit(main())

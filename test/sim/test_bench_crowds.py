@@ -1,0 +1,69 @@
+"""The crowd benchmark's generator and measures, against hand-computed values."""
+
+import itertools
+import math
+
+import numpy as np
+import pytest
+
+from prvo_sim import bench_crowds
+from prvo_sim.bench_crowds import (
+    arrival_times,
+    contact_count,
+    min_separation,
+    random_team_document,
+    run_row,
+)
+
+
+def test_random_teams_are_seeded_within_their_ranges_and_spaced():
+    for index in range(4):
+        document = random_team_document(index)
+        assert document == random_team_document(index)
+        robots = document['robots']
+        assert len(robots) == 14
+        half_side = 1.0 + 0.45 * 14
+        for robot in robots:
+            assert 0.2 <= robot['radius'] <= 0.45 and 0.6 <= robot['max_speed'] <= 1.2
+            assert max(map(abs, robot['start'] + robot['goal'])) <= half_side
+            # Rounding to 0.1 mm may bring points that close.
+            assert math.dist(robot['start'], robot['goal']) >= 0.4 * half_side - 1e-3
+        for first, second in itertools.combinations(robots, 2):
+            assert math.dist(first['start'], second['start']) >= 0.4 * half_side - 1e-3
+            assert math.dist(first['goal'], second['goal']) >= 0.4 * half_side - 1e-3
+    assert random_team_document(0)['robots'] != random_team_document(1)['robots']
+
+
+def test_measures_of_a_hand_made_trajectory():
+    # Two robots of radii 0.3 and 0.2: robot 0 along the x axis from 0 to 2 m at 1 m/s, robot 1
+    # standing at (1.4, 0) but 1 m off it at t = 0.5 s.
+    times = np.arange(0.0, 3.01, 0.5)
+    first = np.minimum(times, 2.0)
+    positions = np.stack([np.stack([first, 0.0 * times], axis=1),
+                          np.stack([1.4 + 0.0 * times, np.where(times == 0.5, 1.0, 0.0)],
+                                   axis=1)], axis=1)
+    goals = np.array([[2.0, 0.0], [1.4, 0.0]])
+    radii = np.array([0.3, 0.2])
+    np.testing.assert_allclose(arrival_times(times, positions, goals, 0.2), [2.0, 1.0])
+    # Closest at t = 1.5 s: 0.1 m apart between centres, 0.5 m of radii.
+    assert min_separation(positions, radii) == pytest.approx(-0.4)
+    # In contact at t = 1.0 s (0.4 m apart) and 1.5 s, apart again from 2.0 s: one contact.
+    assert contact_count(positions, radii) == 1
+    row = run_row('hand', 'prvo', times, positions, positions[0], goals, radii,
+                  np.array([1.0, 1.0]), 0.2)
+    # Straight-line times 2 s and 0 s: makespan 2 s over the longest, mean 1.5 s over 1 s.
+    assert row['makespan_s'] == 2.0 and row['makespan_ratio'] == 1.0
+    assert row['mean_time_ratio'] == 1.5 and row['all_arrived']
+
+
+def test_a_robot_that_never_stays_has_no_arrival():
+    times = np.array([0.0, 1.0, 2.0])
+    positions = np.array([[[0.0, 0.0]], [[1.0, 0.0]], [[0.0, 0.0]]])
+    assert arrival_times(times, positions, np.array([[1.0, 0.0]]), 0.2)[0] == math.inf
+
+
+def test_bad_team_sizes_are_refused_with_their_value(capsys):
+    assert bench_crowds.main(['--circles', '1', '--no-peers']) == 2
+    assert '--circles: 1 is not a team' in capsys.readouterr().err
+    assert bench_crowds.main(['--teams', '-1', '--no-peers']) == 2
+    assert '--teams: -1 is negative' in capsys.readouterr().err
