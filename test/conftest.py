@@ -156,17 +156,22 @@ class Probe:
 
     def record(self, msg_type, topic, qos=10):
         """Subscribe to TOPIC and keep every message; return the list that fills up."""
+        from prvo_msgs_util import quiet_subscription_events
+
         received = []
 
         def keep(msg):
             with self._lock:
                 received.append(msg)
 
-        self.node.create_subscription(msg_type, topic, keep, qos)
+        self.node.create_subscription(msg_type, topic, keep, qos,
+                                      event_callbacks=quiet_subscription_events())
         return received
 
     def wait_for_message(self, msg_type, topic, predicate=None, timeout=10.0, qos=10):
         """Return the first message on TOPIC that satisfies PREDICATE, or fail after TIMEOUT."""
+        from prvo_msgs_util import quiet_subscription_events
+
         arrived = threading.Event()
         holder = []
 
@@ -175,13 +180,14 @@ class Probe:
                 holder.append(msg)
                 arrived.set()
 
-        subscription = self.node.create_subscription(msg_type, topic, check, qos)
-        try:
-            if not arrived.wait(timeout):
-                raise TimeoutError(f'no matching message on {topic} within {timeout} s')
-            return holder[0]
-        finally:
-            self.node.destroy_subscription(subscription)
+        # Kept until the probe closes, without QoS event handlers: destroying an event handler
+        # while the spin thread waits on it kills that thread (rclpy's InvalidHandle), and
+        # every later wait of the test with it.
+        self.node.create_subscription(msg_type, topic, check, qos,
+                                      event_callbacks=quiet_subscription_events())
+        if not arrived.wait(timeout):
+            raise TimeoutError(f'no matching message on {topic} within {timeout} s')
+        return holder[0]
 
     def wait_until(self, condition, timeout, what, poll=0.05):
         """Return once CONDITION() is true; raise TimeoutError naming WHAT after TIMEOUT."""

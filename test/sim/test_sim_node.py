@@ -21,6 +21,8 @@ from prvo_msgs_util import (
     diagnostic_values,
     make_twist,
     odometry_to_measurement,
+    quiet_publisher_events,
+    quiet_subscription_events,
     seconds_to_stamp,
     stamp_to_seconds,
 )
@@ -65,11 +67,15 @@ class Planners:
         self._subscriptions = []
         self._publishers = {}
         for robot in ROBOTS:
+            # No QoS event handlers: close() destroys these while the probe spins, and an event
+            # handler destroyed mid-wait kills the spin thread (rclpy's InvalidHandle).
             self._publishers[robot] = probe.node.create_publisher(
-                TwistStamped, f'/{robot}/cmd_vel', CMD_VEL_QOS)
+                TwistStamped, f'/{robot}/cmd_vel', CMD_VEL_QOS,
+                event_callbacks=quiet_publisher_events())
             self._subscriptions.append(probe.node.create_subscription(
                 Odometry, f'/{robot}/odom',
-                lambda msg, robot=robot: self._on_odometry(robot, msg), ODOM_QOS))
+                lambda msg, robot=robot: self._on_odometry(robot, msg), ODOM_QOS,
+                event_callbacks=quiet_subscription_events()))
             if ground_truth:
                 self.subscribe_ground_truth(robot)
 
@@ -77,7 +83,8 @@ class Planners:
         """Record ROBOT's ground truth from now on."""
         self._subscriptions.append(self._probe.node.create_subscription(
             Odometry, f'/{robot}/ground_truth',
-            lambda msg: self._keep(self.ground_truth[robot], msg), ODOM_QOS))
+            lambda msg: self._keep(self.ground_truth[robot], msg), ODOM_QOS,
+            event_callbacks=quiet_subscription_events()))
 
     def _keep(self, by_stamp, msg):
         with self.lock:
