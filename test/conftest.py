@@ -180,14 +180,16 @@ class Probe:
                 holder.append(msg)
                 arrived.set()
 
-        # Kept until the probe closes, without QoS event handlers: destroying an event handler
-        # while the spin thread waits on it kills that thread (rclpy's InvalidHandle), and
-        # every later wait of the test with it.
-        self.node.create_subscription(msg_type, topic, check, qos,
-                                      event_callbacks=quiet_subscription_events())
-        if not arrived.wait(timeout):
-            raise TimeoutError(f'no matching message on {topic} within {timeout} s')
-        return holder[0]
+        # Without QoS event handlers: destroying one while the spin thread waits on it kills
+        # that thread (rclpy's InvalidHandle); a plain subscription is destroyed safely.
+        subscription = self.node.create_subscription(
+            msg_type, topic, check, qos, event_callbacks=quiet_subscription_events())
+        try:
+            if not arrived.wait(timeout):
+                raise TimeoutError(f'no matching message on {topic} within {timeout} s')
+            return holder[0]
+        finally:
+            self.node.destroy_subscription(subscription)
 
     def wait_until(self, condition, timeout, what, poll=0.05):
         """Return once CONDITION() is true; raise TimeoutError naming WHAT after TIMEOUT."""
