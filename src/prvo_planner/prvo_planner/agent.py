@@ -110,7 +110,7 @@ class AgentSettings:
     unknown_neighbor_radius: float = 0.5
     approach_time: float = 0.5
     goal_tolerance: float = 0.2
-    acceleration_std: float = 1.0
+    acceleration_std: float = 2.0
     neighbor_timeout: float = 2.0
     kinematics: str = 'holonomic'
     max_angular_speed: float = 2.0

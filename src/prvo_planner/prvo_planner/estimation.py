@@ -7,7 +7,6 @@ prvo_msgs_util and asks it for beliefs predicted to the planning time.
 from dataclasses import dataclass
 import functools
 
-from filterpy.common import Q_discrete_white_noise
 from filterpy.kalman import KalmanFilter, predict
 import numpy as np
 
@@ -35,9 +34,20 @@ def _transition(dt):
 
 @functools.lru_cache(maxsize=64)
 def _process_noise(dt, acceleration_std):
-    """Return Q (4, 4): white-noise acceleration of std `acceleration_std` over `dt` seconds."""
-    noise = Q_discrete_white_noise(
-        dim=2, dt=dt, var=acceleration_std ** 2, block_size=2, order_by_dim=False)
+    """Return Q (4, 4) over [x, y, vx, vy]: a velocity that changes at the start of each interval.
+
+    Each axis's velocity changes once per interval by a white step of std
+    `acceleration_std * dt`, and the position moves the whole interval with the new velocity:
+    with `G = [dt, 1]`, `Q_axis = G G' (acceleration_std dt)^2`. That is how a base that
+    executes each velocity command at once moves (and how the simulator integrates). The
+    constant-acceleration discretisation (`G = [dt^2 / 2, dt]`) gives the position a quarter of
+    that variance and left the beliefs of manoeuvring robots overconfident.
+    """
+    change = np.array([dt, 1.0])
+    per_axis = np.outer(change, change) * (acceleration_std * dt) ** 2
+    noise = np.zeros((4, 4))
+    for axis in (0, 1):
+        noise[np.ix_((axis, axis + 2), (axis, axis + 2))] = per_axis
     noise.flags.writeable = False
     return noise
 
@@ -57,8 +67,9 @@ class ConstantVelocityTracker:
     Parameters
     ----------
     acceleration_std : float
-        Standard deviation of the white-noise acceleration [m/s^2] that lets the velocity
-        change between measurements; it also makes a stale track's covariance grow.
+        How fast the velocity may change [m/s^2]: between measurements `dt` apart it steps by a
+        white change of std `acceleration_std * dt` (`_process_noise`). It also makes a stale
+        track's covariance grow.
 
     """
 

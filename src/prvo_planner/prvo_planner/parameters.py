@@ -148,8 +148,8 @@ _SPECS = (
                   'of the same stamp before planning.', (0.0, 10.0)),
     ParameterSpec('status_period', FLOAT, 0.2, 'Diagnostics and markers are published at most '
                   'this often [s, wall]; cmd_vel always.', (0.0, 60.0)),
-    ParameterSpec('acceleration_std', FLOAT, 1.0, 'Process noise of the constant-velocity '
-                  'tracker [m/s^2].', (1.0e-3, 100.0)),
+    ParameterSpec('acceleration_std', FLOAT, 2.0, 'Process noise of the constant-velocity '
+                  'tracker [m/s^2]: std of velocity change per second.', (1.0e-3, 100.0)),
     ParameterSpec('frame_id', STRING, 'map', 'World frame of odometry and goals.',
                   read_only=True, rule=_not_empty),
     ParameterSpec('seed', INTEGER, -1, 'Seed for the random rotation of candidate headings; '
