@@ -2,8 +2,9 @@
 
 The world (`prvo_sim.world.TeamWorld`) executes each robot's cmd_vel with single-integrator
 kinematics; this node gives it its ROS endpoints (noisy odometry, exact ground truth, /clock,
-diagnostics and contact events) and its timing, lockstep or realtime. Topics, QoS, lockstep and
-diagnostics follow docs/interfaces.md.
+diagnostics and contact events) and its timing, lockstep or realtime, whose rules
+`prvo_sim.step_timing.StepTiming` keeps. Topics, QoS, lockstep and diagnostics follow
+docs/interfaces.md.
 """
 
 import sys
