@@ -34,8 +34,19 @@ from prvo_msgs_util.diagnostics import (
     make_diagnostic_array,
     make_diagnostic_status,
 )
-from prvo_msgs_util.interrupts import SigintRecorder, ignore_stop_signals
+from prvo_msgs_util.interrupts import (
+    STOP_SIGNALS,
+    SigintRecorder,
+    hold_stop_signals,
+    ignore_stop_signals,
+    release_stop_signals,
+)
 from prvo_msgs_util.markers import make_belief_markers
+from prvo_msgs_util.parameters import (
+    PARAMETER_TYPES,
+    declare_parameters,
+    parameter_descriptor,
+)
 from prvo_msgs_util.qos import (
     ANNOUNCEMENT_QOS,
     CLOCK_QOS,
@@ -50,7 +61,12 @@ from prvo_msgs_util.qos import (
     quiet_publisher_events,
     quiet_subscription_events,
 )
-from prvo_msgs_util.runtime import freeze_startup_objects, spin_events
+from prvo_msgs_util.runtime import (
+    ThrottledWarnings,
+    freeze_startup_objects,
+    quiet_after_shutdown,
+    spin_events,
+)
 from prvo_msgs_util.topics import (
     AVOIDANCE_SHARE,
     CLOCK,
@@ -65,6 +81,7 @@ from prvo_msgs_util.topics import (
     WORLD_FRAME,
     robot_from_topic,
     robot_topic,
+    robots_with_topic,
     validate_robot_name,
 )
 
@@ -76,11 +93,14 @@ __all__ = [
     'MAX_SPEED_COMPONENT', 'MAX_VARIANCE', 'MAX_WORLD_COORDINATE',
     'MessageFault', 'ODOM', 'ODOM_LATEST_QOS', 'ODOM_QOS', 'OdometryMeasurement',
     'QosWatch', 'quiet_publisher_events', 'quiet_subscription_events',
-    'SigintRecorder', 'ignore_stop_signals', 'body_to_world', 'check_world_point',
-    'diagnostic_values', 'freeze_startup_objects', 'spin_events',
+    'SigintRecorder', 'STOP_SIGNALS', 'hold_stop_signals', 'ignore_stop_signals',
+    'release_stop_signals', 'body_to_world', 'check_world_point', 'declare_parameters',
+    'diagnostic_values', 'freeze_startup_objects', 'PARAMETER_TYPES', 'parameter_descriptor',
+    'quiet_after_shutdown', 'spin_events', 'ThrottledWarnings',
     'make_belief_markers', 'make_diagnostic_array', 'make_diagnostic_status', 'make_odometry',
     'make_pose_stamped', 'make_twist', 'make_twist_stamped', 'odometry_to_measurement',
-    'pose_stamped_to_goal', 'robot_from_topic', 'robot_topic', 'seconds_to_stamp',
-    'serialize_odometry', 'serialized_odometry_to_measurement', 'stamp_to_seconds',
+    'pose_stamped_to_goal', 'robot_from_topic', 'robot_topic', 'robots_with_topic',
+    'seconds_to_stamp', 'serialize_odometry', 'serialized_odometry_to_measurement',
+    'stamp_to_seconds',
     'twist_to_velocity', 'validate_robot_name', 'WORLD_FRAME', 'world_to_body',
 ]

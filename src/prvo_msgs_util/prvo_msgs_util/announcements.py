@@ -84,15 +84,21 @@ class Announcer:
         The robot's node, in the robot's namespace (the topics are relative).
     robot : str
         The robot's name (the footprint's frame is `<robot>/base_link`).
+    in_robot_namespace : bool
+        Whether the node runs in the robot's namespace; if not (the simulator announcing a
+        scripted robot), the topics are the absolute /<robot>/footprint and so on.
 
     """
 
-    def __init__(self, node, robot):
+    def __init__(self, node, robot, in_robot_namespace=True):
         self._frame_id = f'{robot}/base_link'
+        footprint, share = FOOTPRINT, AVOIDANCE_SHARE
+        if not in_robot_namespace:
+            footprint, share = robot_topic(robot, FOOTPRINT), robot_topic(robot, AVOIDANCE_SHARE)
         self.footprint_publisher = node.create_publisher(
-            PolygonStamped, FOOTPRINT, ANNOUNCEMENT_QOS, event_callbacks=quiet_publisher_events())
+            PolygonStamped, footprint, ANNOUNCEMENT_QOS, event_callbacks=quiet_publisher_events())
         self.share_publisher = node.create_publisher(
-            Float32, AVOIDANCE_SHARE, ANNOUNCEMENT_QOS, event_callbacks=quiet_publisher_events())
+            Float32, share, ANNOUNCEMENT_QOS, event_callbacks=quiet_publisher_events())
         self._radius = self._share = None
 
     def announce(self, radius, avoidance_share):

@@ -1,6 +1,8 @@
-"""Telling a Ctrl-C shutdown apart from a real error in a node's main()."""
+"""Stop signals in a node's main(): held while it starts, told apart from real errors."""
 
 import signal
+
+STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
 
 
 class SigintRecorder:
@@ -40,5 +42,35 @@ def ignore_stop_signals():
     finalizes, Python gives such a signal its default action back, and one landing while the
     middleware tears down would kill the process (exit code -2). An ignored one stays ignored.
     """
-    for signal_number in (signal.SIGINT, signal.SIGTERM):
+    for signal_number in STOP_SIGNALS:
         signal.signal(signal_number, signal.SIG_IGN)
+
+
+def hold_stop_signals():
+    """
+    Hold SIGINT and SIGTERM back until `release_stop_signals()`; call first in main().
+
+    A stop signal landing while rcl initialises, or just after rclpy installed its handlers,
+    was lost now and then, leaving a node that ignored it. Threads started meanwhile (DDS)
+    inherit the mask, so afterwards the main thread receives every stop signal.
+
+    The Python handlers of both signals are made to do nothing: rclpy's handlers, installed by
+    init(), shut the context down (which ends spinning) and then call these. Python's default, a
+    KeyboardInterrupt, would land inside whatever callback is running, which the events
+    executor reports as a FATAL exception with a traceback.
+    """
+    for signal_number in STOP_SIGNALS:
+        signal.signal(signal_number, lambda signal_number, frame: None)
+    signal.pthread_sigmask(signal.SIG_BLOCK, STOP_SIGNALS)
+
+
+def release_stop_signals():
+    """Let stop signals in again; return False if one came while they were held.
+
+    One that came is taken here, without a handler: the node is to stop before spinning, and
+    the signals stay held.
+    """
+    if signal.sigtimedwait(STOP_SIGNALS, 0) is not None:
+        return False
+    signal.pthread_sigmask(signal.SIG_UNBLOCK, STOP_SIGNALS)
+    return True

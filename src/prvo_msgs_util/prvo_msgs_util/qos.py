@@ -90,10 +90,11 @@ class QosWatch:
         self._counts = {}
         self._reported = set()
 
-    def watch(self, endpoint):
-        """Watch a Subscription or Publisher of the node."""
-        self._watched[endpoint.topic_name] = (
-            _as_in_graph(endpoint.qos_profile), isinstance(endpoint, Subscription))
+    def watch(self, *endpoints):
+        """Watch Subscriptions and Publishers of the node."""
+        for endpoint in endpoints:
+            self._watched[endpoint.topic_name] = (
+                _as_in_graph(endpoint.qos_profile), isinstance(endpoint, Subscription))
 
     def forget(self, endpoint):
         """Stop watching an endpoint (before it is destroyed)."""

@@ -1,6 +1,9 @@
-"""Process settings for long-running nodes with a control loop."""
+"""Process settings, spinning and callback guards for long-running nodes with a control loop."""
 
+import functools
 import gc
+import math
+import time
 
 from rclpy.experimental import EventsExecutor
 
@@ -44,3 +47,40 @@ def spin_events(node):
     finally:
         executor.remove_node(node)
         executor.shutdown()
+
+
+def quiet_after_shutdown(callback):
+    """Wrap a node method CALLBACK so that a ROS error once the context is shut down ends it.
+
+    A stop signal shuts the context down whenever it lands, also while a callback runs; the
+    callback's next publish then fails, and the executor would report that as FATAL.
+    """
+    @functools.wraps(callback)
+    def guarded(node, *args):
+        try:
+            return callback(node, *args)
+        except RuntimeError:
+            if node.context.ok():
+                raise
+            return None
+    return guarded
+
+
+class ThrottledWarnings:
+    """Warnings to LOGGER, each kind at most once per PERIOD seconds, so one fault hides no other.
+
+    rclpy's `throttle_duration_sec` throttles one call site; a kind here is any hashable key,
+    such as (topic, fault).
+    """
+
+    def __init__(self, logger, period):
+        self._logger = logger
+        self._period = period
+        self._warned_at = {}
+
+    def warn(self, kind, message):
+        """Log MESSAGE as a warning unless KIND was warned of within the period."""
+        now = time.monotonic()
+        if now - self._warned_at.get(kind, -math.inf) >= self._period:
+            self._warned_at[kind] = now
+            self._logger.warning(message)

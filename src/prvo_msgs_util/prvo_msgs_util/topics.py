@@ -41,3 +41,12 @@ def robot_from_topic(topic, leaf):
     if not separator or rest != leaf or _NAME_SEGMENT.fullmatch(name) is None:
         return None
     return name
+
+
+def robots_with_topic(node, leaf, message_type):
+    """Return the robots whose topic '/<name>/<LEAF>' carries MESSAGE_TYPE in NODE's graph.
+
+    MESSAGE_TYPE is a type name as the graph states it, such as 'nav_msgs/msg/Odometry'.
+    """
+    return {robot for topic, types in node.get_topic_names_and_types()
+            if (robot := robot_from_topic(topic, leaf)) and message_type in types}

@@ -9,69 +9,50 @@ converts messages through prvo_msgs_util, feeds the agent, waits at most `sync_t
 neighbours and publishes the agent's commands and its announcements (footprint, share).
 """
 
-import copy
 import dataclasses
-import functools
-import math
-import signal
 import sys
 import time
 
-from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import PoseStamped, Twist, TwistStamped
 from nav_msgs.msg import Odometry
-from rcl_interfaces.msg import (
-    FloatingPointRange,
-    IntegerRange,
-    ParameterDescriptor,
-    SetParametersResult,
-)
+from rcl_interfaces.msg import SetParametersResult
 import rclpy
 from rclpy.clock import Clock, ClockType
 from rclpy.exceptions import InvalidParameterTypeException, InvalidParameterValueException
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.parameter import Parameter
-from visualization_msgs.msg import MarkerArray
 
 from prvo_msgs_util import (
     CMD_VEL,
     CMD_VEL_QOS,
-    DIAGNOSTICS,
-    DIAGNOSTICS_QOS,
     GOAL_POSE,
     GOAL_QOS,
-    MARKER_QOS,
-    MARKERS,
     ODOM,
     ODOM_LATEST_QOS,
     Announcer,
     MessageFault,
     QosWatch,
+    ThrottledWarnings,
+    declare_parameters,
     freeze_startup_objects,
+    hold_stop_signals,
     ignore_stop_signals,
-    make_diagnostic_array,
-    make_twist,
-    make_twist_stamped,
+    parameter_descriptor,
     pose_stamped_to_goal,
+    quiet_after_shutdown,
     quiet_publisher_events,
     quiet_subscription_events,
-    robot_from_topic,
+    release_stop_signals,
     robot_topic,
+    robots_with_topic,
     serialized_odometry_to_measurement,
     spin_events,
     subscribe_announcements,
-    world_to_body,
 )
 from prvo_planner.agent import AgentSettings, PlannerAgent
 from prvo_planner.parameters import (
-    BOOL,
-    FLOAT,
-    FLOAT_ARRAY,
-    INTEGER,
     PARAMETERS,
-    STRING,
-    STRING_ARRAY,
     ParameterError,
     check_parameter_update,
     checked_parameters,
@@ -80,55 +61,16 @@ from prvo_planner.parameters import (
     neighbour_names,
     planner_config_from,
 )
-from prvo_planner.reports import plan_markers, plan_status
+from prvo_planner.reports import PlanReporter, command_message
 
 _WARN_PERIOD_SECONDS = 2.0
-_STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
 _ODOMETRY_TYPE = 'nav_msgs/msg/Odometry'
-
-
-_ROS_TYPES = {BOOL: Parameter.Type.BOOL, INTEGER: Parameter.Type.INTEGER,
-              FLOAT: Parameter.Type.DOUBLE, STRING: Parameter.Type.STRING,
-              FLOAT_ARRAY: Parameter.Type.DOUBLE_ARRAY, STRING_ARRAY: Parameter.Type.STRING_ARRAY}
-
-
-def _descriptor(spec):
-    """Return the ParameterDescriptor of the parameter SPEC: type, range, description.
-
-    A parameter without a default (goal, neighbors) is dynamically typed, so that it can stay
-    unset and take integers as well as doubles; its rules are checked on every set.
-    """
-    descriptor = ParameterDescriptor(
-        description=spec.description, read_only=spec.read_only,
-        dynamic_typing=spec.default is None, type=_ROS_TYPES[spec.kind].value)
-    if spec.bounds is not None and spec.kind == FLOAT:
-        descriptor.floating_point_range = [FloatingPointRange(
-            from_value=float(spec.bounds[0]), to_value=float(spec.bounds[1]), step=0.0)]
-    if spec.bounds is not None and spec.kind == INTEGER:
-        descriptor.integer_range = [IntegerRange(
-            from_value=spec.bounds[0], to_value=spec.bounds[1], step=1)]
-    return descriptor
-
-
-# name: (default, descriptor), in declaration order.
-_PARAMETERS = {name: (spec.default, _descriptor(spec)) for name, spec in PARAMETERS.items()}
-
-
-def _quiet_after_shutdown(callback):
-    """Wrap the node's CALLBACK so that a ROS error once the context is shut down ends it.
-
-    A stop signal shuts the context down whenever it lands, also while a callback runs; the
-    callback's next publish then fails, and the executor would report that as FATAL.
-    """
-    @functools.wraps(callback)
-    def guarded(node, *args):
-        try:
-            return callback(node, *args)
-        except RuntimeError:
-            if node.context.ok():
-                raise
-            return None
-    return guarded
+# name: (default, descriptor), in declaration order. A parameter without a default (goal,
+# neighbors) is dynamically typed, so that it can stay unset and take integers as well as
+# doubles; its rules are checked on every set.
+_PARAMETERS = {name: (spec.default, parameter_descriptor(
+    spec.description, spec.kind, spec.bounds, spec.read_only,
+    dynamic_typing=spec.default is None)) for name, spec in PARAMETERS.items()}
 
 
 class PlannerNode(Node):
@@ -153,8 +95,7 @@ class PlannerNode(Node):
         self._last_command_stamp = None
         # The stamp whose command was re-sent: once per stamp is enough for a lost answer.
         self._resent_stamp = None
-        self._warned_at = {}
-        self._status_published_at = -math.inf
+        self._warnings = ThrottledWarnings(self.get_logger(), _WARN_PERIOD_SECONDS)
 
         self._stamped = self._values['stamped_cmd_vel']
         # Endpoints without rclpy's QoS event handlers (each would cost every executor wake-up);
@@ -163,11 +104,7 @@ class PlannerNode(Node):
         self._cmd_vel_publisher = self.create_publisher(
             TwistStamped if self._stamped else Twist, CMD_VEL, CMD_VEL_QOS,
             event_callbacks=quiet_publisher_events())
-        self._diagnostics_publisher = self.create_publisher(
-            DiagnosticArray, DIAGNOSTICS, DIAGNOSTICS_QOS,
-            event_callbacks=quiet_publisher_events())
-        self._marker_publisher = self.create_publisher(
-            MarkerArray, MARKERS, MARKER_QOS, event_callbacks=quiet_publisher_events())
+        self._reporter = PlanReporter(self, self._robot)
         self._announcer = Announcer(self, self._robot)
         self._announce()
         self._own_odom_topic = robot_topic(self._robot, ODOM)
@@ -179,10 +116,10 @@ class PlannerNode(Node):
         goal = self.create_subscription(
             PoseStamped, GOAL_POSE, self._on_goal_pose, GOAL_QOS,
             event_callbacks=quiet_subscription_events())
-        for endpoint in (self._cmd_vel_publisher, self._diagnostics_publisher,
-                         self._marker_publisher, self._announcer.footprint_publisher,
-                         self._announcer.share_publisher, own_odometry, goal):
-            self._qos_watch.watch(endpoint)
+        self._qos_watch.watch(
+            self._cmd_vel_publisher, self._reporter.diagnostics_publisher,
+            self._reporter.marker_publisher, self._announcer.footprint_publisher,
+            self._announcer.share_publisher, own_odometry, goal)
 
         # Wall-clock timers: under use_sim_time the simulator waits for us, so sim time would
         # never advance to fire them.
@@ -200,20 +137,7 @@ class PlannerNode(Node):
 
     def _declare_parameters(self):
         """Declare every parameter and check its start-up value; raise ParameterError."""
-        for name, (default, descriptor) in _PARAMETERS.items():
-            if default is None:
-                # Declared writable first, to be declared again: unset if its value is the null
-                # of a parameters file that `ros2 param dump` wrote.
-                writable = copy.copy(descriptor)
-                writable.read_only = False
-                value = self.declare_parameter(name, default, writable).value
-                self.undeclare_parameter(name)
-                self.declare_parameter(name, default, descriptor,
-                                       ignore_override=is_dumped_unset(name, value))
-            else:
-                self.declare_parameter(name, default, descriptor)
-        self._values = checked_parameters(
-            {name: self.get_parameter(name).value for name in _PARAMETERS})
+        self._values = checked_parameters(declare_parameters(self, _PARAMETERS, is_dumped_unset))
         self._config = planner_config_from(self._values)
         self._goal = goal_array(self._values['goal'])
         self._neighbours_listed = neighbour_names(self._values['neighbors'])
@@ -252,13 +176,6 @@ class PlannerNode(Node):
 
     # Inputs -----------------------------------------------------------------------------------
 
-    def _warn(self, kind, message):
-        """Log a warning at most once per period for each KIND, so one fault hides no other."""
-        now = time.monotonic()
-        if now - self._warned_at.get(kind, -math.inf) >= _WARN_PERIOD_SECONDS:
-            self._warned_at[kind] = now
-            self.get_logger().warning(message)
-
     def _measure(self, data, topic):
         """Return the OdometryMeasurement of serialized odometry, or None (warned) if bad."""
         try:
@@ -266,8 +183,8 @@ class PlannerNode(Node):
                 data, expected_frame=self._values['frame_id'])
         except MessageFault as fault:
             # Values sit in parentheses at the end: the text before them names the fault.
-            self._warn((topic, str(fault).split('(')[0]),
-                       f'skipping odometry on {topic}: {fault}')
+            self._warnings.warn((topic, str(fault).split('(')[0]),
+                                f'skipping odometry on {topic}: {fault}')
             return None
 
     def _report(self, fusion, topic):
@@ -275,9 +192,10 @@ class PlannerNode(Node):
         if fusion.status in ('restarted', 'resumed'):
             self.get_logger().info(f'odometry on {topic}: {fusion.detail}')
         elif fusion.status in ('stale', 'refused'):
-            self._warn((topic, fusion.status), f'skipping odometry on {topic}: {fusion.detail}')
+            self._warnings.warn((topic, fusion.status),
+                                f'skipping odometry on {topic}: {fusion.detail}')
 
-    @_quiet_after_shutdown
+    @quiet_after_shutdown
     def _on_own_odometry(self, data):
         measurement = self._measure(data, self._own_odom_topic)
         if measurement is None:
@@ -300,7 +218,7 @@ class PlannerNode(Node):
             # for as long as odometry comes faster than sync_timeout and a neighbour is silent.
             self._sync_timer.reset()
 
-    @_quiet_after_shutdown
+    @quiet_after_shutdown
     def _on_neighbour_odometry(self, data, robot, topic):
         measurement = self._measure(data, topic)
         if measurement is None:
@@ -309,19 +227,20 @@ class PlannerNode(Node):
         if self._agent.ready(time.monotonic()):
             self._plan()
 
-    @_quiet_after_shutdown
+    @quiet_after_shutdown
     def _on_goal_pose(self, msg):
         try:
             goal = pose_stamped_to_goal(msg, expected_frame=self._values['frame_id'])
         except MessageFault as fault:
-            self._warn('goal', f'ignoring goal on {robot_topic(self._robot, GOAL_POSE)}: {fault}')
+            self._warnings.warn(
+                'goal', f'ignoring goal on {robot_topic(self._robot, GOAL_POSE)}: {fault}')
             return
         # Through the parameter: `goal` shows the goal in force, and other changes keep it. The
         # parameter's rules hold: pose_stamped_to_goal checked the same coordinate bound.
         self.set_parameters([Parameter('goal', Parameter.Type.DOUBLE_ARRAY, goal.tolist())])
         self.get_logger().info(f'new goal {goal.tolist()}')
 
-    @_quiet_after_shutdown
+    @quiet_after_shutdown
     def _on_sync_timeout(self):
         # While a listed neighbour may still turn up, the timer keeps firing: plan then.
         if self._agent.pending_stamp is None or self._agent.awaiting_listed(time.monotonic()):
@@ -330,26 +249,19 @@ class PlannerNode(Node):
 
     def _on_bad_announcement(self, topic, error):
         # The agent keeps the neighbour's last valid announcement, else its default.
-        self._warn((topic, 'announcement'), f'ignoring announcement on {topic}: {error}')
+        self._warnings.warn((topic, 'announcement'), f'ignoring announcement on {topic}: {error}')
 
     # Neighbours -------------------------------------------------------------------------------
 
-    def _neighbour_names(self):
-        """Robots to avoid: the `neighbors` list, or every other /<name>/odom in the graph."""
-        listed = self._neighbours_listed
-        if listed is not None:
-            return set(listed) - {self._robot}
-        names = set()
-        for topic, types in self.get_topic_names_and_types():
-            robot = robot_from_topic(topic, ODOM)
-            if robot and robot != self._robot and _ODOMETRY_TYPE in types:
-                names.add(robot)
-        return names
-
-    @_quiet_after_shutdown
+    @quiet_after_shutdown
     def _maintain_neighbours(self):
-        """Subscribe to robots that appeared, forget robots that went silent or vanished."""
-        wanted = self._neighbour_names()
+        """Subscribe to robots that appeared, forget robots that went silent or vanished.
+
+        The robots to avoid are the `neighbors` list, or every other /<name>/odom in the graph.
+        """
+        listed = self._neighbours_listed
+        wanted = (robots_with_topic(self, ODOM, _ODOMETRY_TYPE) if listed is None
+                  else set(listed)) - {self._robot}
         agent = self._agent
         for robot in wanted - set(self._neighbour_subscriptions):
             topic = robot_topic(robot, ODOM)
@@ -360,8 +272,7 @@ class PlannerNode(Node):
                 ODOM_LATEST_QOS, event_callbacks=quiet_subscription_events(), raw=True)
             ] + subscribe_announcements(self, robot, agent.receive_footprint,
                                         agent.receive_share, self._on_bad_announcement)
-            for subscription in self._neighbour_subscriptions[robot]:
-                self._qos_watch.watch(subscription)
+            self._qos_watch.watch(*self._neighbour_subscriptions[robot])
             self.get_logger().info(f'tracking neighbour {robot}')
         for robot in set(self._neighbour_subscriptions) - wanted:
             for subscription in self._neighbour_subscriptions.pop(robot):
@@ -384,70 +295,30 @@ class PlannerNode(Node):
             self.get_logger().info(f'arrived at {self._agent.goal.tolist()}')
         # Before the command: in lockstep, neighbours plan the next step with it.
         self._announce()
-        # cmd_vel is in the body frame: rotate the world-frame plan by minus the robot's yaw; a
-        # unicycle drives forward and turns (its tracking controller's command), nothing else.
-        if command.drive is None:
-            velocity, turn_rate = world_to_body(command.velocity, command.yaw), 0.0
-        else:
-            velocity, turn_rate = (command.drive[0], 0.0), command.drive[1]
-        if self._stamped:
-            message = make_twist_stamped(command.stamp, velocity, f'{self._robot}/base_link',
-                                         turn_rate)
-        else:
-            message = make_twist(velocity, turn_rate)
+        message = command_message(self._robot, command, self._stamped)
         self._cmd_vel_publisher.publish(message)
         self._last_command, self._last_command_stamp = message, command.stamp
         result = command.result
         if result is not None and not result.feasible:
-            self._warn('infeasible',
-                       f'no velocity meets k={self._config.effective_k:.2f}; best achieves '
-                       f'k={result.achieved_k:.2f} (P >= {result.eta_bound:.2f})')
-        # Diagnostics and markers are for people and tools: a few per second, off the hot path.
-        now = time.monotonic()
-        if now - self._status_published_at < self._values['status_period']:
-            return
-        self._status_published_at = now
-        self._publish_diagnostics(command, plan_time_ms)
-        if self._marker_publisher.get_subscription_count() == 0:
-            # Markers take about 0.6 ms to build: only for a listener (RViz).
-            return
-        self._marker_publisher.publish(plan_markers(
-            self._robot, command, self._values['frame_id'], self._config.effective_k))
-
-    def _publish_diagnostics(self, command, plan_time_ms):
-        status = plan_status(self._robot, command, plan_time_ms, self._config.model,
-                             self._agent.settings.planning_radius)
-        self._diagnostics_publisher.publish(make_diagnostic_array(command.stamp, [status]))
-
-
-def _quiet_python_stop_handlers():
-    """Make the Python handlers of SIGINT and SIGTERM do nothing; call before rclpy.init().
-
-    rclpy's handlers, installed by init(), shut the context down (which ends spinning) and then
-    call these. Python's default, a KeyboardInterrupt, would land inside whatever callback is
-    running, which the events executor reports as a FATAL exception with a traceback.
-    """
-    for signal_number in _STOP_SIGNALS:
-        signal.signal(signal_number, lambda signal_number, frame: None)
+            self._warnings.warn(
+                'infeasible', f'no velocity meets k={self._config.effective_k:.2f}; best '
+                f'achieves k={result.achieved_k:.2f} (P >= {result.eta_bound:.2f})')
+        self._reporter.report(
+            time.monotonic(), self._values['status_period'], command, plan_time_ms,
+            self._config, self._agent.settings.planning_radius, self._values['frame_id'])
 
 
 def main(args=None):
     """Run one planner until Ctrl-C; exit 2 with a clear message on an invalid parameter."""
-    _quiet_python_stop_handlers()
-    # Stop signals are held back until the node is ready to spin: one landing while rcl
-    # initialises, or just after rclpy installed its handlers, was lost now and then, leaving a
-    # planner that ignored it. Threads started meanwhile (DDS) inherit the mask, so afterwards
-    # the main thread receives every stop signal.
-    signal.pthread_sigmask(signal.SIG_BLOCK, _STOP_SIGNALS)
+    # Until the node is ready to spin; a stop signal that came meanwhile ends the run here.
+    hold_stop_signals()
     node = None
     try:
         rclpy.init(args=args)
         node = PlannerNode()
         node.warm_up()
         freeze_startup_objects()
-        # One that came meanwhile is taken here, without a handler: then there is nothing to do.
-        if signal.sigtimedwait(_STOP_SIGNALS, 0) is None:
-            signal.pthread_sigmask(signal.SIG_UNBLOCK, _STOP_SIGNALS)
+        if release_stop_signals():
             spin_events(node)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass

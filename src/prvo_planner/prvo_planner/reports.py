@@ -1,15 +1,43 @@
-"""What a planner reports of one plan: its diagnostic status and its belief markers.
+"""What a planner sends of one plan: its cmd_vel, diagnostic status and belief markers.
 
 The planner node publishes these; the in-process engine's recording builds the same messages.
 """
 
 import math
 
-from diagnostic_msgs.msg import DiagnosticStatus
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 import numpy as np
+from visualization_msgs.msg import MarkerArray
 
-from prvo_msgs_util import make_belief_markers, make_diagnostic_status
+from prvo_msgs_util import (
+    DIAGNOSTICS,
+    DIAGNOSTICS_QOS,
+    MARKER_QOS,
+    MARKERS,
+    make_belief_markers,
+    make_diagnostic_array,
+    make_diagnostic_status,
+    make_twist,
+    make_twist_stamped,
+    quiet_publisher_events,
+    world_to_body,
+)
 from prvo_planner.core.probability import confidence_ellipse_scale
+
+
+def command_message(robot, command, stamped):
+    """Return the cmd_vel of COMMAND (an agent `Command`): a TwistStamped if STAMPED, else Twist.
+
+    cmd_vel is in the body frame: the world-frame plan is rotated by minus the robot's yaw; a
+    unicycle drives forward and turns (its tracking controller's command), nothing else.
+    """
+    if command.drive is None:
+        velocity, turn_rate = world_to_body(command.velocity, command.yaw), 0.0
+    else:
+        velocity, turn_rate = (command.drive[0], 0.0), command.drive[1]
+    if stamped:
+        return make_twist_stamped(command.stamp, velocity, f'{robot}/base_link', turn_rate)
+    return make_twist(velocity, turn_rate)
 
 
 def plan_status(robot, command, plan_time_ms, model, planning_radius):
@@ -46,3 +74,36 @@ def plan_markers(robot, command, frame_id, effective_k):
         [announcement.radius for announcement in command.announcements],
         confidence_ellipse_scale(effective_k),
         [announcement.avoidance_share for announcement in command.announcements])
+
+
+class PlanReporter:
+    """A planner node's diagnostics and marker publishers, for people and tools (RViz).
+
+    Reports are few, off the hot path: at most one per period, and markers only while someone
+    subscribes to them.
+    """
+
+    def __init__(self, node, robot):
+        self._robot = robot
+        self.diagnostics_publisher = node.create_publisher(
+            DiagnosticArray, DIAGNOSTICS, DIAGNOSTICS_QOS,
+            event_callbacks=quiet_publisher_events())
+        self.marker_publisher = node.create_publisher(
+            MarkerArray, MARKERS, MARKER_QOS, event_callbacks=quiet_publisher_events())
+        self._reported_at = -math.inf
+
+    def report(self, now, period, command, plan_time_ms, config, planning_radius, frame_id):
+        """Publish COMMAND's status and markers unless the last report is under PERIOD old.
+
+        NOW and PERIOD are in seconds of one clock; CONFIG is the planner's PlannerConfig.
+        """
+        if now - self._reported_at < period:
+            return
+        self._reported_at = now
+        status = plan_status(self._robot, command, plan_time_ms, config.model, planning_radius)
+        self.diagnostics_publisher.publish(make_diagnostic_array(command.stamp, [status]))
+        if self.marker_publisher.get_subscription_count() == 0:
+            # Markers take about 0.6 ms to build: only for a listener.
+            return
+        self.marker_publisher.publish(
+            plan_markers(self._robot, command, frame_id, config.effective_k))

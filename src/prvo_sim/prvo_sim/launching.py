@@ -12,7 +12,6 @@ import dataclasses
 from prvo_sim.runner.processes import package_command
 from prvo_sim.runner.session import (
     METHODS,
-    MODES,
     PLANNER_NODE,
     SIM_NODE,
     planned_robots,
@@ -20,6 +19,7 @@ from prvo_sim.runner.session import (
     sim_parameters,
 )
 from prvo_sim.scenario import find_scenario, load_scenario
+from prvo_sim.step_timing import MODES
 
 # Launch arguments: name -> (default, description). An empty default means "not given".
 LAUNCH_ARGUMENTS = {

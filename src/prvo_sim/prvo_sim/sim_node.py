@@ -2,35 +2,27 @@
 
 The world (`prvo_sim.world.TeamWorld`) executes each robot's cmd_vel with single-integrator
 kinematics; this node gives it its ROS endpoints (noisy odometry, exact ground truth, /clock,
-diagnostics and contact events) and its timing, lockstep or realtime. Topics, QoS, lockstep and
-diagnostics follow docs/interfaces.md.
+diagnostics and contact events) and its timing, lockstep or realtime, whose rules
+`prvo_sim.step_timing.StepTiming` keeps. Topics, QoS, lockstep and diagnostics follow
+docs/interfaces.md.
 """
 
 import sys
 import time
 
 from diagnostic_msgs.msg import DiagnosticArray
-from geometry_msgs.msg import PolygonStamped, Twist, TwistStamped
+from geometry_msgs.msg import Twist, TwistStamped
 from nav_msgs.msg import Odometry
 import numpy as np
-from rcl_interfaces.msg import (
-    FloatingPointRange,
-    IntegerRange,
-    ParameterDescriptor,
-    SetParametersResult,
-)
+from rcl_interfaces.msg import SetParametersResult
 import rclpy
 from rclpy.clock import Clock, ClockType
 from rclpy.exceptions import ParameterException
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
-from rclpy.parameter import Parameter
 from rosgraph_msgs.msg import Clock as ClockMsg
-from std_msgs.msg import Float32
 
 from prvo_msgs_util import (
-    ANNOUNCEMENT_QOS,
-    AVOIDANCE_SHARE,
     CLOCK,
     CLOCK_QOS,
     CMD_VEL,
@@ -39,38 +31,37 @@ from prvo_msgs_util import (
     CONTACTS,
     DIAGNOSTICS,
     DIAGNOSTICS_QOS,
-    FOOTPRINT,
     GROUND_TRUTH,
     ODOM,
     ODOM_QOS,
+    Announcer,
     MessageFault,
     QosWatch,
     SigintRecorder,
-    footprint_message,
+    declare_parameters,
     freeze_startup_objects,
     ignore_stop_signals,
     quiet_publisher_events,
     quiet_subscription_events,
     robot_topic,
     seconds_to_stamp,
-    share_message,
     spin_events,
 )
 from prvo_sim.commands import command_velocity, unicycle_command
-from prvo_sim.observers import ObserverGate, observer_name_fault
+from prvo_sim.observers import ObserverGate
 from prvo_sim.scenario import ScenarioError, find_scenario, load_scenario
+from prvo_sim.sim_parameters import PARAMETERS, parameter_fault
+from prvo_sim.step_timing import REPUBLISH, STEP, StepTiming
 from prvo_sim.world import TeamWorld
 from prvo_sim.world_messages import contact_array, serialized_odometry, status_array
 
-MODES = ('lockstep', 'realtime')
 # Exit code of a run rejected at startup (bad scenario or parameter).
 EXIT_BAD_INPUT = 2
 # How often timeouts, the cmd_vel publishers and the observers are checked [s]. Only timeouts
 # are polled (answers step the simulation from their callback): each poll is a spin of the
 # executor, which costs as much as a message.
 _POLL_PERIOD = 0.02
-# How often the t_0 odometry is re-sent while waiting for planners, and the status while idle.
-_REPUBLISH_PERIOD = 0.5
+# How often the status is published while idle.
 _IDLE_STATUS_PERIOD = 1.0
 # How often the graph is checked for endpoints with incompatible QoS (prvo_msgs_util.QosWatch).
 _QOS_CHECK_PERIOD = 1.0
@@ -78,9 +69,9 @@ _WARNING_THROTTLE = 2.0
 
 
 class _Robot:
-    """One simulated robot's ROS side: its topics, command in force and deadline record.
+    """One simulated robot's ROS side: its topics, publishers and command in force.
 
-    A scripted robot (SCRIPTED) is moved by the world: it has no cmd_vel and misses no deadline.
+    A scripted robot (SCRIPTED) is moved by the world: it has no cmd_vel.
     """
 
     def __init__(self, name, scripted=False):
@@ -89,13 +80,6 @@ class _Robot:
         self.cmd_vel_topic = robot_topic(name, CMD_VEL)
         self.base_frame = f'{name}/base_link'
         self.command = np.zeros(2)
-        self.answered = False
-        self.deadline_misses = 0
-        # Wall times (time.monotonic) of the last accepted command and, in lockstep, of the
-        # first deadline missed since; `stopped` once it executes zero for lack of commands.
-        self.commanded_at = None
-        self.missed_since = None
-        self.stopped = False
         self.odom_publisher = None
         self.ground_truth_publisher = None
         self.logger = None
@@ -107,53 +91,17 @@ class SimNode(Node):
     def __init__(self):
         super().__init__('prvo_sim')
         self.add_on_set_parameters_callback(self._validate_parameters)
-        self.add_post_set_parameters_callback(self._apply_parameters)
-
-        def declare(name, value, description, read_only=True, **ranges):
-            return self.declare_parameter(name, value, ParameterDescriptor(
-                description=description, read_only=read_only, **ranges)).value
-
-        def seconds(low):
-            return {'floating_point_range': [FloatingPointRange(from_value=low,
-                                                                to_value=3600.0)]}
-        scenario_name = declare('scenario', '', 'Scenario YAML path, or a packaged scenario name')
-        self._mode = declare('mode', 'lockstep',
-                             'lockstep: step once every robot answered; realtime: wall timer')
-        rate = declare('rate', 0.0, 'Realtime step rate [Hz]; 0 means 1 / the scenario dt',
-                       floating_point_range=[FloatingPointRange(from_value=0.0,
-                                                                to_value=1000.0)])
-        seed = declare('seed', -1, "Noise seed; -1 uses the scenario file's",
-                       integer_range=[IntegerRange(from_value=-1, to_value=2**31 - 1)])
-        stamped = declare('stamped_cmd_vel', True,
-                          'Subscribe to TwistStamped cmd_vel (false: plain Twist)')
-        self._step_timeout = declare(
-            'step_timeout', 1.0, 'Lockstep: wall time [s] to wait for every cmd_vel before '
-            'stepping', read_only=False, **seconds(0.001))
-        self._cmd_timeout = declare(
-            'cmd_timeout', 0.5, 'Wall time [s] without cmd_vel after which a robot executes '
-            'zero velocity (lockstep: counted from its first missed deadline)',
-            read_only=False, **seconds(1e-6))
-        self._startup_timeout = declare(
-            'startup_timeout', 10.0, 'Wall time [s] the first step waits for every cmd_vel '
-            '(both modes), re-sending the t_0 odometry, so that late joiners are in from t_0',
-            **seconds(0.001))
-        # Typed without a value: an empty list has no type of its own in a ROS parameter.
-        observers = self.declare_parameter(
-            'observers', Parameter.Type.STRING_ARRAY, ParameterDescriptor(
-                description='Fully qualified names of nodes that must subscribe to every '
-                            'ground truth and /diagnostics before the first step',
-                read_only=True)).value or []
-
-        scenario = load_scenario(find_scenario(scenario_name), seed=None if seed < 0 else seed)
+        values = declare_parameters(self, PARAMETERS)
+        self._mode, seed, observers = values['mode'], values['seed'], values['observers'] or []
+        scenario = load_scenario(find_scenario(values['scenario']),
+                                 seed=None if seed < 0 else seed)
         self._world = TeamWorld(scenario)
-        self._dt = scenario.dt
         self._robots = [_Robot(spec.name, spec.scripted is not None) for spec in scenario.robots]
         # The robots whose cmd_vel lockstep waits for.
-        self._planned = [robot for robot in self._robots if not robot.scripted]
+        planned = [index for index, robot in enumerate(self._robots) if not robot.scripted]
+        self._planned = [self._robots[index] for index in planned]
         self._stamp = seconds_to_stamp(0.0)
-        self._started = False
         self._waiting_for = 'every cmd_vel publisher'
-        self._published_at = time.monotonic()
         self._last_odometry = []
 
         # Endpoints without rclpy's QoS event handlers (each would cost every executor wake-up);
@@ -169,7 +117,7 @@ class SimNode(Node):
         endpoints = [self._clock_publisher, self._diagnostics_publisher, self._contacts_publisher]
         # What every observer must subscribe to: each robot's ground truth and /diagnostics.
         observed = [(DIAGNOSTICS, self._diagnostics_publisher)]
-        command_type = TwistStamped if stamped else Twist
+        command_type = TwistStamped if values['stamped_cmd_vel'] else Twist
         for index, robot in enumerate(self._robots):
             robot.odom_publisher = self.create_publisher(
                 Odometry, robot_topic(robot.name, ODOM), ODOM_QOS, event_callbacks=quiet())
@@ -182,23 +130,15 @@ class SimNode(Node):
             if robot.scripted:
                 # No planner speaks for a scripted robot: this node announces its size and that
                 # it takes no share of the avoidance, latched, as a planner announces its own.
-                spec = scenario.robots[index]
-                footprint = self.create_publisher(
-                    PolygonStamped, robot_topic(robot.name, FOOTPRINT), ANNOUNCEMENT_QOS,
-                    event_callbacks=quiet())
-                footprint.publish(footprint_message(spec.radius, f'{robot.name}/base_link'))
-                share = self.create_publisher(
-                    Float32, robot_topic(robot.name, AVOIDANCE_SHARE), ANNOUNCEMENT_QOS,
-                    event_callbacks=quiet())
-                share.publish(share_message(0.0))
-                endpoints += [footprint, share]
+                announcer = Announcer(self, robot.name, in_robot_namespace=False)
+                announcer.announce(scenario.robots[index].radius, 0.0)
+                endpoints += [announcer.footprint_publisher, announcer.share_publisher]
                 continue
             endpoints.append(self.create_subscription(
                 command_type, robot.cmd_vel_topic,
                 lambda msg, index=index: self._on_cmd_vel(index, msg), CMD_VEL_QOS,
                 event_callbacks=quiet_subscription_events()))
-        for endpoint in endpoints:
-            self._qos_watch.watch(endpoint)
+        self._qos_watch.watch(*endpoints)
         self._observer_gate = ObserverGate(self, observers, observed)
 
         # Wall timers on a steady clock: they must run even when this node uses sim time.
@@ -209,8 +149,13 @@ class SimNode(Node):
         self._realtime_timer = None
         if self._mode == 'realtime':
             self._realtime_timer = self.create_timer(
-                1.0 / (rate or 1.0 / self._dt), self._advance, clock=steady, autostart=False)
-        self._republished_at = time.monotonic()
+                1.0 / (values['rate'] or 1.0 / scenario.dt), self._advance, clock=steady,
+                autostart=False)
+        self._timing = StepTiming(
+            len(self._robots), planned, self._mode == 'realtime', values['step_timeout'],
+            values['cmd_timeout'], values['startup_timeout'], time.monotonic())
+        # Registered once declared: it applies changes to the timing.
+        self.add_post_set_parameters_callback(self._apply_parameters)
         self._publish_state()
         observers = f' and observers {", ".join(observers)}' if observers else ''
         self.get_logger().info(
@@ -220,26 +165,17 @@ class SimNode(Node):
 
     def _validate_parameters(self, parameters):
         for parameter in parameters:
-            if parameter.name == 'mode' and parameter.value not in MODES:
-                return SetParametersResult(
-                    successful=False,
-                    reason=f'mode must be one of {", ".join(MODES)}, got {parameter.value!r}')
-            if parameter.name == 'scenario' and not parameter.value:
-                return SetParametersResult(
-                    successful=False, reason='scenario is required (a YAML path or a name)')
-            if parameter.name == 'observers':
-                for name in parameter.value or []:
-                    fault = observer_name_fault(name)
-                    if fault:
-                        return SetParametersResult(successful=False, reason=fault)
+            fault = parameter_fault(parameter.name, parameter.value)
+            if fault:
+                return SetParametersResult(successful=False, reason=fault)
         return SetParametersResult(successful=True)
 
     def _apply_parameters(self, parameters):
         for parameter in parameters:
             if parameter.name == 'step_timeout':
-                self._step_timeout = parameter.value
+                self._timing.step_timeout = parameter.value
             elif parameter.name == 'cmd_timeout':
-                self._cmd_timeout = parameter.value
+                self._timing.cmd_timeout = parameter.value
 
     def _on_cmd_vel(self, index, msg):
         robot = self._robots[index]
@@ -257,42 +193,35 @@ class SimNode(Node):
             robot.logger.warning(f'skipping {robot.cmd_vel_topic}: {fault}',
                                  throttle_duration_sec=_WARNING_THROTTLE)
             return
-        robot.commanded_at = time.monotonic()
-        robot.missed_since = None
-        robot.stopped = False
         # An unstamped Twist cannot say which odometry it answers: any after it counts. A
         # duplicate answer finds the robot answered already, or the step it answers done.
-        if not isinstance(msg, TwistStamped) or msg.header.stamp == self._stamp:
-            robot.answered = True
-        if (self._mode == 'lockstep' and self._started and not self._world.finished
-                and all(other.answered for other in self._planned)):
+        timing = self._timing
+        timing.command_received(
+            index, not isinstance(msg, TwistStamped) or msg.header.stamp == self._stamp,
+            time.monotonic())
+        if (self._mode == 'lockstep' and timing.started and not self._world.finished
+                and timing.all_answered()):
             self._advance()
 
     def _poll(self):
-        now = time.monotonic()
-        if not self._started:
+        now, timing = time.monotonic(), self._timing
+        if not timing.started:
             if not self._ready_to_start():
-                if now - self._republished_at >= _REPUBLISH_PERIOD:
-                    self._republish_initial_odometry(now)
+                if timing.republish_due(now):
+                    self._send_last_state()
                 return
-            self._started = True
-            self._republish_initial_odometry(now)
-            self._published_at = now
+            # The t_0 state once more, unchanged, so that a late subscriber gets the same draw.
+            timing.start(now)
+            self._send_last_state()
             self.get_logger().info('every cmd_vel has a publisher, every observer subscribes: '
                                    'stepping')
         if self._world.finished:
             return
-        if all(robot.answered for robot in self._planned):
+        due = timing.due(now, first_step=self._world.step_count == 0)
+        if due == STEP:
             self._advance()
-        elif self._world.step_count == 0:
-            # Whoever is not subscribed yet gets t_0 again: a run starts with everyone in it,
-            # which is what makes a seed reproduce its run.
-            if now - self._published_at >= self._startup_timeout:
-                self._advance()
-            elif now - self._republished_at >= _REPUBLISH_PERIOD:
-                self._republish_initial_odometry(now)
-        elif now - self._published_at >= self._step_timeout:
-            self._advance()
+        elif due == REPUBLISH:
+            self._send_last_state()
         if self._realtime_timer is not None and self._world.step_count > 0:
             # Realtime: the first step waited for every answer, as in lockstep (a planner's
             # first plan includes its warm-up); from t_1 on a wall timer steps.
@@ -313,56 +242,36 @@ class SimNode(Node):
             throttle_duration_sec=_WARNING_THROTTLE)
         return False
 
-    def _republish_initial_odometry(self, now):
-        """Send the t_0 messages again, unchanged, so a late subscriber gets the same draw."""
-        self._republished_at = now
-        self._send_last_state()
-
     def _advance(self):
         """Execute every robot's command for one dt and publish the state at t_(k+1)."""
         world = self._world
         if world.finished:
             return
-        now = time.monotonic()
-        late = [robot for robot in self._planned if not robot.answered]
-        for robot in late:
-            robot.deadline_misses += 1
-            if robot.missed_since is None:
-                robot.missed_since = now
+        late, stopped = self._timing.close_step(time.monotonic())
         if late:
             self.get_logger().warning(
                 f'deadline miss at t={world.time:.3f}: no cmd_vel from '
-                f'{", ".join(robot.name for robot in late)}; reusing the last command',
-                throttle_duration_sec=_WARNING_THROTTLE)
-        for robot in self._planned:
-            self._stop_if_silent(robot, now)
+                f'{", ".join(self._robots[index].name for index in late)}; reusing the last '
+                'command', throttle_duration_sec=_WARNING_THROTTLE)
+        for index, silence in stopped:
+            robot = self._robots[index]
+            robot.command = np.zeros(2)
+            robot.logger.warning(
+                f'no cmd_vel from {robot.name} for {silence:.2f} s (cmd_timeout '
+                f'{self._timing.cmd_timeout:g} s): executing zero velocity until its next '
+                'command')
         for contact in world.step([robot.command for robot in self._robots]):
             self._report_contact(contact)
         self._stamp = seconds_to_stamp(world.time)
-        for robot in self._robots:
-            robot.answered = False
         self._publish_state()
-        self._published_at = time.monotonic()
+        self._timing.step_published(time.monotonic())
         if world.finished:
             self._poll_timer.cancel()
             if self._realtime_timer is not None:
                 self._realtime_timer.cancel()
             self.get_logger().info(
                 f'finished at t={world.time:.3f} s: {world.contact_count} contacts, '
-                f'{sum(robot.deadline_misses for robot in self._robots)} deadline misses')
-
-    def _stop_if_silent(self, robot, now):
-        """Zero ROBOT's command once its silence exceeds cmd_timeout (see interfaces.md)."""
-        if robot.stopped or robot.commanded_at is None:
-            return
-        since = robot.commanded_at if self._mode == 'realtime' else robot.missed_since
-        if since is None or now - since <= self._cmd_timeout:
-            return
-        robot.stopped = True
-        robot.command = np.zeros(2)
-        robot.logger.warning(
-            f'no cmd_vel from {robot.name} for {now - robot.commanded_at:.2f} s (cmd_timeout '
-            f'{self._cmd_timeout:g} s): executing zero velocity until its next command')
+                f'{sum(self._timing.deadline_misses)} deadline misses')
 
     def _report_contact(self, contact):
         first, second = self._robots[contact.first].name, self._robots[contact.second].name
@@ -392,16 +301,16 @@ class SimNode(Node):
 
     def _publish_idle_status(self):
         # Stepping publishes a status every step; before and after, this keeps it visible.
-        if not self._started or self._world.finished:
+        if not self._timing.started or self._world.finished:
             self._publish_status()
 
     def _publish_status(self):
         if self._world.finished:
             message = 'finished'
         else:
-            message = 'running' if self._started else f'waiting for {self._waiting_for}'
+            message = 'running' if self._timing.started else f'waiting for {self._waiting_for}'
         self._diagnostics_publisher.publish(status_array(
-            self._world, message, self._mode, [robot.deadline_misses for robot in self._robots]))
+            self._world, message, self._mode, self._timing.deadline_misses))
 
 
 def main(args=None):

@@ -212,8 +212,8 @@ class TeamMessages:
         """Add the odometry, ground truth and planners' messages of the team's last STEP."""
         from rclpy.serialization import serialize_message
 
-        from prvo_msgs_util import make_diagnostic_array, make_twist_stamped, world_to_body
-        from prvo_planner.reports import plan_markers, plan_status
+        from prvo_msgs_util import make_diagnostic_array
+        from prvo_planner.reports import command_message, plan_markers, plan_status
 
         add, team = self.bag_messages.add, self._team
         for name, (odometry, ground_truth) in zip(self._names, team.last_odometry, strict=True):
@@ -226,12 +226,8 @@ class TeamMessages:
             if command is None:
                 continue
             plan_time_ms = float(next(plan_ms))
-            # As the node publishes: a unicycle its drive (linear.x, angular.z) only.
-            velocity, turn_rate = ((world_to_body(command.velocity, command.yaw), 0.0)
-                                   if command.drive is None
-                                   else ((command.drive[0], 0.0), command.drive[1]))
-            add(robot_topic(name, CMD_VEL), serialize_message(make_twist_stamped(
-                command.stamp, velocity, f'{name}/base_link', turn_rate)))
+            add(robot_topic(name, CMD_VEL),
+                serialize_message(command_message(name, command, stamped=True)))
             agent = team.agents[index]
             values, config = self._planner_values[index], agent.config
             if step.time - self._status_at[index] < values['status_period']:

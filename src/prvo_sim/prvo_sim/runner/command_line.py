@@ -29,11 +29,11 @@ from prvo_sim.runner.session import (
     DDS_HANG,
     ENGINES,
     METHODS,
-    MODES,
     RunSpec,
     run_eta,
     run_once,
 )
+from prvo_sim.step_timing import MODES
 
 PROGRAM = 'run_scenario'
 

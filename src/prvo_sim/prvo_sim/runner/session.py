@@ -28,7 +28,6 @@ from prvo_sim.runner.processes import (
 METHODS = ('prvo', 'rvo', 'inflate', 'prvo-no-ego')
 # The planner's `model` parameter for each method; prvo-no-ego is PRVO planned with S_a = 0.
 MODEL_OF_METHOD = {'prvo': 'prvo', 'rvo': 'rvo', 'inflate': 'inflate', 'prvo-no-ego': 'prvo'}
-MODES = ('lockstep', 'realtime')
 ENGINES = ('ros', 'inprocess')
 DEFAULT_ETA = 0.8
 SIM_NODE = 'prvo_sim'
