@@ -40,9 +40,9 @@ def rows_of(path):
             for row in csv.DictReader(csv_file)}
 
 
-# mixed_drive is left out: its robots' shares change mid-run (arrivals), and under load a
-# late share announcement shifts a ROS plan by a step (docs/interfaces.md, Announcements).
-@pytest.mark.parametrize('scenario', ['crossing4', 'circle8', 'walker2'])
+# In mixed_drive robots arrive (their shares change) near others still planning, and half are
+# unicycles (yaw and body-frame commands).
+@pytest.mark.parametrize('scenario', ['crossing4', 'circle8', 'walker2', 'mixed_drive'])
 def test_both_engines_give_the_same_trajectories(scenario, tmp_path, runners):
     path = SCENARIOS / f'{scenario}.yaml'
     scripted = set()

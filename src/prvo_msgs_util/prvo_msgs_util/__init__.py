@@ -2,6 +2,8 @@
 
 from prvo_msgs_util.announcements import (
     Announcer,
+    CommandsAfterAnnouncements,
+    all_acknowledged,
     footprint_message,
     radius_of_footprint,
     share_message,
@@ -88,6 +90,7 @@ from prvo_msgs_util.topics import (
 __all__ = [
     'ANNOUNCEMENT_QOS', 'AVOIDANCE_SHARE', 'FOOTPRINT', 'footprint_message',
     'radius_of_footprint', 'share_message', 'share_of', 'Announcer', 'subscribe_announcements',
+    'all_acknowledged', 'CommandsAfterAnnouncements',
     'CLOCK', 'CLOCK_QOS', 'CMD_VEL', 'CMD_VEL_QOS', 'CONTACTS', 'CONTACT_QOS', 'DIAGNOSTICS',
     'DIAGNOSTICS_QOS', 'GOAL_POSE', 'GOAL_QOS', 'GROUND_TRUTH', 'MARKERS', 'MARKER_QOS',
     'MAX_SPEED_COMPONENT', 'MAX_VARIANCE', 'MAX_WORLD_COORDINATE',

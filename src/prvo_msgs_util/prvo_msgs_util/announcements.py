@@ -8,8 +8,10 @@ reciprocating planner, 0 for a robot that does not avoid). See docs/interfaces.m
 """
 
 import math
+import time
 
 from geometry_msgs.msg import Point32, PolygonStamped
+from rclpy.duration import Duration
 from std_msgs.msg import Float32
 
 from prvo_msgs_util.qos import (
@@ -102,13 +104,100 @@ class Announcer:
         self._radius = self._share = None
 
     def announce(self, radius, avoidance_share):
-        """Publish RADIUS [m] and AVOIDANCE_SHARE, each only if it differs from the last."""
+        """Publish RADIUS [m] and AVOIDANCE_SHARE, each only if it differs from the last.
+
+        Returns the publishers that published (empty if nothing changed), for a caller that
+        waits until every subscriber has acknowledged the change (`all_acknowledged`).
+        """
+        published = []
         if radius != self._radius:
             self.footprint_publisher.publish(footprint_message(radius, self._frame_id))
             self._radius = radius
+            published.append(self.footprint_publisher)
         if avoidance_share != self._share:
             self.share_publisher.publish(share_message(avoidance_share))
             self._share = avoidance_share
+            published.append(self.share_publisher)
+        return published
+
+
+def all_acknowledged(publishers):
+    """Whether every subscriber of each of PUBLISHERS has acknowledged all it was sent.
+
+    Announcements are reliable: a subscriber acknowledges a message once it holds it, so
+    whatever the robot publishes after that reaches the subscriber's node later. Does not wait.
+    """
+    return all(publisher.wait_for_all_acked(Duration()) for publisher in publishers)
+
+
+class CommandsAfterAnnouncements:
+    """Publishes a robot's commands only after its neighbours hold its announcements.
+
+    Announcements travel apart from commands and odometry. A changed share published just
+    before a command could, on a loaded machine, reach a neighbour after the odometry that the
+    command leads to, and count a step late there: a lockstep run would then depend on timing.
+    A command that follows a changed announcement is therefore held until every subscriber
+    has acknowledged the announcement (a few ms between processes), then published; a later
+    command replaces a held one. Nothing blocks: a steady-clock timer polls while a command is
+    held, and after `timeout` [s] the command goes out anyway and `on_late(text)` is called.
+
+    Parameters
+    ----------
+    node : rclpy.node.Node
+        Owns the polling timer.
+    publisher : rclpy.publisher.Publisher
+        Where the commands go.
+    clock : rclpy.clock.Clock
+        A steady clock (under simulated time, sim time waits for the command).
+    on_late : callable
+        Told, with a one-line text, when a command went out unacknowledged after `timeout`.
+    timeout : float
+        Wall time [s] a command waits at most.
+
+    """
+
+    POLL_PERIOD = 1e-3
+
+    def __init__(self, node, publisher, clock, on_late, timeout=1.0):
+        self._publisher, self._on_late, self._timeout = publisher, on_late, timeout
+        self._timer = node.create_timer(self.POLL_PERIOD, self._poll, clock=clock,
+                                        autostart=False)
+        self._held = None
+        self._waiting_on = []
+        self._deadline = None
+
+    @property
+    def holding(self):
+        """Whether a command waits for acknowledgements."""
+        return self._held is not None
+
+    def publish(self, message, announced):
+        """Publish MESSAGE now, or hold it until its announcements are acknowledged.
+
+        ANNOUNCED: the publishers that published just before it (`Announcer.announce`); a held
+        command also waits for those an earlier held command waited on.
+        """
+        if announced and self._held is None:
+            self._deadline = time.monotonic() + self._timeout
+        self._waiting_on = self._waiting_on + list(announced)
+        if not self._waiting_on or all_acknowledged(self._waiting_on):
+            self._send(message)
+            return
+        self._held = message
+        self._timer.reset()
+
+    def _poll(self):
+        if all_acknowledged(self._waiting_on):
+            self._send(self._held)
+        elif time.monotonic() > self._deadline:
+            self._on_late(f'announcement not acknowledged by every subscriber within '
+                          f'{self._timeout:g} s: command sent anyway')
+            self._send(self._held)
+
+    def _send(self, message):
+        self._timer.cancel()
+        self._held, self._waiting_on = None, []
+        self._publisher.publish(message)
 
 
 def subscribe_announcements(node, robot, receive_radius, receive_share, on_fault):

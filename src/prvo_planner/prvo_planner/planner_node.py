@@ -31,6 +31,7 @@ from prvo_msgs_util import (
     ODOM,
     ODOM_LATEST_QOS,
     Announcer,
+    CommandsAfterAnnouncements,
     MessageFault,
     QosWatch,
     ThrottledWarnings,
@@ -107,6 +108,9 @@ class PlannerNode(Node):
         self._reporter = PlanReporter(self, self._robot)
         self._announcer = Announcer(self, self._robot)
         self._announce()
+        self._commands = CommandsAfterAnnouncements(
+            self, self._cmd_vel_publisher, self._steady_clock,
+            lambda text: self._warnings.warn('acknowledgement', text))
         self._own_odom_topic = robot_topic(self._robot, ODOM)
         # Odometry arrives serialized (raw): eight messages a step in an 8-robot team, and
         # reading the few fields needed from the bytes costs a fraction of deserializing them.
@@ -121,8 +125,7 @@ class PlannerNode(Node):
             self._reporter.marker_publisher, self._announcer.footprint_publisher,
             self._announcer.share_publisher, own_odometry, goal)
 
-        # Wall-clock timers: under use_sim_time the simulator waits for us, so sim time would
-        # never advance to fire them.
+        # Wall-clock timers: under use_sim_time sim time waits for us and would never fire them.
         self._sync_timer = self.create_timer(
             max(self._values['sync_timeout'], 1e-3), self._on_sync_timeout,
             clock=self._steady_clock, autostart=False)
@@ -167,8 +170,8 @@ class PlannerNode(Node):
         return SetParametersResult(successful=True)
 
     def _announce(self):
-        """Publish the robot's footprint and share (latched) where they changed."""
-        self._announcer.announce(*dataclasses.astuple(self._agent.own_announcement))
+        """Publish the footprint and share (latched) where they changed; return the publishers."""
+        return self._announcer.announce(*dataclasses.astuple(self._agent.own_announcement))
 
     def warm_up(self):
         """Pay the first plans' one-off costs before spinning (see PlannerAgent.warm_up)."""
@@ -204,7 +207,7 @@ class PlannerNode(Node):
         self._report(fusion, self._own_odom_topic)
         if fusion.status == 'duplicate':
             if (self._last_command_stamp == measurement.stamp
-                    and self._resent_stamp != measurement.stamp):
+                    and self._resent_stamp != measurement.stamp and not self._commands.holding):
                 # The simulator re-sends odometry it has no answer to: the answer may be lost.
                 self._resent_stamp = measurement.stamp
                 self._cmd_vel_publisher.publish(self._last_command)
@@ -293,10 +296,9 @@ class PlannerNode(Node):
         plan_time_ms = (time.perf_counter() - started) * 1e3
         if command.arrival:
             self.get_logger().info(f'arrived at {self._agent.goal.tolist()}')
-        # Before the command: in lockstep, neighbours plan the next step with it.
-        self._announce()
+        # Once neighbours hold a changed announcement: in lockstep they plan the next step with it.
         message = command_message(self._robot, command, self._stamped)
-        self._cmd_vel_publisher.publish(message)
+        self._commands.publish(message, self._announce())
         self._last_command, self._last_command_stamp = message, command.stamp
         result = command.result
         if result is not None and not result.feasible:

@@ -1,0 +1,108 @@
+"""A command that follows a changed announcement waits until every subscriber holds it."""
+
+import os
+import signal
+import sys
+import threading
+import time
+
+import pytest
+
+SUBSCRIBER = """
+import rclpy
+from std_msgs.msg import Float32
+from prvo_msgs_util import ANNOUNCEMENT_QOS
+rclpy.init()
+node = rclpy.create_node('share_listener')
+node.create_subscription(Float32, '/robot_x/avoidance_share',
+                         lambda message: print(f'share {message.data:.2f}', flush=True),
+                         ANNOUNCEMENT_QOS)
+rclpy.spin(node)
+"""
+
+
+@pytest.fixture
+def announcing_robot(ros_domain):
+    """Yield a node in /robot_x with an Announcer and its commands, spinning in a thread."""
+    from geometry_msgs.msg import Twist
+    import rclpy
+    from rclpy.clock import Clock, ClockType
+    from rclpy.context import Context
+    from rclpy.executors import SingleThreadedExecutor
+
+    from prvo_msgs_util import CMD_VEL, CMD_VEL_QOS, Announcer, CommandsAfterAnnouncements
+
+    context = Context()
+    rclpy.init(context=context, domain_id=ros_domain)
+    node = rclpy.create_node('planner', namespace='robot_x', context=context)
+    executor = SingleThreadedExecutor(context=context)
+    executor.add_node(node)
+    thread = threading.Thread(target=executor.spin, daemon=True)
+    late = []
+    robot = {'node': node, 'announcer': Announcer(node, 'robot_x'), 'late': late,
+             'cmd_vel': node.create_publisher(Twist, CMD_VEL, CMD_VEL_QOS),
+             'clock': Clock(clock_type=ClockType.STEADY_TIME)}
+    robot['commands'] = lambda timeout: CommandsAfterAnnouncements(
+        node, robot['cmd_vel'], robot['clock'], late.append, timeout=timeout)
+    thread.start()
+    yield robot
+    executor.shutdown()
+    node.destroy_node()
+    rclpy.try_shutdown(context=context)
+
+
+def started_listener(children, probe, announcing_robot):
+    """Start the share listener in its own process; return it once it holds share 0.5."""
+    listener = children.start('listener', [sys.executable, '-c', SUBSCRIBER])
+    announcing_robot['announcer'].announce(0.3, 0.5)
+    probe.wait_until(lambda: 'share 0.50' in children.output(listener), 30.0,
+                     'the listener to receive the first announcement')
+    return listener
+
+
+def test_a_command_waits_for_a_subscriber_to_hold_the_change(children, probe,
+                                                             announcing_robot):
+    from geometry_msgs.msg import Twist
+
+    from prvo_msgs_util import CMD_VEL_QOS
+
+    commands_received = probe.record(Twist, '/robot_x/cmd_vel', CMD_VEL_QOS)
+    commands = announcing_robot['commands'](60.0)
+    listener = started_listener(children, probe, announcing_robot)
+    # Without a change the command goes at once.
+    commands.publish(Twist(), announcing_robot['announcer'].announce(0.3, 0.5))
+    assert not commands.holding
+    probe.wait_until(lambda: len(commands_received) == 1, 15.0, 'the first command')
+    # A stopped process acknowledges nothing: the command after a change waits for it.
+    os.kill(listener.pid, signal.SIGSTOP)
+    try:
+        changed = announcing_robot['announcer'].announce(0.3, 0.0)
+        assert changed == [announcing_robot['announcer'].share_publisher]
+        commands.publish(Twist(), changed)
+        time.sleep(1.0)
+        assert commands.holding and len(commands_received) == 1
+    finally:
+        os.kill(listener.pid, signal.SIGCONT)
+    probe.wait_until(lambda: len(commands_received) == 2, 15.0, 'the held command')
+    assert 'share 0.00' in children.output(listener)
+    assert announcing_robot['late'] == []
+
+
+def test_an_unacknowledged_command_goes_after_the_timeout_with_a_warning(children, probe,
+                                                                         announcing_robot):
+    from geometry_msgs.msg import Twist
+
+    from prvo_msgs_util import CMD_VEL_QOS
+
+    commands_received = probe.record(Twist, '/robot_x/cmd_vel', CMD_VEL_QOS)
+    commands = announcing_robot['commands'](0.5)
+    listener = started_listener(children, probe, announcing_robot)
+    os.kill(listener.pid, signal.SIGSTOP)
+    try:
+        commands.publish(Twist(), announcing_robot['announcer'].announce(0.3, 0.0))
+        probe.wait_until(lambda: len(commands_received) == 1, 15.0, 'the command')
+    finally:
+        os.kill(listener.pid, signal.SIGCONT)
+    assert not commands.holding
+    assert announcing_robot['late'] == [
+        'announcement not acknowledged by every subscriber within 0.5 s: command sent anyway']
