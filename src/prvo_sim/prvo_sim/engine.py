@@ -121,6 +121,8 @@ class InProcessTeam:
         # (None for a scripted robot).
         self.last_odometry = ()
         self.last_commands = ()
+        # Each planned robot's `PlanRequest` of the last step: the beliefs it planned with.
+        self.last_requests = ()
         # What each robot announces: a planned one its agent's (it changes on arrival), a
         # scripted one, as the simulator announces it, its radius and no share of the avoidance.
         self._scripted_announcements = {
@@ -213,6 +215,7 @@ class InProcessTeam:
                           / max(len(self._planned), 1))
         contacts = world.step(executed)
         self.last_odometry, self.last_commands = tuple(odometry), tuple(planned)
+        self.last_requests = tuple(requests)
         # Per robot: whether its command met every constraint (a scripted robot has none).
         feasible = np.ones(len(self.agents), dtype=bool)
         for result, (index, _) in zip(results, self._planned, strict=True):
