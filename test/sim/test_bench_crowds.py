@@ -67,3 +67,25 @@ def test_bad_team_sizes_are_refused_with_their_value(capsys):
     assert '--circles: 1 is not a team' in capsys.readouterr().err
     assert bench_crowds.main(['--teams', '-1', '--no-peers']) == 2
     assert '--teams: -1 is negative' in capsys.readouterr().err
+
+
+def test_circles_repeat_over_consecutive_seeds():
+    options = bench_crowds.build_parser().parse_args(
+        ['--circles', '8', '24', '--seeds', '3', '--teams', '1', '--no-fallback-circle'])
+    runs = bench_crowds.planned_runs(options)
+    seed = bench_crowds.crowd_circle_document(8, 4.0)['seed']
+    circles = [(label, document['seed'], len(document['robots']))
+               for label, document, _ in runs[:-1]]
+    assert circles == [(f'circle{count} r={radius} seed {seed + offset}', seed + offset, count)
+                       for count, radius in ((8, 4), (24, 6)) for offset in range(3)]
+    # Each seed's scenario is a file of its own; the team keeps its seed.
+    assert len({document['name'] for _, document, _ in runs}) == len(runs)
+    assert runs[-1][1] == random_team_document(0)
+    single = bench_crowds.planned_runs(bench_crowds.build_parser().parse_args(
+        ['--circles', '8', '--teams', '0', '--no-fallback-circle']))
+    assert single == [('circle8 r=4', bench_crowds.crowd_circle_document(8, 4.0), 'prvo')]
+
+
+def test_a_bad_seed_count_is_refused_with_its_value(capsys):
+    assert bench_crowds.main(['--seeds', '0', '--no-peers']) == 2
+    assert '--seeds: 0 is not a count' in capsys.readouterr().err
