@@ -405,31 +405,3 @@ def test_an_arrival_counts_once_until_the_robot_left_the_goal_or_got_a_new_one()
     assert sum(arrivals[8:]) == 1 and commands[-1].arrived
     agent.set_goal(GOAL + [0.1, 0.0])
     assert _plan_at(agent, 13.0, GOAL).arrival
-
-
-def preferred_velocities_of(settings, positions, dt=0.1):
-    """Feed a lone agent own measurements at POSITIONS; return the v_pref of each plan."""
-    agent = PlannerAgent('self', CONFIG, settings, [10.0, 0.0])
-    preferred = []
-    for step, position in enumerate(positions):
-        stamp = round(step * dt, 9)
-        assert agent.receive_own(standing(stamp, position), stamp).accepted
-        preferred.append(agent.plan_request().problem[2])
-    return np.array(preferred)
-
-
-def test_a_stalled_robot_prefers_the_way_to_its_goal_turned_right():
-    angle = 0.5
-    settings = dataclasses.replace(SETTINGS, detour_angle=angle)
-    turned = np.array([np.cos(angle), -np.sin(angle)])
-    # Standing 10 m from its goal: from the first plan 2 s after the first on, the window is
-    # full and shows no progress.
-    stuck = preferred_velocities_of(settings, [[0.0, 0.0]] * 30)
-    np.testing.assert_allclose(stuck[:20], np.tile([1.0, 0.0], (20, 1)), atol=1e-12)
-    np.testing.assert_allclose(stuck[20:], np.tile(turned, (10, 1)), atol=1e-12)
-    # Closing in at 0.6 m/s (over a quarter of full speed) is no stall; neither is anything
-    # without a detour angle.
-    moving = preferred_velocities_of(settings, [[0.06 * step, 0.0] for step in range(30)])
-    np.testing.assert_allclose(moving, np.tile([1.0, 0.0], (30, 1)), atol=1e-12)
-    plain = preferred_velocities_of(SETTINGS, [[0.0, 0.0]] * 30)
-    np.testing.assert_allclose(plain, np.tile([1.0, 0.0], (30, 1)), atol=1e-12)

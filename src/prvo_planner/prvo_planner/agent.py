@@ -16,9 +16,6 @@ import numpy as np
 
 from prvo_planner.core import AgentBelief, VelocityLimits, plan_velocity
 from prvo_planner.core.beliefs import validated_share
-from prvo_planner.core.passing import closest_approach, encounter_side, passing_direction, \
-    separating
-from prvo_planner.core.progress import ProgressWindow, detour, stalled
 from prvo_planner.tracking import TrackingModel, tracking_command
 from prvo_planner.tracks import TrackTable, fuse
 
@@ -27,11 +24,6 @@ _WARM_UP_PLANS = 3
 # An arrival counts again only after the robot was this many goal tolerances from the goal:
 # odometry noise carries a robot standing at its goal in and out of the tolerance.
 DEPARTURE_TOLERANCES = 2.0
-
-# A robot stalls when, over the last STALL_WINDOW seconds, it came closer to its goal by less
-# than STALL_PROGRESS of what it could have covered at full speed (core/progress.py).
-STALL_WINDOW = 2.0
-STALL_PROGRESS = 0.25
 
 # A command below this [m/s] is standing still.
 _STANDING_SPEED = 1e-6
@@ -112,8 +104,6 @@ class AgentSettings:
     `neighbor_timeout` is in the seconds of the `now` arguments. `kinematics` is 'holonomic' or
     'unicycle' (which tracks its plans within `tracking_error` and plans, and announces itself,
     with its radius grown by it); the acceleration limits are inf when unlimited.
-    `detour_angle` [rad] turns the preferred velocity of a stalled robot to the right (0: no
-    detour). `hold_passing_side` takes the passing bias against the nearest held encounter.
     """
 
     radius: float = 0.3
@@ -128,8 +118,6 @@ class AgentSettings:
     max_angular_acceleration: float = math.inf
     tracking_error: float = 0.1
     tracking_horizon: float = 0.5
-    detour_angle: float = 0.0
-    hold_passing_side: bool = False
 
     @classmethod
     def from_parameters(cls, values):
@@ -270,10 +258,6 @@ class PlannerAgent:
         # Listed neighbours are waited for from the first own measurement on, not from start-up:
         # a team's processes start at different speeds, and a run begins with all of them.
         self._first_own_at = None
-        # Distances to the goal over the last STALL_WINDOW seconds of plans.
-        self._progress = ProgressWindow(STALL_WINDOW)
-        # The side of each neighbour's encounter under way (core/passing.py), robot -> side.
-        self._sides = {}
 
     @property
     def pending_stamp(self):
@@ -309,7 +293,6 @@ class PlannerAgent:
         self.arrived = False
         self._arrival_reported = False
         self._previous_velocity = None
-        self._progress.clear()
 
     # Measurements -----------------------------------------------------------------------------
 
@@ -448,7 +431,6 @@ class PlannerAgent:
             own.mean[:2], self.goal, max_speed, self.settings.approach_time,
             self.settings.goal_tolerance, self.settings.max_acceleration)
         arrival = self._arrival(own.mean[:2])
-        v_pref = self._detoured(stamp, own.mean[:2], v_pref)
         names = tuple(self._neighbour_names())
         tracks = [self._neighbour_tracks.track(robot) for robot in names]
         neighbour_beliefs = tuple(track.belief_at(stamp) for track in tracks)
@@ -463,62 +445,18 @@ class PlannerAgent:
             horizon = self.config.time_horizon if self.arrived else goal_horizon(
                 float(np.hypot(*(self.goal - own.mean[:2]))), max_speed,
                 self.settings.approach_time, self.config.time_horizon)
-            config = dataclasses.replace(
-                self.config, time_horizon=horizon,
-                passing_direction=self._held_direction(own, names, neighbour_beliefs,
-                                                       announcements, horizon))
             problem = (
                 AgentBelief(own.mean[:2], own.mean[2:], own.covariance,
                             self.settings.planning_radius),
                 [track.agent_belief(stamp, announcement.radius, announcement.avoidance_share)
                  for track, announcement in zip(tracks, announcements, strict=True)],
-                v_pref, config, self._previous_velocity, self._limits(stamp))
+                v_pref, dataclasses.replace(self.config, time_horizon=horizon),
+                self._previous_velocity, self._limits(stamp))
             if self.arrived and nobody_comes(problem):
                 problem = None
         return PlanRequest(stamp=stamp, own=own, neighbours=neighbour_beliefs,
                            neighbour_names=names, announcements=announcements,
                            problem=problem, arrival=arrival)
-
-    def _held_direction(self, own, names, beliefs, announcements, horizon):
-        """Update the held encounter sides; return the passing direction, None for v_pref's.
-
-        An encounter's side is held from when it begins until the pair moves apart; the plan
-        takes the passing bias against the held encounter whose closest approach comes first.
-        """
-        if not self.settings.hold_passing_side:
-            return None
-        held = {}
-        soonest, direction = math.inf, None
-        for robot, belief, announcement in zip(names, beliefs, announcements, strict=True):
-            position = belief.mean[:2] - own.mean[:2]
-            velocity = own.mean[2:] - belief.mean[2:]
-            side = self._sides.get(robot)
-            if side is not None and separating(position, velocity):
-                side = None
-            elif side is None:
-                side = encounter_side(
-                    position, velocity, self.settings.planning_radius + announcement.radius
-                    + self.config.safety_margin, horizon)
-            if side is None:
-                continue
-            held[robot] = side
-            time = closest_approach(position, velocity)[0]
-            if time < soonest:
-                soonest, direction = time, passing_direction(position, side)
-        self._sides = held
-        return direction
-
-    def _detoured(self, stamp, position, v_pref):
-        """Return V_PREF, turned by `detour_angle` while the robot stalls on its way."""
-        if self.goal is None or self.arrived:
-            self._progress.clear()
-            return v_pref
-        self._progress.add(stamp, float(np.hypot(*(self.goal - position))))
-        if self.settings.detour_angle > 0.0 and stalled(
-                self._progress, self.config.max_speed, STALL_PROGRESS,
-                self.settings.goal_tolerance):
-            return detour(v_pref, self.settings.detour_angle)
-        return v_pref
 
     def _arrival(self, position):
         """Return whether arriving now is this goal's first arrival; track the departures."""

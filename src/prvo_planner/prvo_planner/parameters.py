@@ -184,11 +184,6 @@ _SPECS = (
                   (0.0, 10.0), rule=_positive),
     ParameterSpec('tracking_horizon', FLOAT, 0.5, 'A unicycle turns toward its plan at the '
                   'heading error / tracking_horizon [s].', (1.0e-3, 100.0)),
-    ParameterSpec('detour_angle', FLOAT, 0.0, 'A robot that stalls (over 2 s, closer to its '
-                  'goal by under a quarter of what full speed gives) prefers the way to its goal '
-                  'turned right by this [rad], in [0, pi/2]; 0 = no detour.', (0.0, 1.5708)),
-    ParameterSpec('hold_passing_side', BOOL, False, 'Hold the side of each encounter from its '
-                  'start until the pair moves apart; the passing bias keeps it.'),
 )
 
 # Every planner parameter by name, in declaration order.

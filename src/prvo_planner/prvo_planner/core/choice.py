@@ -23,7 +23,7 @@ _SPEED_GRID = np.linspace(0.0, 1.0, 9)
 # 8^-5 (3e-5) of the interval.
 _ZOOM_GRID = np.linspace(0.0, 1.0, 17)
 _ZOOM_LEVELS = 5
-_TERM_NAMES = ('v_pref', 'previous', 'inertia', 'bias', 'progress', 'norm', 'extra', 'side')
+_TERM_NAMES = ('v_pref', 'previous', 'inertia', 'bias', 'progress', 'norm', 'extra')
 # Chosen speeds stay this far (in t) inside a feasible interval so that rounding in the roots
 # cannot put them on the rejected side.
 INTERIOR = 1e-9
@@ -58,9 +58,6 @@ class CostTerms:
         ``|v_pref|`` (1 where ``bias`` and ``progress`` are 0).
     extra : numpy.ndarray or bool
         Whether any term besides ``|v - v_pref|`` is on.
-    side : numpy.ndarray
-        The bias charges velocity to the left of this, shape (..., 2), of length ``norm``:
-        ``v_pref`` unless the configuration gives a ``passing_direction``.
 
     """
 
@@ -71,7 +68,6 @@ class CostTerms:
     progress: np.ndarray
     norm: np.ndarray
     extra: np.ndarray
-    side: np.ndarray
 
     @classmethod
     def of_plan(cls, v_pref, previous, config):
@@ -80,12 +76,10 @@ class CostTerms:
         norm = math.hypot(v_pref[0], v_pref[1])
         bias = config.passing_bias if norm > 1e-9 else 0.0
         progress = config.progress_weight if norm > 1e-9 else 0.0
-        norm = norm if bias > 0.0 or progress > 0.0 else 1.0
-        side = (v_pref if config.passing_direction is None
-                else norm * config.passing_direction)
         return cls(v_pref=v_pref, previous=v_pref if previous is None else previous,
-                   inertia=inertia, bias=bias, progress=progress, norm=norm,
-                   extra=inertia > 0.0 or bias > 0.0 or progress > 0.0, side=side)
+                   inertia=inertia, bias=bias, progress=progress,
+                   norm=norm if bias > 0.0 or progress > 0.0 else 1.0,
+                   extra=inertia > 0.0 or bias > 0.0 or progress > 0.0)
 
     @classmethod
     def stacked(cls, terms, index):
@@ -108,7 +102,7 @@ class CostTerms:
         ``(1 - progress) |v - v_pref| + progress | |v_pref| - along(v) |`` (docs/method.md,
         section 7), plus ``inertia |v - previous|`` and ``bias max(0, left(v))``, with
         ``along`` and ``left`` the components of ``v`` along and to the left of ``v_pref``'s
-        direction (``left`` of the ``passing_direction`` when one is given). The progress share charges only the speed lost towards the goal, not the
+        direction. The progress share charges only the speed lost towards the goal, not the
         speed sideways: it prefers passing a crowd at speed to slowing down behind it. Every
         term is convex in ``v`` and only ranks velocities; which ones are acceptable is decided
         by the constraints alone. A term of weight 0 adds exactly 0.
@@ -116,8 +110,8 @@ class CostTerms:
         costs = _distances(velocities, self.v_pref)
         costs *= 1.0 - self.progress
         costs += self.inertia * _distances(velocities, self.previous)
-        left = (self.side[..., 0] * velocities[..., 1]
-                - self.side[..., 1] * velocities[..., 0]) / self.norm
+        left = (self.v_pref[..., 0] * velocities[..., 1]
+                - self.v_pref[..., 1] * velocities[..., 0]) / self.norm
         costs += self.bias * np.maximum(left, 0.0)
         along = (self.v_pref[..., 0] * velocities[..., 0]
                  + self.v_pref[..., 1] * velocities[..., 1]) / self.norm

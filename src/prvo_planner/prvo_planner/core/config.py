@@ -99,9 +99,6 @@ class PlannerConfig:
         component of ``v`` along ``v_pref``. Sideways speed then costs less than slowing down
         behind a crowd. It only ranks velocities that meet the constraints. Below 1, so that
         sideways speed still costs something.
-    passing_direction : numpy.ndarray or None
-        Unit vector, shape (2,): the passing bias charges velocity to the left of it instead of
-        to the left of ``v_pref`` (a side held against one neighbour). None: ``v_pref``'s.
 
     """
 
@@ -122,7 +119,6 @@ class PlannerConfig:
     inertia: float = 0.0
     passing_bias: float = 0.0
     progress_weight: float = 0.0
-    passing_direction: np.ndarray | None = None
 
     def __post_init__(self):
         eta = _real(self.eta, 'PlannerConfig.eta')
@@ -174,14 +170,6 @@ class PlannerConfig:
             raise ValueError(f'PlannerConfig.progress_weight must be in [0, 1), '
                              f'got {self.progress_weight!r}')
         object.__setattr__(self, 'progress_weight', progress)
-        if self.passing_direction is not None:
-            direction = as_finite_array(self.passing_direction, (2,),
-                                        'PlannerConfig.passing_direction')
-            length = math.hypot(direction[0], direction[1])
-            if abs(length - 1.0) > 1e-6:
-                raise ValueError(f'PlannerConfig.passing_direction must be a unit vector, got '
-                                 f'{self.passing_direction!r}')
-            object.__setattr__(self, 'passing_direction', direction)
 
     @property
     def effective_k(self):
