@@ -20,8 +20,9 @@ Runs on the in-process engine, to completion or the scenario's duration:
 
 Per run it prints one Markdown row: arrivals, makespan (the last robot's arrival) and its ratio
 to the straight-line time (the longest start-to-goal distance over max speed), the mean time to
-goal over the mean straight-line time, the minimum surface-to-surface separation, contacts, and
-the fraction of planned robot-steps without a feasible velocity.
+goal over the mean straight-line time, the paths' length (each up to its arrival) over the
+straight lines', the minimum surface-to-surface separation, contacts, and the fraction of
+planned robot-steps without a feasible velocity.
 
 Exit codes: 0 every robot of the circles and teams arrived, 1 one did not, 2 bad input, 130
 when interrupted.
@@ -137,6 +138,17 @@ def contact_count(positions, radii):
     return int(touching[0].sum() + entered.sum())
 
 
+def path_ratio(times, positions, starts, goals, arrivals):
+    """Return the robots' summed path lengths, each up to its arrival, over their straight lines.
+
+    A robot that never arrives counts its whole path.
+    """
+    steps = np.linalg.norm(np.diff(positions, axis=0), axis=2)
+    ends = np.searchsorted(times, np.minimum(arrivals, times[-1]), side='right') - 1
+    travelled = sum(float(steps[:end, robot].sum()) for robot, end in enumerate(ends))
+    return travelled / float(np.linalg.norm(goals - starts, axis=1).sum())
+
+
 def run_row(label, planner, times, positions, starts, goals, radii, max_speeds, tolerance):
     """Return the benchmark row of one run from its trajectory, positions (T, N, 2)."""
     straight = np.linalg.norm(goals - starts, axis=1) / max_speeds
@@ -150,6 +162,7 @@ def run_row(label, planner, times, positions, starts, goals, radii, max_speeds, 
         'makespan_ratio': None if makespan is None else round(float(makespan / straight.max()), 2),
         'mean_time_ratio': (round(float(arrivals.mean() / straight.mean()), 2)
                             if arrived.all() else None),
+        'path_ratio': round(path_ratio(times, positions, starts, goals, arrivals), 2),
         'min_separation_m': round(min_separation(positions, radii), 3),
     }
 
@@ -255,7 +268,7 @@ def peer_run(peer, count, radius):
 
 COLUMNS = (('run', 'run'), ('planner', 'planner'), ('arrived', 'arrived'),
            ('makespan_s', 'makespan s'), ('makespan_ratio', 'makespan / straight'),
-           ('mean_time_ratio', 'mean time / straight'),
+           ('mean_time_ratio', 'mean time / straight'), ('path_ratio', 'path / straight'),
            ('min_separation_m', 'min separation m'), ('contacts', 'contacts'),
            ('infeasible_fraction', 'infeasible steps'))
 
