@@ -11,6 +11,7 @@ from prvo_sim.bench_crowds import (
     arrival_times,
     contact_count,
     min_separation,
+    path_ratio,
     random_team_document,
     run_row,
 )
@@ -54,12 +55,17 @@ def test_measures_of_a_hand_made_trajectory():
     # Straight-line times 2 s and 0 s: makespan 2 s over the longest, mean 1.5 s over 1 s.
     assert row['makespan_s'] == 2.0 and row['makespan_ratio'] == 1.0
     assert row['mean_time_ratio'] == 1.5 and row['all_arrived']
+    # Up to its arrival robot 0 drove its 2 m; robot 1, with no way to go, 1 m off and back.
+    assert row['path_ratio'] == 2.0
 
 
 def test_a_robot_that_never_stays_has_no_arrival():
     times = np.array([0.0, 1.0, 2.0])
     positions = np.array([[[0.0, 0.0]], [[1.0, 0.0]], [[0.0, 0.0]]])
-    assert arrival_times(times, positions, np.array([[1.0, 0.0]]), 0.2)[0] == math.inf
+    arrivals = arrival_times(times, positions, np.array([[1.0, 0.0]]), 0.2)
+    assert arrivals[0] == math.inf
+    # Its whole path counts: 2 m against a 1 m straight line.
+    assert path_ratio(times, positions, positions[0], np.array([[1.0, 0.0]]), arrivals) == 2.0
 
 
 def test_bad_team_sizes_are_refused_with_their_value(capsys):
@@ -67,3 +73,25 @@ def test_bad_team_sizes_are_refused_with_their_value(capsys):
     assert '--circles: 1 is not a team' in capsys.readouterr().err
     assert bench_crowds.main(['--teams', '-1', '--no-peers']) == 2
     assert '--teams: -1 is negative' in capsys.readouterr().err
+
+
+def test_circles_repeat_over_consecutive_seeds():
+    options = bench_crowds.build_parser().parse_args(
+        ['--circles', '8', '24', '--seeds', '3', '--teams', '1', '--no-fallback-circle'])
+    runs = bench_crowds.planned_runs(options)
+    seed = bench_crowds.crowd_circle_document(8, 4.0)['seed']
+    circles = [(label, document['seed'], len(document['robots']))
+               for label, document, _ in runs[:-1]]
+    assert circles == [(f'circle{count} r={radius} seed {seed + offset}', seed + offset, count)
+                       for count, radius in ((8, 4), (24, 6)) for offset in range(3)]
+    # Each seed's scenario is a file of its own; the team keeps its seed.
+    assert len({document['name'] for _, document, _ in runs}) == len(runs)
+    assert runs[-1][1] == random_team_document(0)
+    single = bench_crowds.planned_runs(bench_crowds.build_parser().parse_args(
+        ['--circles', '8', '--teams', '0', '--no-fallback-circle']))
+    assert single == [('circle8 r=4', bench_crowds.crowd_circle_document(8, 4.0), 'prvo')]
+
+
+def test_a_bad_seed_count_is_refused_with_its_value(capsys):
+    assert bench_crowds.main(['--seeds', '0', '--no-peers']) == 2
+    assert '--seeds: 0 is not a count' in capsys.readouterr().err

@@ -1,12 +1,13 @@
 """Crowd benchmark: does every robot arrive, how soon, and how close do robots come.
 
-    python -m prvo_sim.bench_crowds [--circles 8 16 24 48] [--teams 4] [--method prvo]
-                                    [--json PATH] [--out DIR]
+    python -m prvo_sim.bench_crowds [--circles 8 16 24 48] [--seeds 1] [--teams 4]
+                                    [--method prvo] [--json PATH] [--out DIR]
 
 Runs on the in-process engine, to completion or the scenario's duration:
 
 * circles of N robots swapping antipodal points under noise 0.05 (`bench_team.circle_document`
-  with the radii of CIRCLE_RADII: 4 m up to 16 robots, 6 m for 24, 7.7 m for 48);
+  with the radii of CIRCLE_RADII: 4 m up to 16 robots, 6 m for 24, 7.7 m for 48), each over
+  `--seeds` consecutive noise seeds from the scenario's;
 * seeded random heterogeneous teams of TEAM_SIZE robots (`random_team_document`): radii
   0.2-0.45 m, speeds 0.6-1.2 m/s, starts and goals in a square of half-side 1 + 0.45 N m, every
   two starts (and every two goals, and each robot's start and goal) at least 0.4 of the
@@ -19,8 +20,9 @@ Runs on the in-process engine, to completion or the scenario's duration:
 
 Per run it prints one Markdown row: arrivals, makespan (the last robot's arrival) and its ratio
 to the straight-line time (the longest start-to-goal distance over max speed), the mean time to
-goal over the mean straight-line time, the minimum surface-to-surface separation, contacts, and
-the fraction of planned robot-steps without a feasible velocity.
+goal over the mean straight-line time, the paths' length (each up to its arrival) over the
+straight lines', the minimum surface-to-surface separation, contacts, and the fraction of
+planned robot-steps without a feasible velocity.
 
 Exit codes: 0 every robot of the circles and teams arrived, 1 one did not, 2 bad input, 130
 when interrupted.
@@ -136,6 +138,17 @@ def contact_count(positions, radii):
     return int(touching[0].sum() + entered.sum())
 
 
+def path_ratio(times, positions, starts, goals, arrivals):
+    """Return the robots' summed path lengths, each up to its arrival, over their straight lines.
+
+    A robot that never arrives counts its whole path.
+    """
+    steps = np.linalg.norm(np.diff(positions, axis=0), axis=2)
+    ends = np.searchsorted(times, np.minimum(arrivals, times[-1]), side='right') - 1
+    travelled = sum(float(steps[:end, robot].sum()) for robot, end in enumerate(ends))
+    return travelled / float(np.linalg.norm(goals - starts, axis=1).sum())
+
+
 def run_row(label, planner, times, positions, starts, goals, radii, max_speeds, tolerance):
     """Return the benchmark row of one run from its trajectory, positions (T, N, 2)."""
     straight = np.linalg.norm(goals - starts, axis=1) / max_speeds
@@ -149,6 +162,7 @@ def run_row(label, planner, times, positions, starts, goals, radii, max_speeds, 
         'makespan_ratio': None if makespan is None else round(float(makespan / straight.max()), 2),
         'mean_time_ratio': (round(float(arrivals.mean() / straight.mean()), 2)
                             if arrived.all() else None),
+        'path_ratio': round(path_ratio(times, positions, starts, goals, arrivals), 2),
         'min_separation_m': round(min_separation(positions, radii), 3),
     }
 
@@ -254,7 +268,7 @@ def peer_run(peer, count, radius):
 
 COLUMNS = (('run', 'run'), ('planner', 'planner'), ('arrived', 'arrived'),
            ('makespan_s', 'makespan s'), ('makespan_ratio', 'makespan / straight'),
-           ('mean_time_ratio', 'mean time / straight'),
+           ('mean_time_ratio', 'mean time / straight'), ('path_ratio', 'path / straight'),
            ('min_separation_m', 'min separation m'), ('contacts', 'contacts'),
            ('infeasible_fraction', 'infeasible steps'))
 
@@ -266,6 +280,9 @@ def build_parser():
         description='Crowd benchmark: circles and random heterogeneous teams, in process.')
     parser.add_argument('--circles', type=int, nargs='*', default=list(DEFAULT_CIRCLES),
                         help='circle team sizes (default: 8 16 24 48)')
+    parser.add_argument('--seeds', type=int, default=1,
+                        help="noise seeds per circle, consecutive from the scenario's "
+                             '(default: 1)')
     parser.add_argument('--teams', type=int, default=DEFAULT_TEAMS,
                         help=f'random teams of {TEAM_SIZE} robots (default: {DEFAULT_TEAMS})')
     parser.add_argument('--method', default='prvo', choices=('prvo', 'rvo', 'inflate'),
@@ -284,9 +301,16 @@ def build_parser():
 
 def planned_runs(options):
     """Return the (label, scenario document, method) of every in-process run, in order."""
-    runs = [(f'circle{count} r={circle_radius_of(count):g}',
-             crowd_circle_document(count, circle_radius_of(count)), options.method)
-            for count in options.circles]
+    runs = []
+    for count in options.circles:
+        for offset in range(options.seeds):
+            document = crowd_circle_document(count, circle_radius_of(count))
+            document['seed'] += offset
+            label = f'circle{count} r={circle_radius_of(count):g}'
+            if options.seeds > 1:
+                document['name'] += f'_seed{document["seed"]}'
+                label += f' seed {document["seed"]}'
+            runs.append((label, document, options.method))
     runs += [(f'team{index} N={TEAM_SIZE}', random_team_document(index), options.method)
              for index in range(options.teams)]
     if not options.no_fallback_circle:
@@ -304,6 +328,10 @@ def main(argv=None):
             print(f'bench_crowds: error: --circles: {count} is not a team (at least 2)',
                   file=sys.stderr)
             return 2
+    if options.seeds < 1:
+        print(f'bench_crowds: error: --seeds: {options.seeds} is not a count (at least 1)',
+              file=sys.stderr)
+        return 2
     if options.teams < 0:
         print(f'bench_crowds: error: --teams: {options.teams} is negative', file=sys.stderr)
         return 2
