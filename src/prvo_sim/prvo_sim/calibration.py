@@ -68,7 +68,7 @@ def build_parser():
     """Return the command line's parser."""
     parser = argparse.ArgumentParser(
         prog='python -m prvo_sim.calibration',
-        description='Normalised estimation errors of the planners\' beliefs against the truth '
+        description="Normalised estimation errors of the planners' beliefs against the truth "
                     '(in-process engine).')
     parser.add_argument('scenario', help='scenario YAML file (or the name of a shipped one)')
     parser.add_argument('--seeds', type=int, nargs='+', default=[7],
