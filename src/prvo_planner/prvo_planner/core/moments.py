@@ -263,8 +263,13 @@ def condition_moments(origin, cov, combined_radius, velocities, time_horizon, re
     # mu'X mu as (X mu) . mu with the points last: one (F 4, 4) x (4, P) product per neighbour,
     # contiguous reductions.
     count, forms_count = matrices.shape[:2]
-    products = np.matmul(matrices.reshape(count, forms_count * 4, 4), mean_t)
-    forms = (products.reshape(count, forms_count, 4, -1) * mean_t[:, None]).sum(axis=-2)
+    products = np.matmul(matrices.reshape(count, forms_count * 4, 4), mean_t).reshape(
+        count, forms_count, 4, -1)
+    products *= mean_t[:, None]
+    # The sum over the four components, in the order a reduction over that axis takes.
+    forms = products[:, :, 0] + products[:, :, 1]
+    forms += products[:, :, 2]
+    forms += products[:, :, 3]
     forms = forms.swapaxes(-1, -2)
     f_mean, f_variance = rvo_moments_from_forms(forms[..., :NUM_RVO_FORMS],
                                                 rvo_traces[:, None, :], combined_radius[:, None])

@@ -333,8 +333,8 @@ def _solve_sorted(plans):
                          directions[ray_starts[first_robot]:ray_ends[last_robot - 1]].reshape(
                              batch, rays, 2)),
                 (3, 5), (means, variances), strict=True):
-            target[:, link_slice] = rows.reshape(batch, pairs, conditions, rays, length).transpose(
-                4, 0, 1, 3, 2).reshape(length, -1, conditions)
+            target[:, link_slice].reshape(length, batch, pairs, rays, conditions)[...] = (
+                rows.reshape(batch, pairs, conditions, rays, length).transpose(4, 0, 1, 3, 2))
     link_robot = np.repeat(np.arange(robots), link_counts)
     # Each link's index among its robot's, (neighbour, direction) order.
     link_local = np.arange(links) - link_starts[link_robot]
