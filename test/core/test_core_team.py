@@ -1,11 +1,19 @@
 """``plan_velocities`` plans each robot of a team bit for bit as ``plan_velocity`` does alone."""
 
+import dataclasses
+
 import numpy as np
 from prvo_core_testing import random_covariance
 import pytest
 
 from prvo_planner.bench import circle_swap, same_plan, team_config
-from prvo_planner.core import AgentBelief, PlannerConfig, plan_velocities, plan_velocity
+from prvo_planner.core import (
+    AgentBelief,
+    PlannerConfig,
+    VelocityLimits,
+    plan_velocities,
+    plan_velocity,
+)
 
 
 def assert_each_as_alone(egos, neighbours, v_prefs, configs, previous):
@@ -29,6 +37,30 @@ def test_circle_swap_steps_are_planned_as_alone(count):
         if step % 7 == 0:
             assert_each_as_alone(egos, neighbours, v_prefs, config, previous)
             checked += 1
+    assert checked >= 5
+
+
+def test_robots_of_other_horizons_neighbours_and_directions_are_planned_as_alone():
+    # One call solves robots whose time horizons (shortened near their goals), numbers of
+    # neighbours and numbers of candidate directions (acceleration limits add some) differ.
+    rng = np.random.default_rng(11)
+    base = team_config()
+    checked = 0
+    for step, (egos, neighbours, v_prefs, previous) in enumerate(circle_swap(8, base)):
+        if step % 9:
+            continue
+        configs = [dataclasses.replace(base, time_horizon=float(rng.uniform(0.5, 5.0)))
+                   for _ in egos]
+        subsets = [[other for other in group if rng.uniform() < 0.7] for group in neighbours]
+        limits = [VelocityLimits(current=0.5 * rng.normal(size=2), max_change=0.1)
+                  if rng.uniform() < 0.5 else None for _ in egos]
+        assert len({len(group) for group in subsets}) > 1
+        team = plan_velocities(egos, subsets, v_prefs, configs, previous, limits)
+        for index, result in enumerate(team):
+            alone = plan_velocity(egos[index], subsets[index], v_prefs[index], configs[index],
+                                  previous[index], limits[index])
+            assert same_plan(result, alone), (step, index, result, alone)
+        checked += 1
     assert checked >= 5
 
 

@@ -24,7 +24,9 @@ def _positive(value, field_name, allow_inf=False):
 
 def _real(value, field_name, allow_inf=False):
     """Return ``value`` as a float, rejecting NaN, non-numbers and (unless allowed) inf."""
-    if isinstance(value, bool) or not isinstance(value, numbers.Real):
+    # A float needs no abstract-class check: configurations are rebuilt on every plan.
+    if type(value) is not float and (isinstance(value, bool)
+                                     or not isinstance(value, numbers.Real)):
         raise ValueError(f'{field_name} must be a real number, got {value!r}')
     number = float(value)
     if math.isnan(number) or (math.isinf(number) and not (allow_inf and number > 0)):
@@ -35,7 +37,9 @@ def _real(value, field_name, allow_inf=False):
 
 def _integer(value, field_name, minimum):
     """Return ``value`` as an int, requiring it to be >= ``minimum``."""
-    if isinstance(value, bool) or not isinstance(value, numbers.Integral) or value < minimum:
+    integral = type(value) is int or (not isinstance(value, bool)
+                                      and isinstance(value, numbers.Integral))
+    if not integral or value < minimum:
         raise ValueError(f'{field_name} must be an integer >= {minimum}, got {value!r}')
     return int(value)
 

@@ -81,6 +81,15 @@ def _form_lefts(time_horizon):
     return left
 
 
+def _horizon_lefts(time_horizon):
+    """Return :func:`_form_lefts` of one horizon, or stacked per horizon of an array."""
+    if np.ndim(time_horizon) == 0:
+        return _form_lefts(time_horizon)
+    horizons, inverse = np.unique(time_horizon, return_inverse=True)
+    return np.stack([_form_lefts(float(horizon)) for horizon in horizons])[
+        inverse.reshape(np.shape(time_horizon))]
+
+
 def form_matrices(cov, time_horizon=math.inf):
     """
     Quadratic-form matrices and traces that the moments of every condition need.
@@ -91,8 +100,9 @@ def form_matrices(cov, time_horizon=math.inf):
     ----------
     cov : numpy.ndarray
         Covariance ``S`` of ``z``, shape (..., 4, 4).
-    time_horizon : float
-        ``tau``; ``h1`` and ``h2`` are included only when it is finite.
+    time_horizon : float or numpy.ndarray
+        ``tau``, or one per covariance, shape (...), all finite or all infinite; ``h1`` and
+        ``h2`` are included only when it is finite.
 
     Returns
     -------
@@ -105,14 +115,14 @@ def form_matrices(cov, time_horizon=math.inf):
         tr ASBS, tr (AS)^2 BS, tr BS, tr (BS)^2``, then ``tr XS, tr XSXS`` per ``X`` as above.
 
     """
-    left = _form_lefts(time_horizon)
+    left = _horizon_lefts(time_horizon)
     # X S and X S X for every X at once: (..., K, 4, 4).
     form_cov = left @ cov[..., None, :, :]
     sandwich = form_cov @ left
     cross_cov, speed_cov = form_cov[..., 0, :, :], form_cov[..., 1, :, :]
     cross_cov_2 = cross_cov @ cross_cov
     cross_speed = cross_cov @ speed_cov
-    extras = left.shape[0] - 2
+    extras = left.shape[-3] - 2
     matrices = np.empty(cov.shape[:-2] + (NUM_RVO_FORMS + 2 * extras, 4, 4))
     matrices[..., 0, :, :] = _CROSS
     matrices[..., 1, :, :] = sandwich[..., 0, :, :]
@@ -123,7 +133,7 @@ def form_matrices(cov, time_horizon=math.inf):
     matrices[..., 6, :, :] = cross_speed @ _CROSS
     matrices[..., 7, :, :] = _SPEED
     matrices[..., 8, :, :] = sandwich[..., 1, :, :]
-    matrices[..., NUM_RVO_FORMS::2, :, :] = left[2:]
+    matrices[..., NUM_RVO_FORMS::2, :, :] = left[..., 2:, :, :]
     matrices[..., NUM_RVO_FORMS + 1::2, :, :] = sandwich[..., 2:, :, :]
     # tr XY = sum_ij X_ij Y_ji.
     form_traces = np.einsum('...kii->...k', form_cov)
@@ -227,8 +237,9 @@ def condition_moments(origin, cov, combined_radius, velocities, time_horizon, re
         ``R`` per neighbour, shape (N,).
     velocities : numpy.ndarray
         Commanded velocities ``v_c``, shape (P, 2) or (N, P, 2).
-    time_horizon : float
-        ``tau`` (``inf`` drops ``h1`` and ``h2``).
+    time_horizon : float or numpy.ndarray
+        ``tau`` (``inf`` drops ``h1`` and ``h2``), or one per neighbour, shape (N,), all finite
+        or all infinite.
     receding_gate : bool
         Whether ``g`` is a condition.
     lead : float or numpy.ndarray
@@ -252,8 +263,13 @@ def condition_moments(origin, cov, combined_radius, velocities, time_horizon, re
     # mu'X mu as (X mu) . mu with the points last: one (F 4, 4) x (4, P) product per neighbour,
     # contiguous reductions.
     count, forms_count = matrices.shape[:2]
-    products = np.matmul(matrices.reshape(count, forms_count * 4, 4), mean_t)
-    forms = (products.reshape(count, forms_count, 4, -1) * mean_t[:, None]).sum(axis=-2)
+    products = np.matmul(matrices.reshape(count, forms_count * 4, 4), mean_t).reshape(
+        count, forms_count, 4, -1)
+    products *= mean_t[:, None]
+    # The sum over the four components, in the order a reduction over that axis takes.
+    forms = products[:, :, 0] + products[:, :, 1]
+    forms += products[:, :, 2]
+    forms += products[:, :, 3]
     forms = forms.swapaxes(-1, -2)
     f_mean, f_variance = rvo_moments_from_forms(forms[..., :NUM_RVO_FORMS],
                                                 rvo_traces[:, None, :], combined_radius[:, None])
@@ -267,7 +283,7 @@ def condition_moments(origin, cov, combined_radius, velocities, time_horizon, re
     variances = np.empty(f_mean.shape + (conditions,))
     means[..., 0], variances[..., 0] = f_mean, f_variance
     np.add(extra_traces[..., 0::2], extra_forms[..., 0::2], out=means[..., 1:])
-    if np.isfinite(time_horizon):
+    if np.isfinite(time_horizon).all():
         # h2 = |r + tau u|^2 - R^2.
         means[..., -1] -= combined_radius[:, None] ** 2
     np.multiply(extra_forms[..., 1::2], 4.0, out=variances[..., 1:])

@@ -118,9 +118,9 @@ def plan_velocities(egos, neighbours_per_ego, v_prefs, configs, previous=None, l
     Plan every robot of a team in few, large numpy calls.
 
     Result ``i`` is bit for bit ``plan_velocity(egos[i], neighbours_per_ego[i], v_prefs[i],
-    configs[i], previous[i])``. Robots whose plans share their structure (model, method, time
-    horizon, conditions) and shape (neighbours in range, directions) are solved together, as
-    in a team of one configuration; ``model='mc'`` plans one robot at a time.
+    configs[i], previous[i])``. Robots whose plans share their structure (model, method,
+    conditions) are solved together, whatever their time horizons and numbers of neighbours and
+    directions, as in a team of one configuration; ``model='mc'`` plans one robot at a time.
 
     Parameters
     ----------
@@ -206,10 +206,9 @@ class _Plan:
 
     @property
     def structure(self):
-        """What plans solved together must share: the kind of problem and its shape."""
-        return (self.config.model, self.config.method, self.config.time_horizon,
-                self.layout.has_receding, self.deterministic, self.encounter.origin.shape[0],
-                self.directions.shape[0])
+        """What plans solved together must share: the kind of problem, not its size or horizon."""
+        return (self.config.model, self.config.method, self.layout.has_horizon,
+                self.layout.has_receding, self.deterministic)
 
 
 def _prepared_plan(ego, neighbours, v_pref, config, previous, limits=None):
@@ -269,43 +268,91 @@ def _result(plan, velocity, candidates_feasible, achieved):
 
 
 def _solve_group(plans):
-    """Plan robots of one structure and shape together; return their results in order."""
+    """Plan robots of one structure together; return their results in order.
+
+    Robots may differ in their numbers of neighbours and directions: their (neighbour,
+    direction) links are laid end to end. Only the restriction to rays is a matrix product
+    whose shape depends on the robot's, so it is done per run of robots of the same shape.
+    """
+    order = sorted(range(len(plans)), key=lambda index: _shape(plans[index]))
+    solved = _solve_sorted([plans[index] for index in order])
+    results = [None] * len(plans)
+    for index, result in zip(order, solved, strict=True):
+        results[index] = result
+    return results
+
+
+def _pair_horizons(plans, pair_counts):
+    """Return the plans' common time horizon, or each neighbour's plan's, shape (N,)."""
+    horizons = [plan.config.time_horizon for plan in plans]
+    if all(horizon == horizons[0] for horizon in horizons):
+        return horizons[0]
+    return np.repeat(horizons, pair_counts)
+
+
+def _shape(plan):
+    """Return (neighbours, directions) of PLAN."""
+    return plan.encounter.origin.shape[0], plan.directions.shape[0]
+
+
+def _solve_sorted(plans):
+    """Plan robots of one structure, sorted by shape; return their results in order."""
     first = plans[0]
     layout, config = first.layout, first.config
     robots = len(plans)
-    pairs, rays = first.encounter.origin.shape[0], first.directions.shape[0]
+    pair_counts = np.array([plan.encounter.origin.shape[0] for plan in plans])
+    ray_counts = np.array([plan.directions.shape[0] for plan in plans])
+    link_counts = pair_counts * ray_counts
+    pair_horizons = _pair_horizons(plans, pair_counts)
     nodes = np.stack([plan.config.max_speed * NODES for plan in plans])
     mean_fit, variance_fit = bivariate_polynomials(
         np.concatenate([plan.encounter.origin for plan in plans]),
         np.concatenate([plan.cov for plan in plans]),
-        np.concatenate([plan.radius for plan in plans]), np.repeat(nodes, pairs, axis=0),
-        config.time_horizon, layout.has_receding,
+        np.concatenate([plan.radius for plan in plans]), np.repeat(nodes, pair_counts, axis=0),
+        pair_horizons, layout.has_receding,
         np.concatenate([plan.encounter.lead for plan in plans]))
     conditions = mean_fit.shape[1]
-    directions = np.stack([plan.directions for plan in plans])
-    # Polynomials (L, B, N, M, C): every link's coefficients, coefficient-major.
-    means, variances = (rows.reshape(robots, pairs, conditions, rays, length).transpose(
-        4, 0, 1, 3, 2).copy() for rows, length in zip(
-            ray_rows(mean_fit.reshape(robots, pairs, conditions, -1),
-                     variance_fit.reshape(robots, pairs, conditions, -1), directions),
-            (3, 5), strict=True))
-    links = robots * pairs * rays
+    directions = np.concatenate([plan.directions for plan in plans])
+    # Polynomials (L, P, C): every link's coefficients, coefficient-major, robot after robot.
+    links = int(link_counts.sum())
+    means, variances = np.empty((3, links, conditions)), np.empty((5, links, conditions))
+    pair_ends, ray_ends, link_ends = (np.cumsum(counts) for counts in (
+        pair_counts, ray_counts, link_counts))
+    pair_starts, ray_starts, link_starts = (ends - counts for ends, counts in (
+        (pair_ends, pair_counts), (ray_ends, ray_counts), (link_ends, link_counts)))
+    run_starts = np.flatnonzero(np.diff(pair_counts, prepend=-1)
+                                | np.diff(ray_counts, prepend=-1))
+    for first_robot, last_robot in zip(run_starts, [*run_starts[1:], robots], strict=True):
+        batch, pairs, rays = last_robot - first_robot, pair_counts[first_robot], ray_counts[
+            first_robot]
+        pair_slice = slice(pair_starts[first_robot], pair_ends[last_robot - 1])
+        link_slice = slice(link_starts[first_robot], link_ends[last_robot - 1])
+        for rows, length, target in zip(
+                ray_rows(mean_fit[pair_slice].reshape(batch, pairs, conditions, -1),
+                         variance_fit[pair_slice].reshape(batch, pairs, conditions, -1),
+                         directions[ray_starts[first_robot]:ray_ends[last_robot - 1]].reshape(
+                             batch, rays, 2)),
+                (3, 5), (means, variances), strict=True):
+            target[:, link_slice].reshape(length, batch, pairs, rays, conditions)[...] = (
+                rows.reshape(batch, pairs, conditions, rays, length).transpose(4, 0, 1, 3, 2))
+    link_robot = np.repeat(np.arange(robots), link_counts)
+    # Each link's index among its robot's, (neighbour, direction) order.
+    link_local = np.arange(links) - link_starts[link_robot]
     margins = np.stack([plan.layout.margins(plan.encounter) for plan in plans])
-    enabled = np.stack([plan.layout.receding_enabled for plan in plans])
-    link_ray = (np.arange(robots)[:, None, None] * rays
-                + np.arange(rays)[None, None, :]).repeat(pairs, axis=1).reshape(links)
+    enabled = np.concatenate([plan.layout.receding_enabled for plan in plans])
+    ray_robot = np.repeat(np.arange(robots), ray_counts)
     rows = RayRows(
-        means=means.reshape(3, links, conditions).transpose(1, 2, 0),
-        variances=variances.reshape(5, links, conditions).transpose(1, 2, 0),
-        margins=np.repeat(margins, pairs * rays, axis=0), link_ray=link_ray,
-        link_enabled=np.repeat(enabled.reshape(-1), rays),
-        ray_local=np.tile(np.arange(rays), robots),
-        ray_robot=np.repeat(np.arange(robots), rays),
+        means=means.transpose(1, 2, 0), variances=variances.transpose(1, 2, 0),
+        margins=margins[link_robot],
+        link_ray=ray_starts[link_robot] + link_local % ray_counts[link_robot],
+        link_enabled=np.repeat(enabled, np.repeat(ray_counts, pair_counts)),
+        ray_local=np.arange(directions.shape[0]) - ray_starts[ray_robot],
+        ray_robot=ray_robot,
         preferred=np.concatenate([plan.preferred for plan in plans]))
     gap_ray, lower, upper = _allowed_gaps(
         plans, *team_ray_gaps(rows, layout, config.method, first.deterministic))
-    feasible_rays = np.bincount(gap_ray, minlength=robots * rays) > 0
-    candidates_feasible = np.count_nonzero(feasible_rays.reshape(robots, rays), axis=1)
+    feasible_rays = np.bincount(gap_ray, minlength=directions.shape[0]) > 0
+    candidates_feasible = np.add.reduceat(feasible_rays.astype(int), ray_starts)
     chosen = _choose_on_gaps(plans, rows, gap_ray, lower, upper)
     direction_index = np.empty(robots, dtype=int)
     chosen_t = np.empty(robots)
@@ -320,8 +367,14 @@ def _solve_group(plans):
         direction_index[robot], speed_index = _fallback_choice(plan, speeds, costs)
         chosen_t[robot] = speeds[direction_index[robot], speed_index]
     max_speed = np.array([plan.config.max_speed for plan in plans])
-    velocities = (max_speed * chosen_t)[:, None] * directions[np.arange(robots), direction_index]
-    achieved = _achieved(plans, means, variances, direction_index, chosen_t, velocities)
+    velocities = (max_speed * chosen_t)[:, None] * directions[ray_starts + direction_index]
+    # Per neighbour of every robot: its link on the robot's chosen direction.
+    pair_robot = np.repeat(np.arange(robots), pair_counts)
+    chosen_links = (link_starts[pair_robot] + direction_index[pair_robot]
+                    + (np.arange(pair_robot.size) - pair_starts[pair_robot])
+                    * ray_counts[pair_robot])
+    achieved = _achieved(plans, means, variances, chosen_links, pair_robot, pair_starts,
+                         chosen_t, velocities, pair_horizons)
     return [_result(plan, velocities[robot], int(candidates_feasible[robot]),
                     float(achieved[robot])) for robot, plan in enumerate(plans)]
 
@@ -380,24 +433,28 @@ def _fallback_choice(plan, speeds, costs):
                             speeds.shape)
 
 
-def _achieved(plans, means, variances, direction_index, chosen_t, velocities):
-    """Per robot, the smallest over neighbours of the k met at its chosen velocity."""
+def _achieved(plans, means, variances, chosen_links, pair_robot, pair_starts, chosen_t,
+              velocities, pair_horizons):
+    """Per robot, the smallest over neighbours of the k met at its chosen velocity.
+
+    CHOSEN_LINKS are the links of each neighbour on its robot's chosen direction, robot after
+    robot; PAIR_ROBOT the robot of each, PAIR_STARTS the first neighbour of each robot,
+    PAIR_HORIZONS the time horizon of each (as ``_pair_horizons`` gives them).
+    """
     first = plans[0]
-    robots = len(plans)
-    enabled = np.stack([plan.layout.receding_enabled for plan in plans])
+    enabled = np.concatenate([plan.layout.receding_enabled for plan in plans])
     if first.config.model == 'prvo':
-        # The planning moments are the beliefs' own: evaluate the ray polynomials, (B, N, C).
-        # Advanced indices apart put the robot axis first: (B, L, N, C).
-        at_velocity = [poly_eval(polynomial[:, np.arange(robots), :, direction_index]
-                                 .transpose(0, 2, 3, 1), chosen_t[:, None, None])
+        # The planning moments are the beliefs' own: evaluate the ray polynomials, (P, C).
+        at_velocity = [poly_eval(np.take(polynomial, chosen_links, axis=1).transpose(1, 2, 0),
+                                 chosen_t[pair_robot, None])
                        for polynomial in (means, variances)]
     else:
-        pairs = first.encounter.origin.shape[0]
-        at_velocity = [moment[:, 0].reshape(robots, pairs, -1) for moment in condition_moments(
+        at_velocity = [moment[:, 0] for moment in condition_moments(
             np.concatenate([plan.encounter.origin for plan in plans]),
             np.concatenate([plan.encounter.cov for plan in plans]),
             np.concatenate([plan.encounter.combined_radius for plan in plans]),
-            np.repeat(velocities, pairs, axis=0)[:, None, :], first.config.time_horizon,
+            velocities[pair_robot][:, None, :], pair_horizons,
             first.layout.has_receding,
             np.concatenate([plan.encounter.lead for plan in plans]))]
-    return achieved_margins(*at_velocity, first.layout, enabled).min(axis=1)
+    return np.minimum.reduceat(achieved_margins(*at_velocity, first.layout, enabled),
+                               pair_starts)
