@@ -40,9 +40,11 @@ SETTLE_TIME = 1.0  # sim seconds every robot must stay at its goal before the ru
 PROGRESS_PERIOD = 0.5
 RECORDING_GRACE = 2.0  # wall seconds for messages in flight when a run ends to arrive
 GRAPH_CHECK_PERIOD = 1.0  # wall seconds between looks for intruders during a run
-# Planner waits in lockstep [s]: for same-stamp odometry (under the sim's step_timeout), and
-# for every listed neighbour's first message.
-LOCKSTEP_SYNC = {'sync_timeout': 1.0, 'neighbor_timeout': 5.0}
+# Planner waits in lockstep [s]: for same-stamp odometry, as long as the sim waits for the plan
+# less a margin to plan (with 24 planners on 2 cores a neighbour's odometry took over 1 s to be
+# taken, and a plan made without it parted the run from the in-process one); and for every
+# listed neighbour's first message.
+LOCKSTEP_SYNC = {'sync_timeout': STEP_TIMEOUT - 0.1, 'neighbor_timeout': 5.0}
 # Wall seconds of listening for strangers on the domain before a run. Longer than Fast DDS's
 # periodic participant announcement (3 s): a stranger starved of CPU when the check's own
 # announcements arrive is still heard once.
