@@ -187,6 +187,9 @@ class CommandsAfterAnnouncements:
         self._timer.reset()
 
     def _poll(self):
+        if self._held is None:
+            # A timer event queued before the command went.
+            return
         if all_acknowledged(self._waiting_on):
             self._send(self._held)
         elif time.monotonic() > self._deadline:
