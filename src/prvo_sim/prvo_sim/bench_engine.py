@@ -13,9 +13,9 @@ robot is charged an equal share), arrivals, collisions and the process's peak RS
 With `--peer-robots`, the same command also times a peer on the same circles without noise:
 ir-sim's numpy RVO (`irsim.lib.algorithm.rvo`), each robot each step building
 `reciprocal_vel_obs` over every other robot and calling `cal_vel('rvo')`, as ir-sim's own
-behaviour does; and PRVO's `plan_velocity` and `plan_velocities` on the engine's own loop of the
-same circle. ir-sim is not a dependency of prvo: install it beside it (`pip install ir-sim`) to
-measure it; without it the peer rows say so.
+behaviour does; and PRVO's engine on the same circle. Both are summarised by the mean and the
+median of their ms per robot-step, and their ratios. ir-sim is not a dependency of prvo:
+install it beside it (`pip install ir-sim`) to measure it; without it the peer cells say n/a.
 
 Exit codes: 0 every run completed, 1 a run did not, 2 bad input, 130 when interrupted.
 """
@@ -81,7 +81,7 @@ def peer_circle(count):
 
 
 def time_peer(count, dt=0.1):
-    """Return ir-sim's RVO's median ms per robot-step on the COUNT circle, None without ir-sim."""
+    """Return ir-sim's RVO's ms per robot-step on the COUNT circle, (N,); None without ir-sim."""
     try:
         from irsim.lib.algorithm.rvo import reciprocal_vel_obs
     except ImportError:
@@ -111,17 +111,33 @@ def time_peer(count, dt=0.1):
         positions = positions + dt * velocities
         if np.all(np.linalg.norm(goals - positions, axis=1) < 0.2):
             break
-    return round(1e3 * float(np.median(times)), 3)
+    return 1e3 * np.array(times)
+
+
+def _mean_and_median(values):
+    """Return (mean, median) of VALUES, rounded to the microsecond; (None, None) for None."""
+    if values is None:
+        return None, None
+    return round(float(np.mean(values)), 3), round(float(np.median(values)), 3)
 
 
 def peer_row(count, out_dir):
-    """Return the peer comparison row of COUNT robots: ir-sim's RVO and PRVO's engine."""
+    """
+    Return the peer comparison row of COUNT robots: ir-sim's RVO and PRVO's engine.
+
+    Both sides are summarised alike, by the mean and the median of their ms per robot-step:
+    crowded steps cost PRVO more than open ones, so its mean lies above its median.
+    """
     document = circle_document(count)
     document['noise'] = {'position_std': 0.0, 'velocity_std': 0.0, 'actuation_std': 0.0}
     scenario = write_scenario(document, out_dir / f'peer_circle{count}.yaml')
-    engine_row, _ = run_team(scenario)
-    return {'robots': count, 'irsim_rvo_ms': time_peer(count),
-            'prvo_team_ms': engine_row['plan_ms_per_robot_step'],
+    engine_row, steps = run_team(scenario)
+    peer_mean, peer_median = _mean_and_median(time_peer(count))
+    prvo_mean, prvo_median = _mean_and_median(np.concatenate([step.plan_ms for step in steps]))
+    return {'robots': count, 'irsim_rvo_ms_mean': peer_mean, 'irsim_rvo_ms_median': peer_median,
+            'prvo_ms_mean': prvo_mean, 'prvo_ms_median': prvo_median,
+            'ratio_mean': None if peer_mean is None else round(prvo_mean / peer_mean, 1),
+            'ratio_median': None if peer_median is None else round(prvo_median / peer_median, 1),
             'prvo_all_arrived': engine_row['all_arrived'],
             'prvo_collisions': engine_row['collisions']}
 
@@ -142,8 +158,10 @@ TEAM_COLUMNS = (('robots', 'robots'), ('wall_s', 'wall s'), ('sim_s', 'sim s'),
                 ('plan_ms_per_robot_step', 'plan ms per robot-step'),
                 ('all_arrived', 'all arrived'), ('collisions', 'collisions'),
                 ('peak_rss_mib', 'peak RSS MiB'))
-PEER_COLUMNS = (('robots', 'robots'), ('irsim_rvo_ms', 'ir-sim RVO ms per robot-step'),
-                ('prvo_team_ms', 'PRVO (engine) ms per robot-step'),
+PEER_COLUMNS = (('robots', 'robots'), ('irsim_rvo_ms_mean', 'ir-sim RVO ms, mean'),
+                ('irsim_rvo_ms_median', 'ir-sim RVO ms, median'),
+                ('prvo_ms_mean', 'PRVO ms, mean'), ('prvo_ms_median', 'PRVO ms, median'),
+                ('ratio_mean', 'ratio of means'), ('ratio_median', 'ratio of medians'),
                 ('prvo_all_arrived', 'PRVO all arrived'), ('prvo_collisions', 'PRVO collisions'))
 
 
