@@ -95,3 +95,19 @@ def test_circles_repeat_over_consecutive_seeds():
 def test_a_bad_seed_count_is_refused_with_its_value(capsys):
     assert bench_crowds.main(['--seeds', '0', '--no-peers']) == 2
     assert '--seeds: 0 is not a count' in capsys.readouterr().err
+
+
+def test_eta_applies_to_circles_and_teams_not_the_fallback_circle(capsys):
+    runs = bench_crowds.planned_runs(bench_crowds.build_parser().parse_args(
+        ['--circles', '24', '--teams', '1', '--eta', '0.6']))
+    circle, team, fallback = runs
+    assert circle[0] == 'circle24 r=6 eta 0.6' and circle[1]['planner']['eta'] == 0.6
+    assert team[0] == 'team0 N=14 eta 0.6' and team[1]['planner']['eta'] == 0.6
+    # Everything else of the documents is as without --eta.
+    circle[1]['planner']['eta'] = 0.8
+    assert circle[1] == bench_crowds.crowd_circle_document(24, 6.0)
+    assert fallback[2] == 'rvo' and fallback[1] == bench_crowds.crowd_circle_document(
+        20, 5.0, noise_std=0.0)
+    for bad in ('1.0', '0', '-0.2'):
+        assert bench_crowds.main(['--eta', bad, '--no-peers']) == 2
+        assert f'--eta: {float(bad)} is not a probability in (0, 1)' in capsys.readouterr().err

@@ -1,7 +1,7 @@
 """Crowd benchmark: does every robot arrive, how soon, and how close do robots come.
 
     python -m prvo_sim.bench_crowds [--circles 8 16 24 48] [--seeds 1] [--teams 4]
-                                    [--method prvo] [--json PATH] [--out DIR]
+                                    [--method prvo] [--eta 0.8] [--json PATH] [--out DIR]
 
 Runs on the in-process engine, to completion or the scenario's duration:
 
@@ -18,11 +18,13 @@ Runs on the in-process engine, to completion or the scenario's duration:
   (`irsim.lib.algorithm.rvo`) and RVO2's ORCA (`pyrvo`) when they are importable; neither is a
   dependency of prvo, and their rows say so when absent.
 
-Per run it prints one Markdown row: arrivals, makespan (the last robot's arrival) and its ratio
-to the straight-line time (the longest start-to-goal distance over max speed), the mean time to
-goal over the mean straight-line time, the paths' length (each up to its arrival) over the
-straight lines', the minimum surface-to-surface separation, contacts, and the fraction of
-planned robot-steps without a feasible velocity.
+`--eta` sets the circles' and teams' collision-avoidance probability (default: the scenarios'
+0.8), to see what the guarantee costs in time. Per run it prints one Markdown row: arrivals,
+makespan (the last robot's arrival) and its ratio to the straight-line time (the longest
+start-to-goal distance over max speed), the mean time to goal over the mean straight-line time,
+the paths' length (each up to its arrival) over the straight lines', the minimum
+surface-to-surface separation, contacts, and the fraction of planned robot-steps without a
+feasible velocity.
 
 Exit codes: 0 every robot of the circles and teams arrived, 1 one did not, 2 bad input, 130
 when interrupted.
@@ -287,6 +289,9 @@ def build_parser():
                         help=f'random teams of {TEAM_SIZE} robots (default: {DEFAULT_TEAMS})')
     parser.add_argument('--method', default='prvo', choices=('prvo', 'rvo', 'inflate'),
                         help='planner variant of the circles and teams (default: prvo)')
+    parser.add_argument('--eta', type=float, default=None,
+                        help="collision-avoidance probability of the circles and teams, in "
+                             "(0, 1) (default: the scenarios' 0.8)")
     parser.add_argument('--no-fallback-circle', action='store_true',
                         help='skip the noise-free 20-robot circle with --method rvo')
     parser.add_argument('--no-peers', action='store_true',
@@ -313,6 +318,10 @@ def planned_runs(options):
             runs.append((label, document, options.method))
     runs += [(f'team{index} N={TEAM_SIZE}', random_team_document(index), options.method)
              for index in range(options.teams)]
+    if options.eta is not None:
+        for index, (label, document, method) in enumerate(runs):
+            document['planner'] = {**document.get('planner', {}), 'eta': options.eta}
+            runs[index] = (f'{label} eta {options.eta:g}', document, method)
     if not options.no_fallback_circle:
         count, radius = FALLBACK_CIRCLE
         runs.append((f'circle{count} r={radius:g} noise-free',
@@ -334,6 +343,10 @@ def main(argv=None):
         return 2
     if options.teams < 0:
         print(f'bench_crowds: error: --teams: {options.teams} is negative', file=sys.stderr)
+        return 2
+    if options.eta is not None and not 0.0 < options.eta < 1.0:
+        print(f'bench_crowds: error: --eta: {options.eta} is not a probability in (0, 1)',
+              file=sys.stderr)
         return 2
     rows, notes = [], []
     try:
