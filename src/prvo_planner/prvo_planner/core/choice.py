@@ -4,8 +4,10 @@ The choice among feasible velocities, and the ranking of candidates when none is
 The cost of a velocity is ``(1 - progress) |v - v_pref| + progress | |v_pref| - along(v) | +
 inertia |v - previous| + passing_bias max(0, left(v))``; the terms only rank velocities that the
 constraints already admit. Without a
-feasible velocity, candidates are ranked by how fast they close on touching neighbours and how
-soon they would collide with the others (``fallback_measures``, ``fallback_index``).
+feasible velocity, candidates are ranked by how fast they close on neighbours that touch or
+could touch within one control period, how soon they would collide with the others, and the
+cost, mirror ties going to the side that passes on the right (``fallback_measures``,
+``fallback_index``).
 """
 
 from dataclasses import dataclass
@@ -221,13 +223,26 @@ def ranking_radius(encounter, model):
         np.maximum(spread, 0.0))
 
 
-def fallback_measures(velocities, origin, radius, horizon):
+def contact_reach(encounter, max_speed, period):
     """
-    Return the fallback's two measures of candidate commands against the neighbours' means.
+    How far each neighbour's gap can close within one control period, shape (N,), metres.
 
-    With ``r`` a neighbour's mean relative position and ``u = 2 v + origin_u`` the reciprocal
-    relative velocity at command ``v`` (docs/method.md, section 2), a neighbour is *touching*
-    when ``|r| < R``. Both measures need no variance and stay defined in overlap.
+    The relative velocity at command ``v`` is ``lead v + origin_u``, so no command of speed up
+    to ``max_speed`` closes the gap faster than ``lead max_speed + |origin_u|`` over ``period``.
+    """
+    drift = np.hypot(encounter.origin[:, 2], encounter.origin[:, 3])
+    return period * (encounter.lead * max_speed + drift)
+
+
+def fallback_measures(velocities, origin, lead, radius, reach, horizon):
+    """
+    Return the fallback's measures of candidate commands against the neighbours' means.
+
+    With ``r`` a neighbour's mean relative position and ``u = lead v + origin_u`` the relative
+    velocity at command ``v`` when both keep to their shares of the avoidance (docs/method.md,
+    sections 2 and 11), a neighbour is *near* when it touches (``|r| < R``) or some command
+    could make it touch within one control period (``|r| < R + reach``). The measures need no
+    variance and stay defined in overlap.
 
     Parameters
     ----------
@@ -235,28 +250,37 @@ def fallback_measures(velocities, origin, radius, horizon):
         Candidate commands, shape (K, 2).
     origin : numpy.ndarray
         ``(r, u)`` at zero command per neighbour, shape (N, 4) (``Encounter.origin``).
+    lead : numpy.ndarray
+        Factor of the command in ``u`` per neighbour, shape (N,) (``Encounter.lead``).
     radius : numpy.ndarray
         Radius ``R`` per neighbour, shape (N,).
+    reach : numpy.ndarray
+        Per neighbour, how far its gap can close within one control period (``contact_reach``),
+        shape (N,).
     horizon : float
         Times to collision are capped here (``inf``: uncapped).
 
     Returns
     -------
     closing : numpy.ndarray
-        Shape (K,): the fastest a touching neighbour closes in, ``max(0, -r . u / |r|)``
-        (0 without touching neighbours, or when each one recedes).
+        Shape (K,): the fastest a near neighbour closes in, ``max(0, -r . u / |r|)``
+        (0 without near neighbours, or when each one recedes).
     time_to_collision : numpy.ndarray
         Shape (K,): the first ``t >= 0`` at which ``|r + t u| = R`` for a neighbour that is
         not touching, smallest over those neighbours, capped at ``horizon``.
+    left_passes : numpy.ndarray
+        Shape (K,): how many approaching neighbours (``r . u < 0``) the command passes on its
+        left, ``r x u < 0``: the side both robots of a pair see the same way.
 
     """
     position = origin[:, None, :2]
-    relative = 2.0 * velocities[None, :, :] + origin[:, None, 2:]
+    relative = lead[:, None, None] * velocities[None, :, :] + origin[:, None, 2:]
     along = np.sum(position * relative, axis=-1)
     distance_sq = np.sum(origin[:, :2] * origin[:, :2], axis=1)
     touching = distance_sq < radius * radius
+    near = distance_sq < (radius + reach) ** 2
     distance = np.maximum(np.sqrt(distance_sq), 1e-12)[:, None]
-    closing = np.max(np.maximum(-along / distance, 0.0), axis=0, where=touching[:, None],
+    closing = np.max(np.maximum(-along / distance, 0.0), axis=0, where=near[:, None],
                      initial=0.0)
     # |r + t u|^2 = R^2: a t^2 + 2 b t + c = 0 with c > 0 (not touching); the first root is
     # ahead only when approaching (b < 0) and the line passes within R (b^2 >= a c).
@@ -268,15 +292,19 @@ def fallback_measures(velocities, origin, radius, horizon):
         # The smaller root as c / (-b + sqrt(disc)): no cancellation, and finite as a -> 0.
         first = clearance / (-along + np.sqrt(np.maximum(discriminant, 0.0)))
     time_to_collision = np.min(np.where(hits, first, np.inf), axis=0, initial=np.inf)
-    return closing, np.minimum(time_to_collision, horizon)
+    cross = position[..., 0] * relative[..., 1] - position[..., 1] * relative[..., 0]
+    left_passes = np.sum((along < 0.0) & (cross < 0.0), axis=0)
+    return closing, np.minimum(time_to_collision, horizon), left_passes
 
 
-def fallback_index(closing, time_to_collision, costs):
+def fallback_index(closing, time_to_collision, left_passes, costs):
     """
     Index of the fallback's choice among candidates, all shape (K,).
 
-    Lexicographic: the least closing on touching neighbours (0 whenever some candidate recedes
-    from every one of them), then the longest time to collision, then the smallest cost.
+    Lexicographic: the least closing on near neighbours (0 whenever some candidate recedes
+    from every one of them), then the longest time to collision, then the smallest cost. Among
+    candidates of equal cost (mirror images in a symmetric encounter), the fewest neighbours
+    passed on the left: both robots of a pair then pass on the right.
     """
     ranked = closing <= np.min(closing) + 1e-9
     longest = np.max(time_to_collision[ranked])
@@ -284,4 +312,7 @@ def fallback_index(closing, time_to_collision, costs):
         ranked &= time_to_collision >= longest - 1e-9 * max(1.0, longest)
     else:
         ranked &= time_to_collision == longest
+    cheapest = np.min(costs[ranked])
+    ranked &= costs <= cheapest + 1e-9 * max(1.0, abs(cheapest))
+    ranked &= left_passes == np.min(left_passes[ranked])
     return int(np.argmin(np.where(ranked, costs, np.inf)))
