@@ -1,16 +1,29 @@
 """The fallback near contact: exactly symmetric head-on pairs and trapped robots, by geometry."""
 
+import dataclasses
 import math
 
 import numpy as np
 import pytest
 
+from prvo_planner.agent import AgentSettings, PlannerAgent
 from prvo_planner.core import AgentBelief, PlannerConfig, VelocityLimits, plan_velocity
 
 RADIUS = 0.3
 MAX_SPEED = 1.0
 # The core's default control period: how long each command below stays in force.
 PERIOD = 0.1
+
+
+@dataclasses.dataclass(frozen=True)
+class OwnMeasurement:
+    """The fields of an odometry measurement the agent reads."""
+
+    stamp: float
+    position: np.ndarray
+    velocity: np.ndarray
+    covariance: np.ndarray
+    yaw: float = 0.0
 
 
 def rotation(degrees):
@@ -188,3 +201,21 @@ def test_fallback_does_not_move_into_contact_when_it_need_not(model):
         assert deepest_contact(ego, neighbours, result.velocity) <= 1e-6, result.velocity
         checked += 1
     assert checked >= 10
+
+
+def test_control_period_is_checked_and_the_agent_plans_with_the_period_it_measures():
+    with pytest.raises(ValueError, match='PlannerConfig.control_period must be > 0, got 0.0'):
+        PlannerConfig(control_period=0.0)
+    settings = AgentSettings(radius=RADIUS, unknown_neighbor_radius=RADIUS, approach_time=0.5,
+                             goal_tolerance=0.2, acceleration_std=1.0, neighbor_timeout=2.0)
+    agent = PlannerAgent('self', PlannerConfig(model='rvo'), settings, goal=[4.0, 0.0])
+    periods = []
+    for step in range(3):
+        stamp = 0.25 * step
+        agent.receive_own(OwnMeasurement(stamp, np.array([0.0, 0.0]), np.zeros(2),
+                                         1e-4 * np.eye(4)), stamp)
+        request = agent.plan_request()
+        periods.append(request.problem[3].control_period)
+        agent.complete(request, plan_velocity(*request.problem))
+    # Before a period is known the configured one stands in; then the stamps' spacing.
+    assert periods == [0.1, 0.25, 0.25]
