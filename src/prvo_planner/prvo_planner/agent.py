@@ -450,7 +450,9 @@ class PlannerAgent:
                             self.settings.planning_radius),
                 [track.agent_belief(stamp, announcement.radius, announcement.avoidance_share)
                  for track, announcement in zip(tracks, announcements, strict=True)],
-                v_pref, dataclasses.replace(self.config, time_horizon=horizon),
+                v_pref, dataclasses.replace(
+                    self.config, time_horizon=horizon,
+                    control_period=self._control_period or self.config.control_period),
                 self._previous_velocity, self._limits(stamp))
             if self.arrived and nobody_comes(problem):
                 problem = None

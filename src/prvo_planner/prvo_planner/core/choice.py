@@ -4,8 +4,10 @@ The choice among feasible velocities, and the ranking of candidates when none is
 The cost of a velocity is ``(1 - progress) |v - v_pref| + progress | |v_pref| - along(v) | +
 inertia |v - previous| + passing_bias max(0, left(v))``; the terms only rank velocities that the
 constraints already admit. Without a
-feasible velocity, candidates are ranked by how fast they close on touching neighbours and how
-soon they would collide with the others (``fallback_measures``, ``fallback_index``).
+feasible velocity, candidates are ranked by how far they move into contact within one control
+period, how fast they close on neighbours they could touch within it, how soon they would
+collide, and the cost, mirror ties going to the side that passes on the right
+(``fallback_measures``, ``fallback_index``).
 """
 
 from dataclasses import dataclass
@@ -221,13 +223,16 @@ def ranking_radius(encounter, model):
         np.maximum(spread, 0.0))
 
 
-def fallback_measures(velocities, origin, radius, horizon):
+def fallback_measures(velocities, origin, lead, radius, horizon, period):
     """
-    Return the fallback's two measures of candidate commands against the neighbours' means.
+    Return the fallback's measures of candidate commands against the neighbours' means.
 
-    With ``r`` a neighbour's mean relative position and ``u = 2 v + origin_u`` the reciprocal
-    relative velocity at command ``v`` (docs/method.md, section 2), a neighbour is *touching*
-    when ``|r| < R``. Both measures need no variance and stay defined in overlap.
+    With ``r`` a neighbour's mean relative position and ``u = lead v + origin_u`` the relative
+    velocity at command ``v`` when both keep to their shares of the avoidance (docs/method.md,
+    sections 2 and 11), the gap to a neighbour can shrink by at most ``reach = period (lead
+    v_top + |origin_u|)`` over one control period, ``v_top`` the fastest candidate; a neighbour
+    is *near* when ``|r| < R + reach``: some candidate could touch it before the next plan. The
+    measures need no variance and stay defined in overlap.
 
     Parameters
     ----------
@@ -235,32 +240,52 @@ def fallback_measures(velocities, origin, radius, horizon):
         Candidate commands, shape (K, 2).
     origin : numpy.ndarray
         ``(r, u)`` at zero command per neighbour, shape (N, 4) (``Encounter.origin``).
+    lead : numpy.ndarray
+        Factor of the command in ``u`` per neighbour, shape (N,) (``Encounter.lead``).
     radius : numpy.ndarray
         Radius ``R`` per neighbour, shape (N,).
     horizon : float
         Times to collision are capped here (``inf``: uncapped).
+    period : float
+        How long the command stays in force, seconds.
 
     Returns
     -------
+    intrusion : numpy.ndarray
+        Shape (K,): how far, at most over the neighbours, the command moves into contact within
+        one period, ``min(|r|, R) - min over t in [0, period] of |r + t u|`` (0 if nowhere):
+        the overlap it creates, or adds to an existing one.
     closing : numpy.ndarray
-        Shape (K,): the fastest a touching neighbour closes in, ``max(0, -r . u / |r|)``
-        (0 without touching neighbours, or when each one recedes).
+        Shape (K,): the fastest a near neighbour closes in, ``max(0, -r . u / |r|)``
+        (0 without near neighbours, or when each one recedes).
     time_to_collision : numpy.ndarray
         Shape (K,): the first ``t >= 0`` at which ``|r + t u| = R`` for a neighbour that is
         not touching, smallest over those neighbours, capped at ``horizon``.
+    left_passes : numpy.ndarray
+        Shape (K,): how many approaching neighbours (``r . u < 0``) the command passes on its
+        left, ``r x u < 0``: a side both robots of a pair see the same way.
 
     """
     position = origin[:, None, :2]
-    relative = 2.0 * velocities[None, :, :] + origin[:, None, 2:]
+    relative = lead[:, None, None] * velocities[None, :, :] + origin[:, None, 2:]
     along = np.sum(position * relative, axis=-1)
+    speed_sq = np.sum(relative * relative, axis=-1)
     distance_sq = np.sum(origin[:, :2] * origin[:, :2], axis=1)
-    touching = distance_sq < radius * radius
-    distance = np.maximum(np.sqrt(distance_sq), 1e-12)[:, None]
-    closing = np.max(np.maximum(-along / distance, 0.0), axis=0, where=touching[:, None],
-                     initial=0.0)
+    distance = np.sqrt(distance_sq)
+    # The closest the centres come within the period, at t = -r.u / |u|^2 clipped to it.
+    with np.errstate(divide='ignore', invalid='ignore'):
+        closest_time = np.clip(np.where(speed_sq > 0.0, -along / speed_sq, 0.0), 0.0, period)
+    closest = np.sqrt(np.sum((position + closest_time[..., None] * relative) ** 2, axis=-1))
+    intrusion = np.max(np.maximum(np.minimum(distance, radius)[:, None] - closest, 0.0),
+                       axis=0, initial=0.0)
+    fastest = np.max(np.sqrt(np.sum(velocities * velocities, axis=1)), initial=0.0)
+    reach = period * (lead * fastest + np.hypot(origin[:, 2], origin[:, 3]))
+    near = distance < radius + reach
+    closing = np.max(np.maximum(-along / np.maximum(distance, 1e-12)[:, None], 0.0), axis=0,
+                     where=near[:, None], initial=0.0)
     # |r + t u|^2 = R^2: a t^2 + 2 b t + c = 0 with c > 0 (not touching); the first root is
     # ahead only when approaching (b < 0) and the line passes within R (b^2 >= a c).
-    speed_sq = np.sum(relative * relative, axis=-1)
+    touching = distance < radius
     clearance = (distance_sq - radius * radius)[:, None]
     discriminant = along * along - speed_sq * clearance
     hits = (along < 0.0) & (discriminant >= 0.0) & ~touching[:, None]
@@ -268,20 +293,29 @@ def fallback_measures(velocities, origin, radius, horizon):
         # The smaller root as c / (-b + sqrt(disc)): no cancellation, and finite as a -> 0.
         first = clearance / (-along + np.sqrt(np.maximum(discriminant, 0.0)))
     time_to_collision = np.min(np.where(hits, first, np.inf), axis=0, initial=np.inf)
-    return closing, np.minimum(time_to_collision, horizon)
+    cross = position[..., 0] * relative[..., 1] - position[..., 1] * relative[..., 0]
+    left_passes = np.sum((along < 0.0) & (cross < 0.0), axis=0)
+    return intrusion, closing, np.minimum(time_to_collision, horizon), left_passes
 
 
-def fallback_index(closing, time_to_collision, costs):
+def fallback_index(intrusion, closing, time_to_collision, left_passes, costs):
     """
     Index of the fallback's choice among candidates, all shape (K,).
 
-    Lexicographic: the least closing on touching neighbours (0 whenever some candidate recedes
-    from every one of them), then the longest time to collision, then the smallest cost.
+    Lexicographic: the least intrusion into contact within the period (0 whenever some
+    candidate touches nobody new and presses into no overlap), then the least closing on near
+    neighbours, then the longest time to collision, then the smallest cost. Among candidates of
+    equal cost (mirror images in a symmetric encounter), the fewest neighbours passed on the
+    left: both robots of a pair then pass on the right.
     """
-    ranked = closing <= np.min(closing) + 1e-9
+    ranked = intrusion <= np.min(intrusion) + 1e-9
+    ranked &= closing <= np.min(closing[ranked]) + 1e-9
     longest = np.max(time_to_collision[ranked])
     if np.isfinite(longest):
         ranked &= time_to_collision >= longest - 1e-9 * max(1.0, longest)
     else:
         ranked &= time_to_collision == longest
+    cheapest = np.min(costs[ranked])
+    ranked &= costs <= cheapest + 1e-9 * max(1.0, abs(cheapest))
+    ranked &= left_passes == np.min(left_passes[ranked])
     return int(np.argmin(np.where(ranked, costs, np.inf)))

@@ -103,6 +103,10 @@ class PlannerConfig:
         component of ``v`` along ``v_pref``. Sideways speed then costs less than slowing down
         behind a crowd. It only ranks velocities that meet the constraints. Below 1, so that
         sideways speed still costs something.
+    control_period : float
+        How long a command stays in force, seconds, > 0 (the simulator's ``dt`` by default):
+        without a feasible velocity, a neighbour the command would touch within it counts as
+        in contact.
 
     """
 
@@ -123,6 +127,7 @@ class PlannerConfig:
     inertia: float = 0.0
     passing_bias: float = 0.0
     progress_weight: float = 0.0
+    control_period: float = 0.1
 
     def __post_init__(self):
         eta = _real(self.eta, 'PlannerConfig.eta')
@@ -174,6 +179,8 @@ class PlannerConfig:
             raise ValueError(f'PlannerConfig.progress_weight must be in [0, 1), '
                              f'got {self.progress_weight!r}')
         object.__setattr__(self, 'progress_weight', progress)
+        object.__setattr__(self, 'control_period',
+                           _positive(self.control_period, 'PlannerConfig.control_period'))
 
     @property
     def effective_k(self):

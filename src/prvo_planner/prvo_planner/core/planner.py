@@ -424,13 +424,14 @@ def _fallback_choice(plan, speeds, costs):
     """
     config = plan.config
     velocities = config.max_speed * speeds[..., None] * plan.directions[:, None, :]
-    closing, time_to_collision = fallback_measures(
-        velocities.reshape(-1, 2), plan.encounter.origin,
-        ranking_radius(plan.encounter, config.model), config.time_horizon)
+    encounter = plan.encounter
+    intrusion, closing, time_to_collision, left_passes = fallback_measures(
+        velocities.reshape(-1, 2), encounter.origin, encounter.lead,
+        ranking_radius(encounter, config.model), config.time_horizon, config.control_period)
     # A candidate of infinite cost is out of reach (acceleration, tracking): never chosen.
-    closing = np.where(np.isfinite(costs.reshape(-1)), closing, np.inf)
-    return np.unravel_index(fallback_index(closing, time_to_collision, costs.reshape(-1)),
-                            speeds.shape)
+    intrusion = np.where(np.isfinite(costs.reshape(-1)), intrusion, np.inf)
+    return np.unravel_index(fallback_index(intrusion, closing, time_to_collision, left_passes,
+                                           costs.reshape(-1)), speeds.shape)
 
 
 def _achieved(plans, means, variances, chosen_links, pair_robot, pair_starts, chosen_t,
