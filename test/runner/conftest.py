@@ -40,21 +40,23 @@ def released_domain():
 def strangers(tmp_path):
     """Start fake planners (runner_testing.FAKE_CHILD planner) on a domain; killed at teardown.
 
-    Call start(domain_id, *ros_arguments); returns the process once it publishes.
+    Call start(domain_id, *ros_arguments); returns the process once it publishes. With
+    mode='watcher' the stranger only subscribes to /clock (returned once it has).
     """
     started = []
 
-    def start(domain_id, *ros_arguments):
+    def start(domain_id, *ros_arguments, mode='planner'):
         env = dict(os.environ, ROS_DOMAIN_ID=str(domain_id), PYTHONUNBUFFERED='1',
                    ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST')
         log_path = tmp_path / f'stranger_{len(started)}.log'
         with open(log_path, 'w') as log_file:
             process = subprocess.Popen(
-                [*FAKE_CHILD.split(), 'planner', '--ros-args', *ros_arguments], env=env,
+                [*FAKE_CHILD.split(), mode, '--ros-args', *ros_arguments], env=env,
                 stdout=log_file, stderr=subprocess.STDOUT, start_new_session=True)
         process.token = None
         started.append(process)
-        wait_for(lambda: 'publishing' in log_path.read_text(), 60, 'the stranger publishing')
+        ready = 'subscribed' if mode == 'watcher' else 'publishing'
+        wait_for(lambda: ready in log_path.read_text(), 60, f'the stranger {ready}')
         return process
 
     yield start

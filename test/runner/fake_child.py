@@ -4,6 +4,7 @@
     fake_child.py planner  as run, and publish the planner's endpoints (ROS arguments read)
     fake_child.py stubborn ignore SIGINT (only SIGKILL ends it)
     fake_child.py crash    exit at once with code 3
+    fake_child.py watcher  subscribe to /clock (ROS arguments read), as `ros2 topic echo` does
 
 'run', 'planner' and 'stubborn' print 'ready' once their signal handling is in place. A
 'planner' creates its cmd_vel and /diagnostics publishers only once the file named by
@@ -47,11 +48,28 @@ def publish_planner_endpoints():
     return node
 
 
+def subscribe_to_clock():
+    """Create a node from the ROS arguments that only subscribes to /clock; return it."""
+    import rclpy
+    from rclpy.qos import qos_profile_sensor_data
+    from rosgraph_msgs.msg import Clock
+
+    rclpy.init(args=sys.argv)
+    node = rclpy.create_node('watcher')
+    node.create_subscription(Clock, '/clock', lambda message: None, qos_profile_sensor_data)
+    print('subscribed', flush=True)
+    return node
+
+
 def main():
     """Behave as the mode in argv[1] says."""
     mode = sys.argv[1]
     if mode == 'crash':
         return 3
+    if mode == 'watcher':
+        node = subscribe_to_clock()  # noqa: F841 (kept alive until the process ends)
+        while True:
+            signal.pause()
     if mode in ('run', 'planner'):
         # Same process group: only a group-wide SIGKILL can end it once its parent is gone.
         subprocess.Popen([sys.executable, '-c', IGNORING_SLEEPER])

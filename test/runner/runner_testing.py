@@ -18,8 +18,9 @@ HERE = pathlib.Path(__file__).resolve().parent
 FAKE_CHILD = f'{sys.executable} {HERE / "fake_child.py"}'
 HEADON = str(HERE.parents[1] / 'src/prvo_sim/scenarios/headon2.yaml')
 TOKEN_VARIABLE = 'PRVO_RUNNER_TEST_TOKEN'
-# Two fake planners and a fake sim, each with a grandchild, and the runner's watchdog.
-FAKE_RUN_DESCENDANTS = 7
+# Two fake planners and a fake sim, each with a grandchild, the runner's watchdog and its
+# recorder's listener.
+FAKE_RUN_DESCENDANTS = 8
 DOMAIN_LINE = re.compile(r'run_scenario: ROS_DOMAIN_ID (\d+) \(')
 
 
@@ -65,22 +66,27 @@ def wait_for(condition, timeout, what):
         threading.Event().wait(0.05)
 
 
-def start_runner(argv, tmp_path, label='runner', env=None):
+def start_runner(argv, tmp_path, label='runner', env=None, preexec_fn=None, drop=()):
     """Start `python -m prvo_sim.run_scenario ARGV` in a session of its own.
 
     Without ROS_DOMAIN_ID in ENV the runner chooses its own domain (tests hold claims of their
-    own). The process gets .token (inherited by every descendant), .out_path and .err_path.
+    own); the variables named in DROP are removed from its environment; PREEXEC_FN runs in the
+    runner before it starts (a umask, a resource limit). The process gets .token (inherited by
+    every descendant), .out_path and .err_path.
     """
     token = uuid.uuid4().hex
     child_env = dict(os.environ, PYTHONUNBUFFERED='1')
     child_env.pop('ROS_DOMAIN_ID', None)
     child_env.update(env or {})
+    for name in drop:
+        child_env.pop(name, None)
     child_env[TOKEN_VARIABLE] = token
     out_path, err_path = tmp_path / f'{label}.out', tmp_path / f'{label}.err'
     with open(out_path, 'w') as out_file, open(err_path, 'w') as err_file:
         process = subprocess.Popen(
             [sys.executable, '-m', 'prvo_sim.run_scenario', *argv], env=child_env,
-            stdout=out_file, stderr=err_file, stdin=subprocess.DEVNULL, start_new_session=True)
+            stdout=out_file, stderr=err_file, stdin=subprocess.DEVNULL, start_new_session=True,
+            preexec_fn=preexec_fn)
     process.token, process.out_path, process.err_path = token, out_path, err_path
     return process
 
@@ -95,6 +101,12 @@ def runner_domain(process, timeout=60.0):
     match = DOMAIN_LINE.match(line)
     assert match, f'first line is not the domain: {line!r}'
     return int(match.group(1))
+
+
+def listener_pids(token):
+    """Return the pids of the live recorder listeners among the processes holding TOKEN."""
+    return [pid for pid in processes_with_token(token)
+            if b'prvo_sim.runner.listener' in pathlib.Path(f'/proc/{pid}/cmdline').read_bytes()]
 
 
 def output(process):

@@ -148,13 +148,8 @@ class TeamMonitor:
 
     def started(self, children, recorder):
         """Note the children's pids and listen to the simulator's status."""
-        from diagnostic_msgs.msg import DiagnosticArray
-
-        from prvo_msgs_util import DIAGNOSTICS, DIAGNOSTICS_QOS
-
         self.pids = {process.label: process.pid for process in children.processes}
-        recorder.node.create_subscription(DiagnosticArray, DIAGNOSTICS, self._on_diagnostics,
-                                          DIAGNOSTICS_QOS)
+        recorder.diagnostics_listeners.append(self._on_diagnostics)
 
     def _on_diagnostics(self, msg):
         from prvo_sim.world_messages import sim_status_of

@@ -9,6 +9,7 @@ from dataclasses import dataclass
 import math
 import pathlib
 import re
+import sys
 
 from ament_index_python.packages import PackageNotFoundError, get_package_share_directory
 import numpy as np
@@ -405,8 +406,9 @@ def find_scenario(name_or_path):
     """Return the path of a scenario given as a file path or a bare name like 'circle8'.
 
     A bare name is a file of that name if one exists, else the installed
-    share/prvo_sim/scenarios/<name>.yaml, else the copy in the source tree. Raises ScenarioError
-    if none exists.
+    share/prvo_sim/scenarios/<name>.yaml (found in the ament index, else in this Python's
+    prefix, where `./run.sh setup` installs it), else the copy in the source tree. Raises
+    ScenarioError if none exists.
     """
     candidate = pathlib.Path(name_or_path)
     # A directory of that name (say, an output folder) is not a scenario.
@@ -415,9 +417,11 @@ def find_scenario(name_or_path):
     directories = []
     try:
         directories.append(pathlib.Path(get_package_share_directory('prvo_sim')) / 'scenarios')
-    except PackageNotFoundError:
+    except (PackageNotFoundError, OSError):
+        # OSError: AMENT_PREFIX_PATH is not set.
         pass
-    directories.append(pathlib.Path(__file__).resolve().parent.parent / 'scenarios')
+    directories += [pathlib.Path(sys.prefix) / 'share' / 'prvo_sim' / 'scenarios',
+                    pathlib.Path(__file__).resolve().parent.parent / 'scenarios']
     for directory in directories:
         path = directory / f'{name_or_path}.yaml'
         if path.is_file():
@@ -449,7 +453,7 @@ def available_memory_mib(meminfo='/proc/meminfo'):
     return None
 
 
-def check_team_memory(scenario, available_mib=None):
+def check_team_memory(scenario, available_mib=None, engine='ros'):
     """Raise ScenarioError if a run of SCENARIO needs more memory than is available.
 
     AVAILABLE_MIB defaults to the machine's MemAvailable; where that is unknown, nothing is

@@ -103,6 +103,11 @@ class BagMessages:
             stamp = messages[-1][0] if messages else 0
         messages.append((stamp, data))
 
+    def drop_after(self, stamp):
+        """Leave out every message logged after STAMP [ns] (the end of the run)."""
+        for topic, messages in self.messages.items():
+            self.messages[topic] = [message for message in messages if message[0] <= stamp]
+
     def counts(self):
         """Return {topic: number of messages}."""
         return {topic: len(messages) for topic, messages in self.messages.items()}
@@ -131,11 +136,12 @@ def _rosbags_qos(profile):
                profile.avoid_ros_namespace_conventions)
 
 
-def write_bag(out_dir, bag_messages):
+def write_bag(out_dir, bag_messages, file_mode=0o644):
     """Write BAG_MESSAGES as OUT_DIR/bag/, replacing an earlier run's bag; return its path.
 
     The bag is written in full into a temporary folder beside it first, so that OUT_DIR never
     holds half a bag. Messages go in time order (a topic's order is kept among equal stamps).
+    Its files get FILE_MODE, its folder the same with search permission where it reads.
     """
     from rosbags.rosbag2 import CompressionFormat, CompressionMode, StoragePlugin, Writer
     from rosbags.typesys import Stores, get_typestore
@@ -160,6 +166,10 @@ def write_bag(out_dir, bag_messages):
                 key=lambda message: message[:2])
             for stamp, _, topic, data in ordered:
                 writer.write(connections[topic], stamp, data)
+        for path in staged.iterdir():
+            path.chmod(file_mode)
+        # Search permission wherever the mode gives read permission.
+        staged.chmod(file_mode | (file_mode & 0o444) >> 2)
         bag_path = out_dir / BAG_FOLDER
         remove_bag(out_dir)
         staged.rename(bag_path)

@@ -4,9 +4,10 @@
                  [--engine ros|inprocess] [--no-bag] [--no-animation]
 
 Exit codes: 0 the run completed (collisions are a result, not an error), 1 a child failed, the
-run timed out or processes it did not start interfered, 2 refused (bad input, a domain held by
-another runner or used by strangers: nothing was started and nothing written), 128 + signal
-number when interrupted.
+run timed out, processes it did not start interfered or a result could not be written, 2
+refused (bad input, a domain or an output folder held by another runner, a domain used by
+strangers: nothing was started and nothing written), 128 + signal number when interrupted
+(also during the teardown; the results of a run that started are written all the same).
 """
 
 import argparse
@@ -19,14 +20,15 @@ import sys
 
 from prvo_sim.runner.domain import (
     DOMAIN_IDS,
+    ClaimRefusedError,
     DomainRefusedError,
     claimed_domain,
+    claimed_folder,
     requested_domain,
 )
-from prvo_sim.runner.outputs import Ending, print_summary, write_summary
+from prvo_sim.runner.outputs import Ending, OutputError, print_summary, write_summary
 from prvo_sim.runner.processes import INTERRUPT_SIGNALS, INTERRUPTS, RunInterruptedError
 from prvo_sim.runner.session import (
-    DDS_HANG,
     ENGINES,
     METHODS,
     RunSpec,
@@ -36,6 +38,7 @@ from prvo_sim.runner.session import (
 from prvo_sim.step_timing import MODES
 
 PROGRAM = 'run_scenario'
+MAX_SEEDS = 1000  # runs of one sweep
 
 
 class UsageError(Exception):
@@ -97,6 +100,7 @@ def parse_arguments(argv, environment=None):
     ENVIRONMENT, default os.environ; None for a free one) and options.domain_source says which.
     """
     from prvo_sim.scenario import (
+        MAX_SEED,
         ScenarioError,
         check_team_memory,
         find_scenario,
@@ -106,8 +110,8 @@ def parse_arguments(argv, environment=None):
     options = build_parser().parse_args(argv)
     if options.eta is not None and not 0.0 < options.eta < 1.0:
         raise UsageError(f'--eta: {options.eta} is outside (0, 1)')
-    if options.seeds < 1:
-        raise UsageError(f'--seeds: {options.seeds} is not a positive count')
+    if not 1 <= options.seeds <= MAX_SEEDS:
+        raise UsageError(f'--seeds: {options.seeds} is outside 1..{MAX_SEEDS}')
     if options.timeout is not None and not options.timeout > 0.0:
         raise UsageError(f'--timeout: {options.timeout} is not a positive time')
     if options.engine == 'inprocess':
@@ -129,11 +133,15 @@ def parse_arguments(argv, environment=None):
             raise UsageError(f"--{name.replace('_', '-')}: empty command")
     try:
         scenario = load_scenario(find_scenario(options.scenario), seed=options.seed)
-        check_team_memory(scenario)
+        check_team_memory(scenario, engine=options.engine)
     except ScenarioError as error:
         raise UsageError(str(error)) from None
     except OSError as error:
         raise UsageError(f'{options.scenario}: {error.strerror or error}') from None
+    last_seed = scenario.seed + options.seeds - 1
+    if last_seed > MAX_SEED:
+        raise UsageError(f'--seeds: {options.seeds} seeds from {scenario.seed} end at seed '
+                         f'{last_seed}, outside 0..{MAX_SEED}')
     options.out = pathlib.Path(options.out or pathlib.Path('results') / scenario.name)
     check_writable(options.out)
     return options, scenario
@@ -158,14 +166,23 @@ def check_writable(folder):
 
 
 def run(options, scenario):
-    """Claim the domain (ROS engine), run every requested seed; return the exit code."""
+    """Claim the output folder and the domain (ROS engine), run every seed; return the exit code.
+
+    An interrupted sweep still writes the summary of the seeds it ran.
+    """
     from prvo_sim.runner.recorder import foreign_participants
 
     eta = run_eta(options, scenario)
     seeds = [scenario.seed + offset for offset in range(options.seeds)]
     robot_names = [robot.name for robot in scenario.robots]
     runs = []
+    interrupted = None
     with contextlib.ExitStack() as claim:
+        try:
+            claim.enter_context(claimed_folder(options.out))
+        except ClaimRefusedError as error:
+            print(f'{PROGRAM}: error: {error}', file=sys.stderr)
+            return 2
         if options.engine == 'inprocess':
             from prvo_sim.runner.inprocess import run_inprocess
 
@@ -184,15 +201,27 @@ def run(options, scenario):
 
             def run_one(spec):
                 return run_once(spec, domain_id)
-        for seed in seeds:
-            out_dir = options.out if options.seeds == 1 else options.out / f'seed_{seed}'
-            result = run_one(RunSpec(options, scenario, eta, seed, out_dir))
-            runs.append((result.metrics, out_dir))
-            print_summary(result.metrics, out_dir)
-            if result.interrupted is not None:
-                return 128 + result.interrupted
-    if options.seeds > 1:
-        write_summary(options.out, runs)
+        try:
+            for seed in seeds:
+                out_dir = options.out if options.seeds == 1 else options.out / f'seed_{seed}'
+                result = run_one(RunSpec(options, scenario, eta, seed, out_dir))
+                runs.append((result.metrics, out_dir))
+                print_summary(result.metrics, out_dir)
+                if result.interrupted is not None:
+                    interrupted = result.interrupted
+                    break
+        except RunInterruptedError as interruption:
+            # Between two seeds: the seeds that ran are summarised.
+            print(f'{PROGRAM}: interrupted by {interruption}', file=sys.stderr)
+            interrupted = interruption.signum
+        except OutputError as error:
+            print(f'{PROGRAM}: error: {error}', file=sys.stderr)
+            return 1
+        if options.seeds > 1 and runs:
+            with INTERRUPTS.teardown():
+                write_summary(options.out, runs)
+    if interrupted is not None:
+        return 128 + interrupted
     return 0 if all(Ending(run_metrics['ending']).completed for run_metrics, _ in runs) else 1
 
 
@@ -204,19 +233,13 @@ def run_interruptibly(program, job):
     previous_handlers = {signum: signal.signal(signum, INTERRUPTS.handle)
                          for signum in INTERRUPT_SIGNALS}
     try:
-        code = job()
+        return job()
     except RunInterruptedError as interruption:
         print(f'{program}: interrupted by {interruption}', file=sys.stderr)
-        code = 128 + interruption.signum
+        return 128 + interruption.signum
     finally:
         for signum, handler in previous_handlers.items():
             signal.signal(signum, handler)
-    if DDS_HANG.noticed:
-        # A thread is stuck inside Fast DDS: interpreter shutdown would wait on it forever.
-        sys.stdout.flush()
-        sys.stderr.flush()
-        os._exit(code)
-    return code
 
 
 def main(argv=None):

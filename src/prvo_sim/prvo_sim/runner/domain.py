@@ -1,12 +1,14 @@
-"""Exclusive ROS_DOMAIN_ID claims: a run owns its domain or refuses it.
+"""Exclusive claims: a run owns its ROS_DOMAIN_ID and its output folder, or refuses them.
 
-A claim is an flock on DOMAIN_LOCK_DIR/<id>.lock, which holds the claimant's pid and command
-line so that a refused runner can say who holds the domain. Test fixtures claim their domains
-the same way, so runs and tests on one machine never share one.
+A claim is an flock on DOMAIN_LOCK_DIR/<id>.lock (a domain) or FOLDER_LOCK_DIR/<hash>.lock (an
+output folder, by its resolved path), which holds the claimant's pid and command line so that
+a refused runner can say who holds it. Test fixtures claim their domains the same way, so runs
+and tests on one machine never share one.
 """
 
 import contextlib
 import fcntl
+import hashlib
 import os
 import pathlib
 import shlex
@@ -18,9 +20,14 @@ DOMAIN_IDS = range(1, 102)
 # What ROS 2 accepts at all (an explicit id is checked against it).
 VALID_DOMAIN_IDS = range(0, 233)
 DOMAIN_LOCK_DIR = pathlib.Path(tempfile.gettempdir()) / 'prvo-ros-domains'
+FOLDER_LOCK_DIR = pathlib.Path(tempfile.gettempdir()) / 'prvo-run-folders'
 
 
-class DomainRefusedError(Exception):
+class ClaimRefusedError(Exception):
+    """What a run asked to hold is held by another claimant (or unfit); the text says why."""
+
+
+class DomainRefusedError(ClaimRefusedError):
     """The domain asked for is held by another claimant or used by strangers."""
 
 
@@ -35,8 +42,13 @@ def _command_line():
 
 def _lock(domain_id):
     """Claim DOMAIN_ID; return the open lock file descriptor, or (None, holder description)."""
-    DOMAIN_LOCK_DIR.mkdir(exist_ok=True)
-    path = DOMAIN_LOCK_DIR / f'{domain_id}.lock'
+    return _lock_file(DOMAIN_LOCK_DIR, f'{domain_id}.lock')
+
+
+def _lock_file(folder, name):
+    """Claim FOLDER/NAME; return the open lock file descriptor, or (None, holder description)."""
+    folder.mkdir(exist_ok=True)
+    path = folder / name
     try:
         # Not truncated on open: the holder's pid and command line are in it.
         descriptor = os.open(path, os.O_RDWR | os.O_CREAT, 0o666)
@@ -97,6 +109,23 @@ def claimed_domain(requested, vet=None):
     raise DomainRefusedError(
         f'no free ROS_DOMAIN_ID in {DOMAIN_IDS.start}..{DOMAIN_IDS.stop - 1}: every one is held '
         f'or used by other processes')
+
+
+@contextlib.contextmanager
+def claimed_folder(folder):
+    """Hold output FOLDER exclusively until the block ends; ClaimRefusedError names a holder.
+
+    Two runs writing one folder at once would replace each other's results.
+    """
+    resolved = pathlib.Path(folder).resolve()
+    digest = hashlib.sha256(str(resolved).encode()).hexdigest()[:32]
+    descriptor, holder = _lock_file(FOLDER_LOCK_DIR, f'{digest}.lock')
+    if descriptor is None:
+        raise ClaimRefusedError(f'--out: {resolved} is being written by {holder}')
+    try:
+        yield resolved
+    finally:
+        _release(descriptor)
 
 
 def requested_domain(option, environment):

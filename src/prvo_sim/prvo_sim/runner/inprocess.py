@@ -1,9 +1,12 @@
 """One run on the in-process engine: the same world and agents as the ROS lockstep run, no DDS.
 
 The run ends as a ROS run does (every robot arrived and stayed, the scenario's duration, the
-wall-clock limit) and writes the same results; there are no children, logs or domain.
+wall-clock limit) and writes the same results; there are no children, logs or domain. The
+wall-clock limit holds also within a step that does not end: a timer signal interrupts it.
 """
 
+import contextlib
+import signal
 import time
 
 import numpy as np
@@ -11,14 +14,34 @@ import numpy as np
 from prvo_sim.engine import InProcessTeam
 from prvo_sim.runner.bag import TeamMessages
 from prvo_sim.runner.outputs import Ending, Recording, RunResult, write_outputs
-from prvo_sim.runner.processes import RunInterruptedError
+from prvo_sim.runner.processes import INTERRUPTS, RunInterruptedError
 from prvo_sim.runner.session import (
     PROGRESS_PERIOD,
-    SETTLE_TIME,
     ProgressLine,
+    has_settled,
     planner_values,
     settled,
 )
+
+
+class _TimedOutError(Exception):
+    """The run's wall-clock limit passed."""
+
+
+def _time_out(_signum, _frame):
+    raise _TimedOutError
+
+
+@contextlib.contextmanager
+def wall_clock_limit(seconds):
+    """Raise _TimedOutError in the block once SECONDS of wall time have passed (SIGALRM)."""
+    previous = signal.signal(signal.SIGALRM, _time_out)
+    signal.setitimer(signal.ITIMER_REAL, seconds)
+    try:
+        yield
+    finally:
+        signal.setitimer(signal.ITIMER_REAL, 0.0)
+        signal.signal(signal.SIGALRM, previous)
 
 
 def run_inprocess(spec):
@@ -30,53 +53,61 @@ def run_inprocess(spec):
     # The messages the ROS run would publish, for the run's bag.
     messages = (TeamMessages([robot.name for robot in scenario.robots], values, team)
                 if spec.bag else None)
-    goals = team.world.goals
-    # Scripted robots do not arrive: the planned ones end the run.
-    planned = np.array([robot.scripted is None for robot in scenario.robots])
     steps = []
     ending, failure, interrupted = Ending.FAILED, None, None
     progress = ProgressLine(spec, quiet=spec.quiet)
     started = time.monotonic()
-    next_progress = started
-    settled_since = None
     try:
-        while True:
-            if messages is not None:
-                messages.add_state()
-            step = team.do_step()
-            steps.append(step)
-            if messages is not None:
-                messages.add_step(step)
-            arrived = (np.linalg.norm(step.states[:, :2] - goals, axis=1) <= (
-                scenario.goal_tolerance))[planned]
-            now = time.monotonic()
-            if now >= next_progress:
-                progress(step.time, int(arrived.sum()), now - started)
-                next_progress = now + PROGRESS_PERIOD
-            settled_since = settled(arrived, step.time, settled_since)
-            if settled_since is not None and step.time - settled_since >= SETTLE_TIME:
-                ending = Ending.ARRIVED
-                break
-            if team.finished:
-                ending = Ending.DURATION
-                break
-            if now - started > spec.timeout:
-                failure = f'timed out after {spec.timeout:g} s of wall time'
-                break
+        with wall_clock_limit(spec.timeout):
+            ending = run_steps(spec, team, messages, steps, progress)
+    except _TimedOutError:
+        failure = f'timed out after {spec.timeout:g} s of wall time'
     except RunInterruptedError as interruption:
         ending, interrupted = Ending.INTERRUPTED, interruption.signum
         failure = f'interrupted by {interruption}'
-    finally:
+    with INTERRUPTS.teardown() as teardown:
         progress.finish()
-    wall_time = time.monotonic() - started
-    recording = None
-    if steps:
-        recording = Recording(
-            np.array([step.time for step in steps]), np.array([step.states for step in steps]),
-            np.array([step.commands for step in steps]),
-            tuple(np.concatenate([step.plan_ms for step in steps]).tolist()),
-            deadline_misses=0, yaws=np.array([step.yaws for step in steps]),
-            bag_messages=None if messages is None else messages.bag_messages)
-    spec.out_dir.mkdir(parents=True, exist_ok=True)
-    run_metrics = write_outputs(spec, recording, ending, failure, wall_time)
+        wall_time = time.monotonic() - started
+        recording = None
+        if steps:
+            recording = Recording(
+                np.array([step.time for step in steps]),
+                np.array([step.states for step in steps]),
+                np.array([step.commands for step in steps]),
+                tuple(np.concatenate([step.plan_ms for step in steps]).tolist()),
+                deadline_misses=0, yaws=np.array([step.yaws for step in steps]),
+                bag_messages=None if messages is None else messages.bag_messages)
+        spec.out_dir.mkdir(parents=True, exist_ok=True)
+        run_metrics = write_outputs(spec, recording, ending, failure, wall_time)
+        if interrupted is None:
+            interrupted = teardown.last_signal
     return RunResult(ending, run_metrics, interrupted)
+
+
+def run_steps(spec, team, messages, steps, progress):
+    """Step TEAM, appending each step to STEPS, until the run ends; return its `Ending`."""
+    scenario = spec.scenario
+    goals = team.world.goals
+    # Scripted robots do not arrive: the planned ones end the run.
+    planned = np.array([robot.scripted is None for robot in scenario.robots])
+    started = time.monotonic()
+    next_progress = started
+    settled_since = None
+    while True:
+        if messages is not None:
+            messages.add_state()
+        step = team.do_step()
+        steps.append(step)
+        if messages is not None:
+            messages.add_step(step)
+        arrived = (np.linalg.norm(step.states[:, :2] - goals, axis=1) <= (
+            scenario.goal_tolerance))[planned]
+        now = time.monotonic()
+        if now >= next_progress:
+            progress(step.time, int(arrived.sum()), now - started)
+            next_progress = now + PROGRESS_PERIOD
+        settled_since = settled(arrived, step.time, settled_since)
+        if has_settled(step.time, settled_since):
+            return Ending.ARRIVED
+        if team.finished:
+            return Ending.DURATION

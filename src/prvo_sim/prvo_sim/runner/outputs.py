@@ -1,9 +1,15 @@
 """The results of a run: metrics.json, trajectories.csv, .png and .gif, the bag, the summaries.
 
-Results are written only by a run that started children, each file through a temporary file
-in the same folder, so that a folder never mixes files of two runs or holds a half-written one.
+Results are written only by a run that started, metrics.json first, each file through a
+temporary file in the same folder (so that the folder never holds a half-written file), after
+removing an earlier run's (so that it never mixes two runs). metrics.json and trajectories.csv
+are the results: if one cannot be written the run fails with OutputError. The plot, the bag
+and the animation are views of them: one that cannot be written (a full disk) costs a warning
+line and that file only, and an interrupt while the animation is drawn costs the animation.
+Files get the mode the umask gives, as any file a program creates.
 """
 
+import contextlib
 import csv
 from dataclasses import dataclass
 import enum
@@ -11,6 +17,7 @@ import json
 import math
 import os
 import pathlib
+import signal
 import sys
 import tempfile
 
@@ -18,12 +25,16 @@ import numpy as np
 
 from prvo_sim import metrics
 from prvo_sim.runner.bag import BAG_FOLDER
-from prvo_sim.runner.processes import INTERRUPTS
+from prvo_sim.runner.processes import INTERRUPTS, RunInterruptedError
 
 RUN_RESULTS = ('trajectories.csv', 'trajectories.png', 'trajectories.gif', 'metrics.json')
 AGGREGATED_KEYS = ('success_rate', 'collisions', 'min_separation', 'makespan',
                    'mean_time_to_goal', 'planner_ms.median', 'planner_ms.p95', 'planner_ms.max',
                    'deadline_misses', 'sim_time', 'wall_time')
+
+
+class OutputError(Exception):
+    """A result (metrics.json, trajectories.csv) could not be written; one line says why."""
 
 
 class Ending(enum.Enum):
@@ -130,56 +141,58 @@ def write_outputs(spec, recording, ending, failure, wall_time):
     if failure is not None:
         run_metrics['failure'] = failure
     run_metrics = finite_or_none(run_metrics)
-    files = {'trajectories.csv': lambda path: write_trajectories_csv(
-        path, times, names, states, commands, recording.yaws)}
-    animation = None
-    if times.size:
-        from prvo_sim.animation import animate_run
-        from prvo_sim.plotting import plot_run
+    out_dir = spec.out_dir
+    with INTERRUPTS.teardown():
+        clear_results(out_dir, RUN_RESULTS)
+        write_result(out_dir, 'metrics.json', lambda path: write_json(path, run_metrics))
+        write_result(out_dir, 'trajectories.csv', lambda path: write_trajectories_csv(
+            path, times, names, states, commands, recording.yaws))
+        if times.size:
+            from prvo_sim.plotting import plot_run
 
-        files['trajectories.png'] = lambda path: plot_run(
-            path, times, states[..., :2],
-            np.array([robot.start for robot in scenario.robots], dtype=float), goals, radii,
-            names, contacts, plot_title(run_metrics), scripted, yaws=recording.yaws)
-        if spec.animation:
+            write_view(out_dir, 'trajectories.png', lambda path: plot_run(
+                path, times, states[..., :2],
+                np.array([robot.start for robot in scenario.robots], dtype=float), goals, radii,
+                names, contacts, plot_title(run_metrics), scripted, yaws=recording.yaws))
+        write_run_bag(spec, recording)
+        if times.size and spec.animation:
+            from prvo_sim.animation import animate_run
+
             # The animation draws headings from a fifth state column where they are known.
             drawn = (states if recording.yaws is None
                      else np.concatenate([states, recording.yaws[..., None]], axis=-1))
-            animation = {'trajectories.gif': lambda path: animate_run(
-                path, times, drawn, goals, radii, names, plot_title(run_metrics),
-                position_std=[robot.noise.position_std for robot in scenario.robots],
-                scripted=scripted)}
-    # Last of these: metrics.json says which run the folder holds.
-    files['metrics.json'] = lambda path: write_json(path, run_metrics)
-    # A second Ctrl-C waits for these (a second or two); the slow animation comes after, so
-    # that an interruption while it is drawn costs the GIF only.
-    with INTERRUPTS.deferred():
-        write_run_bag(spec, recording)
-        replace_results(spec.out_dir, files, RUN_RESULTS)
-    if animation is not None:
-        replace_results(spec.out_dir, animation)
+            with contextlib.suppress(RunInterruptedError), INTERRUPTS.abortable():
+                write_view(out_dir, 'trajectories.gif', lambda path: animate_run(
+                    path, times, drawn, goals, radii, names, plot_title(run_metrics),
+                    position_std=[robot.noise.position_std for robot in scenario.robots],
+                    scripted=scripted))
+            if INTERRUPTS.last_signal is not None:
+                warn(f'trajectories.gif not written: interrupted by '
+                     f'{signal.Signals(INTERRUPTS.last_signal).name}')
     return run_metrics
 
 
+def warn(text):
+    """Print a one-line warning of the runner."""
+    print(f'run_scenario: warning: {text}', file=sys.stderr, flush=True)
+
+
 def write_run_bag(spec, recording):
-    """Write the bag of RECORDING into spec.out_dir, or remove an earlier run's bag.
+    """Write the bag of RECORDING into spec.out_dir, if it is kept and has messages.
 
     A bag that cannot be written costs the run its bag only: the other results are written.
     """
     from rosbags.rosbag2 import WriterError
 
-    from prvo_sim.runner.bag import remove_bag, write_bag
+    from prvo_sim.runner.bag import write_bag
 
     messages = recording.bag_messages
     if not spec.bag or messages is None or not any(messages.counts().values()):
-        remove_bag(spec.out_dir)
         return
     try:
-        write_bag(spec.out_dir, recording.bag_messages)
+        write_bag(spec.out_dir, recording.bag_messages, file_mode())
     except (OSError, WriterError) as error:
-        remove_bag(spec.out_dir)
-        print(f'run_scenario: warning: could not write the bag in {spec.out_dir}: {error}',
-              file=sys.stderr)
+        warn(f'{BAG_FOLDER}/ not written: {error}')
 
 
 def finite_or_none(value):
@@ -200,28 +213,52 @@ def write_json(path, document):
         json_file.write('\n')
 
 
-def replace_results(folder, files, result_names=()):
-    """Write FILES ({name: write(path)}) into FOLDER, each through a temporary file.
+def file_mode():
+    """Return the mode of a new file under this process's umask (0o666 less the umask)."""
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return 0o666 & ~mask
 
-    Every file is written in full before the first replaces its old version (os.replace), so
-    the folder never holds a half-written file; a file of RESULT_NAMES that is not in FILES is
-    removed, so that no result of an earlier run stays beside the new ones.
-    """
-    temporaries = {}
+
+def clear_results(folder, names):
+    """Remove an earlier run's results NAMES and bag from FOLDER."""
+    from prvo_sim.runner.bag import remove_bag
+
+    for name in names:
+        (pathlib.Path(folder) / name).unlink(missing_ok=True)
+    remove_bag(folder)
+
+
+def write_result(folder, name, write):
+    """Write FOLDER/NAME with WRITE(path) through a temporary file; OutputError if it fails."""
     try:
-        for name, write in files.items():
-            descriptor, temporary = tempfile.mkstemp(dir=folder, prefix='.', suffix=f'-{name}')
-            os.close(descriptor)
-            temporaries[name] = temporary
-            write(pathlib.Path(temporary))
-        for name in result_names:
-            if name not in files:
-                (pathlib.Path(folder) / name).unlink(missing_ok=True)
-        for name, temporary in temporaries.items():
-            os.replace(temporary, pathlib.Path(folder) / name)
+        replace_result(folder, name, write)
+    except OSError as error:
+        raise OutputError(f'could not write {pathlib.Path(folder) / name}: '
+                          f'{error.strerror or error}') from None
+
+
+def write_view(folder, name, write):
+    """Write FOLDER/NAME as write_result does; a failure is a warning line, not an error."""
+    try:
+        replace_result(folder, name, write)
+    except OSError as error:
+        warn(f'{name} not written: {error.strerror or error}')
+
+
+def replace_result(folder, name, write):
+    """Write FOLDER/NAME with WRITE(path) into a temporary file, then put it in place.
+
+    The folder never holds a half-written file; the file gets the umask's mode.
+    """
+    descriptor, temporary = tempfile.mkstemp(dir=folder, prefix='.', suffix=f'-{name}')
+    os.close(descriptor)
+    try:
+        write(pathlib.Path(temporary))
+        os.chmod(temporary, file_mode())
+        os.replace(temporary, pathlib.Path(folder) / name)
     finally:
-        for temporary in temporaries.values():
-            pathlib.Path(temporary).unlink(missing_ok=True)
+        pathlib.Path(temporary).unlink(missing_ok=True)
 
 
 def write_trajectories_csv(path, times, names, states, commands, yaws=None):
@@ -316,7 +353,7 @@ def write_summary(out_dir, runs):
                            for run_metrics, _ in runs),
         'metrics': metrics.aggregate([run_metrics for run_metrics, _ in runs], AGGREGATED_KEYS),
     }
-    replace_results(out_dir, {'summary.json': lambda path: write_json(path, summary)})
+    write_result(out_dir, 'summary.json', lambda path: write_json(path, summary))
     print(f"{summary['scenario']} | method {summary['method']}, eta "
           f"{format_eta(summary['eta'])} | {len(runs)} seeds, {summary['failed_runs']} failed")
     print(f"  {'metric':<20} {'mean':>9} {'std':>9} {'min':>9} {'max':>9} {'n':>4}")

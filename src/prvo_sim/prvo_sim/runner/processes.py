@@ -54,7 +54,12 @@ class RunInterruptedError(Exception):
 
 
 class _InterruptGate:
-    """Turns the interrupt signals into RunInterruptedError, deferred out of critical sections.
+    """Turns the interrupt signals into RunInterruptedError, or notes them in a teardown.
+
+    During a run a signal raises RunInterruptedError, deferred out of critical sections (a child
+    started but not yet recorded). Once a run ends (`teardown`), nothing can stand between its
+    end and its results: a signal is only noted (`last_signal`), which cuts waits short (the
+    children's grace) and aborts what is optional (`abortable`: the animation).
 
     Blocking the signals instead (pthread_sigmask) would be inherited by the children, which
     then could not be stopped with SIGINT.
@@ -63,9 +68,17 @@ class _InterruptGate:
     def __init__(self):
         self._deferring = False
         self._pending = None
+        self._teardowns = 0
+        self._abortable = False
+        self.last_signal = None
 
     def handle(self, signum, _frame):
-        """Signal handler: raise now, or once the current critical section ends."""
+        """Signal handler: raise now, note it in a teardown, or raise once a section ends."""
+        if self._teardowns:
+            self.last_signal = signum
+            if self._abortable:
+                raise RunInterruptedError(signum)
+            return
         if self._deferring:
             self._pending = signum
             return
@@ -83,31 +96,50 @@ class _InterruptGate:
             if pending is not None:
                 raise RunInterruptedError(pending)
 
+    @contextlib.contextmanager
+    def teardown(self):
+        """Note interrupts instead of raising them while the block runs (it may be nested)."""
+        if not self._teardowns:
+            self.last_signal = None
+        self._teardowns += 1
+        try:
+            yield self
+        finally:
+            self._teardowns -= 1
+
+    @contextlib.contextmanager
+    def abortable(self):
+        """Within a teardown, let an interrupt (also one noted before) cut the block short."""
+        self._abortable = True
+        try:
+            if self.last_signal is not None:
+                raise RunInterruptedError(self.last_signal)
+            yield
+        finally:
+            self._abortable = False
+
 
 INTERRUPTS = _InterruptGate()
 
 
-@contextlib.contextmanager
-def signals_ignored():
-    """Ignore the interrupt signals while the block runs (the children are being stopped)."""
-    previous = {signum: signal.signal(signum, signal.SIG_IGN) for signum in INTERRUPT_SIGNALS}
-    try:
-        yield
-    finally:
-        for signum, handler in previous.items():
-            signal.signal(signum, handler)
-
-
 def package_command(package, executable, module):
-    """Return the argv prefix 'ros2 run PACKAGE EXECUTABLE' would run, else MODULE's main()."""
+    """Return the argv prefix 'ros2 run PACKAGE EXECUTABLE' would run, else MODULE's main().
+
+    The executable is looked up in the ament index where AMENT_PREFIX_PATH is set, else in
+    this Python's own prefix, where `./run.sh setup` installs it (no env.sh needed).
+    """
+    prefixes = [pathlib.Path(sys.prefix)]
     try:
         from ament_index_python.packages import PackageNotFoundError, get_package_prefix
 
-        path = pathlib.Path(get_package_prefix(package)) / 'lib' / package / executable
+        prefixes.insert(0, pathlib.Path(get_package_prefix(package)))
+    except (ImportError, PackageNotFoundError, OSError):
+        # OSError: AMENT_PREFIX_PATH is not set.
+        pass
+    for prefix in prefixes:
+        path = prefix / 'lib' / package / executable
         if os.access(path, os.X_OK):
             return [str(path)]
-    except (ImportError, PackageNotFoundError):
-        pass
     return [sys.executable, '-c', f'import sys; from {module} import main; sys.exit(main())']
 
 
@@ -120,10 +152,13 @@ def child_environment(domain_id):
     env.setdefault('OPENBLAS_NUM_THREADS', '1')
     # Shared memory can keep a restarted process from hearing the ones that outlived the old.
     env.setdefault('FASTDDS_BUILTIN_TRANSPORTS', 'UDPv4')
+    # The children find their packages (shipped scenarios, ament resources) without env.sh.
+    if not env.get('AMENT_PREFIX_PATH'):
+        env['AMENT_PREFIX_PATH'] = sys.prefix
     return env
 
 
-def _die_with(parent_pid):
+def die_with(parent_pid):
     """Return a preexec function: SIGKILL the child when PARENT_PID (its forking thread) ends."""
     def set_parent_death_signal():
         _PRCTL(_PR_SET_PDEATHSIG, int(signal.SIGKILL), 0, 0, 0)
@@ -163,7 +198,7 @@ class Children:
                 process = subprocess.Popen(
                     argv, env=self._env, stdout=log_file, stderr=subprocess.STDOUT,
                     stdin=subprocess.DEVNULL, start_new_session=True,
-                    preexec_fn=_die_with(os.getpid()))
+                    preexec_fn=die_with(os.getpid()))
                 self._tell_watchdog(process.pid)
                 process.label = label
                 process.log_path = log_path
@@ -177,21 +212,28 @@ class Children:
                 return process
         return None
 
+    def interrupt(self):
+        """SIGINT every running child's process group, once; do not wait."""
+        for process in self.processes:
+            if process.poll() is None and not getattr(process, 'interrupted', False):
+                _signal_group(process.pid, signal.SIGINT)
+                process.interrupted = True
+
     def stop(self, grace=SHUTDOWN_GRACE):
         """SIGINT every child's process group, wait up to GRACE s, then SIGKILL what is left.
 
-        Only the first call does anything: afterwards the groups' ids may belong to others.
+        An interrupt signal noted meanwhile (INTERRUPTS.last_signal, in a teardown) ends the
+        grace at once. Only the first call does anything: afterwards the groups' ids may
+        belong to others.
         """
         if self._stopped:
             return
         self._stopped = True
-        for process in self.processes:
-            if process.poll() is None:
-                _signal_group(process.pid, signal.SIGINT)
+        self.interrupt()
         deadline = time.monotonic() + grace
-        for process in self.processes:
-            with contextlib.suppress(subprocess.TimeoutExpired):
-                process.wait(timeout=max(0.0, deadline - time.monotonic()))
+        while (any(process.poll() is None for process in self.processes)
+               and time.monotonic() < deadline and INTERRUPTS.last_signal is None):
+            time.sleep(0.02)
         # Also catches grandchildren left in a group whose leader has exited. The watchdog
         # forgets a group before its leader is reaped, after which the id may be reused.
         for process in self.processes:

@@ -1,30 +1,44 @@
-"""The recorder: an rclpy node in the runner that records a run and watches its domain.
+"""The recorder: what a run heard, kept in the runner; its DDS side is a child process.
 
-Besides ground truth, commands and diagnostics it reads the ROS graph: before a run, a domain
-with strangers on it (anything publishing beyond /rosout and /parameter_events, or touching the
-run's topics) is refused; during a run, a publisher the runner did not start, or a second
-publisher on a topic of the run, fails it. Pure observers (subscribers) are welcome then.
+The runner holds no DDS participant (see prvo_sim.runner.listener, which says why): a listener
+child subscribes to the run and streams every message it takes and snapshots of the ROS graph
+to this class, which keeps the messages serialized, decodes them when read, and judges the
+graph. Before a run, a domain with strangers on it (anything publishing beyond /rosout and
+/parameter_events) is refused; nodes that only subscribe, such as `ros2 topic echo /clock`,
+cannot change a run's numbers and are welcome. During a run, a publisher the runner did not
+start, or a second publisher on a topic of the run, fails it.
 """
 
 import contextlib
-import copy
 import itertools
+import json
 import math
 import os
-import threading
+import signal
+import socket
+import subprocess
+import sys
+import tempfile
 import time
 
 import numpy as np
 
-RECORDER_CLOSE_TIMEOUT = 5.0  # wall seconds the recorder's DDS teardown may take
-# Topics every rclpy node publishes on; publishing there says nothing about a node.
-ROS_DEFAULT_TOPICS = ('/rosout', '/parameter_events')
-RECORDER_QUEUE_DEPTH = 2000  # messages per topic held until the recorder takes them
+from prvo_sim.runner.listener import UNNAMED_NODE
+from prvo_sim.runner.processes import child_environment, die_with
+
+LISTENER_START_LIMIT = 60.0  # wall seconds for the listener to start (rclpy, DDS discovery)
+LISTENER_STOP_WAIT = 1.0  # wall seconds the listener gets to leave before SIGKILL
+# Wall seconds of listening for strangers on the domain before a run. Longer than Fast DDS's
+# periodic participant announcement (3 s): a stranger starved of CPU when the check's own
+# announcements arrive is still heard once.
+DOMAIN_CHECK_TIME = 3.5
+NAMING_GRACE = 5.0  # wall seconds more for a stranger's node name to arrive
 MAX_NAMED_INTRUDERS = 3  # in a one-line failure
 _INSTANCES = itertools.count()
-# What the graph says of an endpoint whose participant's node names have not arrived yet.
-_UNKNOWN_NODE_NAME = '_NODE_NAME_UNKNOWN_'
-UNNAMED_NODE = '(a node not named yet)'
+
+
+class RecorderError(Exception):
+    """The recorder's listener process could not start or stopped answering."""
 
 
 def _stamp_ns(stamp):
@@ -37,43 +51,33 @@ def _seconds_ns(seconds):
 
 
 class Recorder:
-    """An rclpy node in a context of its own that records what the run needs to be measured."""
+    """What a run heard, streamed from a listener child on the run's domain (see the module)."""
 
     def __init__(self, domain_id, robot_names, role='recorder', planned_names=None,
                  record_bag=False):
-        """Create the node on DOMAIN_ID, subscribed to what ROBOT_NAMES' run publishes.
+        """Start a listener on DOMAIN_ID subscribed to what ROBOT_NAMES' run publishes.
 
-        ROLE goes into the node's name, which is unique to the process and the instance.
-        PLANNED_NAMES are the robots with a planner (default: all); the others are scripted,
-        moved by the simulator, and publish no cmd_vel or planner diagnostics. With
+        ROLE goes into the listener's node name, which is unique to the runner and the
+        instance. PLANNED_NAMES are the robots with a planner (default: all); the others are
+        scripted, moved by the simulator, and publish no cmd_vel or planner diagnostics. With
         RECORD_BAG it also keeps, serialized, everything else of the run's bag (see
         `bag_messages`): /clock, odometry and markers; planners build markers only then.
+        Raises RecorderError if the listener does not start.
         """
-        from diagnostic_msgs.msg import DiagnosticArray
-        from geometry_msgs.msg import TwistStamped
-        from nav_msgs.msg import Odometry
-        import rclpy
-        from rclpy.context import Context
-        from rclpy.experimental import EventsExecutor
-        from rclpy.signals import SignalHandlerOptions
-        from rclpy.task import Future
-
         from prvo_msgs_util import (
+            CLOCK,
             CMD_VEL,
-            CMD_VEL_QOS,
             DIAGNOSTICS,
-            DIAGNOSTICS_QOS,
             GROUND_TRUTH,
-            ODOM_QOS,
-            quiet_subscription_events,
+            MARKERS,
+            ODOM,
             robot_topic,
         )
-        from prvo_sim.runner.session import run_topics
 
         self.robot_names = list(robot_names)
         self.planned_names = list(robot_names if planned_names is None else planned_names)
-        # Ground truth and commands are kept serialized as they arrive and decoded when read:
-        # decoding costs the recorder most of its CPU, which the team it measures needs.
+        self.domain_id = domain_id
+        # Ground truth and commands are kept serialized as they arrive and decoded when read.
         self._serialized = {kind: {name: [] for name in self.robot_names}
                             for kind in ('ground_truth', 'commands')}
         self._decoded = {kind: ({name: {} for name in self.robot_names},
@@ -82,77 +86,116 @@ class Recorder:
         self.plan_times_ms = []
         # The simulator's latest prvo_sim status (world_messages.SimStatus), None before.
         self.sim_status = None
-        self.context = Context()
-        # The runner handles SIGINT/SIGTERM itself, so that children are always stopped.
-        rclpy.init(context=self.context, domain_id=domain_id,
-                   signal_handler_options=SignalHandlerOptions.NO)
-        self.domain_id = domain_id
-        # Unique to the run: the simulator waits for this node by name (its `observers`).
-        self.node = rclpy.create_node(
-            f'prvo_run_{role}_d{domain_id}_p{os.getpid()}_{next(_INSTANCES)}',
-            context=self.context)
-        self.name = self.node.get_fully_qualified_name()
-        self.run_topics = run_topics(self.robot_names)
-        # The recorder shares the CPU with the team it measures: the events executor (see
-        # prvo_msgs_util.spin_events) and bookkeeping a few times per second, not per message.
-        self._executor = EventsExecutor(context=self.context)
-        self._executor.add_node(self.node)
-        self._never_done = Future()
-        # No per-endpoint QoS event handlers (prvo_msgs_util.quiet_subscription_events): it
-        # only listens to prvo nodes.
-        self._command_subscriptions = {}
-        for name in self.robot_names:
-            for kind, topic, message_type, qos in (
-                    ('ground_truth', GROUND_TRUTH, Odometry, ODOM_QOS),
-                    ('commands', CMD_VEL, TwistStamped, CMD_VEL_QOS)):
-                subscription = self.node.create_subscription(
-                    message_type, robot_topic(name, topic), self._serialized[kind][name].append,
-                    _deep(qos), event_callbacks=quiet_subscription_events(), raw=True)
-                if kind == 'commands':
-                    self._command_subscriptions[name] = subscription
+        # Called with every DiagnosticArray received (the team benchmark times steps so).
+        self.diagnostics_listeners = []
         self._serialized_diagnostics = []
-        self._diagnostics_subscription = self.node.create_subscription(
-            DiagnosticArray, DIAGNOSTICS, self._on_diagnostics, _deep(DIAGNOSTICS_QOS),
-            event_callbacks=quiet_subscription_events(), raw=True)
+        self._publishers = {}
+        self._matched = {}
+        # Each subscribed topic, with its kind and where its messages go.
+        routes = []
+        for name in self.robot_names:
+            routes.append((robot_topic(name, GROUND_TRUTH), 'odometry',
+                           self._serialized['ground_truth'][name].append))
+            routes.append((robot_topic(name, CMD_VEL), 'command',
+                           self._serialized['commands'][name].append))
+        routes.append((DIAGNOSTICS, 'diagnostics', self._on_diagnostics))
         self._bag_topics = None
         if record_bag:
-            self._subscribe_bag_topics()
+            self._bag_topics = {CLOCK: [], DIAGNOSTICS: self._serialized_diagnostics}
+            routes.append((CLOCK, 'clock', self._bag_topics[CLOCK].append))
+            for name in self.robot_names:
+                self._bag_topics[robot_topic(name, GROUND_TRUTH)] = (
+                    self._serialized['ground_truth'][name])
+                self._bag_topics[robot_topic(name, CMD_VEL)] = self._serialized['commands'][name]
+                for leaf, kind in ((ODOM, 'odometry'), (MARKERS, 'markers')):
+                    topic = robot_topic(name, leaf)
+                    self._bag_topics[topic] = []
+                    routes.append((topic, kind, self._bag_topics[topic].append))
+        if role == 'domain_check':
+            # It only reads the graph.
+            routes = []
+        self._routes = [route for _, _, route in routes]
+        self._command_topics = {name: robot_topic(name, CMD_VEL) for name in self.planned_names}
+        matched = [*self._command_topics.values(), DIAGNOSTICS] if routes else []
+        self.name = f'/prvo_run_{role}_d{domain_id}_p{os.getpid()}_{next(_INSTANCES)}'
+        self.lost = None
+        self._start_listener({'domain_id': domain_id, 'node_name': self.name[1:],
+                              'topics': [[topic, kind] for topic, kind, _ in routes],
+                              'matched': matched})
 
-    def _subscribe_bag_topics(self):
-        """Keep every message of the bag's topics that the recording does not keep already."""
-        from nav_msgs.msg import Odometry
-        from rosgraph_msgs.msg import Clock
-        from visualization_msgs.msg import MarkerArray
+    def _start_listener(self, spec):
+        """Start the listener child with SPEC and wait until it is subscribed."""
+        runner_end, listener_end = socket.socketpair()
+        self._log = tempfile.TemporaryFile()
+        try:
+            self._process = subprocess.Popen(
+                [sys.executable, '-m', 'prvo_sim.runner.listener', json.dumps(spec),
+                 str(listener_end.fileno())],
+                env=child_environment(self.domain_id), stdin=subprocess.DEVNULL,
+                stdout=self._log, stderr=subprocess.STDOUT, pass_fds=(listener_end.fileno(),),
+                start_new_session=True, preexec_fn=die_with(os.getpid()))
+        finally:
+            listener_end.close()
+        from multiprocessing.connection import Connection
 
-        from prvo_msgs_util import (
-            CLOCK,
-            CLOCK_QOS,
-            CMD_VEL,
-            DIAGNOSTICS,
-            GROUND_TRUTH,
-            MARKER_QOS,
-            MARKERS,
-            ODOM,
-            ODOM_QOS,
-            quiet_subscription_events,
-            robot_topic,
-        )
+        self._socket = runner_end
+        self._connection = Connection(os.dup(runner_end.fileno()))
+        deadline = time.monotonic() + LISTENER_START_LIMIT
+        while self._connection is not None and not self._ready(deadline):
+            pass
 
-        self._bag_topics = {CLOCK: [], DIAGNOSTICS: self._serialized_diagnostics}
-        subscribed = [(CLOCK, Clock, CLOCK_QOS)]
-        for name in self.robot_names:
-            self._bag_topics[robot_topic(name, GROUND_TRUTH)] = (
-                self._serialized['ground_truth'][name])
-            self._bag_topics[robot_topic(name, CMD_VEL)] = self._serialized['commands'][name]
-            for leaf, message_type, qos in ((ODOM, Odometry, ODOM_QOS),
-                                            (MARKERS, MarkerArray, MARKER_QOS)):
-                topic = robot_topic(name, leaf)
-                self._bag_topics[topic] = []
-                subscribed.append((topic, message_type, qos))
-        for topic, message_type, qos in subscribed:
-            self.node.create_subscription(
-                message_type, topic, self._bag_topics[topic].append, _deep(qos),
-                event_callbacks=quiet_subscription_events(), raw=True)
+    def _ready(self, deadline):
+        """Take one message of the listener's start-up; return whether it is subscribed."""
+        remaining = deadline - time.monotonic()
+        if remaining <= 0.0 or not self._connection.poll(remaining):
+            self.close()
+            raise RecorderError(f'the recorder did not start within {LISTENER_START_LIMIT:g} s'
+                                f'{self._log_tail()}')
+        try:
+            kind, payload = self._connection.recv()
+        except (EOFError, OSError):
+            self._process.wait()
+            code = self._process.returncode
+            tail = self._log_tail()
+            self.close()
+            raise RecorderError(
+                f'the recorder exited with code {code} at start-up{tail}') from None
+        if kind == 'ready':
+            return True
+        self._handle(kind, payload)
+        return False
+
+    def _log_tail(self):
+        """Return ': <the listener's last output line>', or '' if it printed nothing."""
+        with contextlib.suppress(OSError, ValueError):
+            self._log.seek(0)
+            lines = self._log.read().decode(errors='replace').strip().splitlines()
+            if lines:
+                return f': {lines[-1]}'
+        return ''
+
+    def _handle(self, kind, payload):
+        if kind == 'messages':
+            for index, data in payload:
+                self._routes[index](data)
+        elif kind == 'graph':
+            self._publishers, self._matched = payload['publishers'], payload['matched']
+
+    def spin_for(self, duration):
+        """Take everything the listener sends in the next DURATION s."""
+        deadline = time.monotonic() + duration
+        while self._connection is not None:
+            remaining = deadline - time.monotonic()
+            if remaining <= 0.0 or not self._connection.poll(remaining):
+                return
+            try:
+                self._handle(*self._connection.recv())
+            except (EOFError, OSError):
+                self._process.wait()
+                self.lost = (f'the recorder exited with code {self._process.returncode}'
+                             f'{self._log_tail()}')
+                self._drop_connection()
+                return
 
     def bag_messages(self):
         """Return the run's `runner.bag.BagMessages` of everything received, None if not kept."""
@@ -167,14 +210,15 @@ class Recorder:
         return messages
 
     def unheard_planners(self):
-        """Return the robots whose cmd_vel or diagnostics publisher this node has not matched.
+        """Return the robots whose cmd_vel or diagnostics publisher the listener has not matched.
 
         Every planner publishes both; diagnostics carry its plan times from the first plan on.
         """
-        unheard = [name for name in self.planned_names
-                   if self._command_subscriptions[name].get_publisher_count() == 0]
-        if not unheard and (self._diagnostics_subscription.get_publisher_count()
-                            < len(self.planned_names)):
+        from prvo_msgs_util import DIAGNOSTICS
+
+        unheard = [name for name, topic in self._command_topics.items()
+                   if self._matched.get(topic, 0) == 0]
+        if not unheard and self._matched.get(DIAGNOSTICS, 0) < len(self.planned_names):
             return ['diagnostics']
         return unheard
 
@@ -234,7 +278,8 @@ class Recorder:
         from prvo_sim.world_messages import sim_status_of
 
         self._serialized_diagnostics.append(data)
-        for status in deserialize_message(data, DiagnosticArray).status:
+        message = deserialize_message(data, DiagnosticArray)
+        for status in message.status:
             if status.name == 'prvo_sim':
                 self.sim_status = sim_status_of(status)
             elif status.name.startswith('prvo_planner/'):
@@ -242,38 +287,24 @@ class Recorder:
                 if value is not None:
                     with contextlib.suppress(ValueError):
                         self.plan_times_ms.append(float(value))
-
-    def _publishers(self):
-        """Return {topic: [node, ...]} (one entry per publisher) of all but the default topics."""
-        publishers = {}
-        for topic, _ in self.node.get_topic_names_and_types():
-            if topic in ROS_DEFAULT_TOPICS:
-                continue
-            for info in self.node.get_publishers_info_by_topic(topic):
-                publishers.setdefault(topic, []).append(
-                    _full_name(info.node_namespace, info.node_name))
-        return publishers
+        for listener in self.diagnostics_listeners:
+            listener(message)
 
     def _strangers(self):
-        """Return {node: {what it does}} of every node here but this one (see strangers)."""
+        """Return {node: {what it publishes}} of every node here but this one's listener."""
         found = {}
-        for topic, nodes in self._publishers().items():
+        for topic, nodes in self._publishers.items():
             for node in nodes:
                 if node != self.name:
                     found.setdefault(node, set()).add(f'publishes {topic}')
-        for topic in self.run_topics:
-            for info in self.node.get_subscriptions_info_by_topic(topic):
-                node = _full_name(info.node_namespace, info.node_name)
-                if node != self.name:
-                    found.setdefault(node, set()).add(f'subscribes {topic}')
         return found
 
     def strangers(self):
-        """Describe in one line every node already here before the run starts, else None.
+        """Describe in one line every node publishing here before the run starts, else None.
 
-        A node is a stranger if it publishes anywhere but on the default topics, or subscribes
-        to one of the run's topics: a simulator or planner left over from a killed run would
-        feed this run its clock, odometry and 'finished' status.
+        A node is a stranger if it publishes anywhere but on the default topics: a simulator
+        or planner left over from a killed run would feed this run its clock, odometry and
+        'finished' status. A node that only subscribes cannot change the run and is welcome.
         """
         found = self._strangers()
         return None if not found else self._refusal(found)
@@ -291,11 +322,17 @@ class Recorder:
         deadline = time.monotonic() + duration
         while True:
             self.spin_for(0.05)
+            if self.lost is not None:
+                return self.lost
             found = self._strangers()
             if found and UNNAMED_NODE not in found:
                 return self._refusal(found)
-            if time.monotonic() >= deadline:
-                return self._refusal(found) if found else None
+            now = time.monotonic()
+            if now >= deadline and not found:
+                return None
+            # A stranger whose name has not arrived yet is named once it has, if it does soon.
+            if now >= deadline + NAMING_GRACE:
+                return self._refusal(found)
 
     def intruders(self, own_nodes):
         """Describe in one line publishers the run did not start, else None.
@@ -307,7 +344,7 @@ class Recorder:
         """
         found = {}
         own_nodes = {*own_nodes, self.name}
-        for topic, nodes in self._publishers().items():
+        for topic, nodes in self._publishers.items():
             for node in set(nodes) - {UNNAMED_NODE}:
                 if node not in own_nodes:
                     found.setdefault(node, set()).add(f'publishes {topic}')
@@ -318,47 +355,51 @@ class Recorder:
         return (f'processes this runner did not start publish on ROS_DOMAIN_ID '
                 f'{self.domain_id}: {_describe(found)}')
 
-    def recording_gaps(self, dt, commands_expected, grace):
+    def recording_gaps(self, dt, commands_expected, grace, until=None):
         """Return what the recording lacks (see recording_gaps), after up to GRACE s more.
 
         Messages still on their way when the run ended (the last steps' commands travel from
-        other processes than the ground truth) get GRACE s of wall time to arrive.
+        other processes than the ground truth) get GRACE s of wall time to arrive. UNTIL [s],
+        if given, is the end of the run: later steps are not judged.
         """
         deadline = time.monotonic() + grace
         while True:
             gaps = recording_gaps(self.ground_truth, self.commands, self.robot_names, dt,
-                                  commands_expected, self.planned_names)
-            if gaps is None or time.monotonic() >= deadline:
+                                  commands_expected, self.planned_names, until)
+            if gaps is None or time.monotonic() >= deadline or self.lost is not None:
                 return gaps
             self.spin_for(0.05)
 
-    def spin_for(self, duration):
-        """Handle every message that arrives in the next DURATION s."""
-        self._executor.spin_until_future_complete(self._never_done, timeout_sec=duration)
+    def close(self):
+        """Stop the listener: ask it to leave, SIGKILL it if it has not within a second.
 
-    def close(self, timeout=RECORDER_CLOSE_TIMEOUT):
-        """Destroy the node and shut its context down; return False if that hung.
-
-        Fast DDS can deadlock while deleting a DataWriter (ResourceEvent::unregister_timer,
-        eProsima/Fast-DDS#6193, #6502), seen here after a child stopped answering. The
-        destruction runs on a daemon thread so that a hang costs TIMEOUT s, not the run.
+        Bounded whatever DDS does in the listener; what was received stays here.
         """
-        self._executor.shutdown()
+        if self._connection is not None:
+            with contextlib.suppress(OSError, ValueError):
+                self._connection.send(('stop', None))
+        with contextlib.suppress(subprocess.TimeoutExpired):
+            self._process.wait(timeout=LISTENER_STOP_WAIT)
+        if self._process.poll() is None:
+            with contextlib.suppress(ProcessLookupError, PermissionError):
+                os.killpg(self._process.pid, signal.SIGKILL)
+            self._process.wait()
+        self._drop_connection()
+        self._log.close()
 
-        def destroy():
-            self.node.destroy_node()
-            self.context.try_shutdown()
+    def _drop_connection(self):
+        if self._connection is not None:
+            self._connection.close()
+            self._socket.close()
+            self._connection = None
 
-        closer = threading.Thread(target=destroy, name='recorder-close', daemon=True)
-        closer.start()
-        closer.join(timeout)
-        return not closer.is_alive()
-
-    def recording(self):
+    def recording(self, until=None):
         """Return the `Recording` of the run: the steps every robot's ground truth has.
 
-        Commands are world-frame (a body-frame command is turned by the robot's heading at its
-        stamp, as the simulator does), NaN where missing.
+        UNTIL [s], if given, ends it: later steps (the simulator goes on until it is stopped)
+        and messages stamped later are left out. Commands are world-frame (a body-frame
+        command is turned by the robot's heading at its stamp, as the simulator does), NaN
+        where missing.
         """
         from prvo_msgs_util import WORLD_FRAME, body_to_world
         from prvo_sim.runner.outputs import Recording
@@ -366,6 +407,8 @@ class Recorder:
         ground_truth, received_commands = self.ground_truth, self.commands
         stamps = sorted(set.intersection(
             *(set(ground_truth[name]) for name in self.robot_names)))
+        if until is not None:
+            stamps = [stamp for stamp in stamps if stamp <= _seconds_ns(until)]
         states = np.full((len(stamps), len(self.robot_names), 5), math.nan)
         commands = np.full((len(stamps), len(self.robot_names), 2), math.nan)
         for step, stamp in enumerate(stamps):
@@ -378,28 +421,13 @@ class Recorder:
                         command = body_to_world(command, states[step, robot, 4])
                     commands[step, robot] = command
         status = self.sim_status
+        bag_messages = self.bag_messages()
+        if bag_messages is not None and until is not None:
+            bag_messages.drop_after(_seconds_ns(until))
         return Recording(np.asarray(stamps, dtype=float) * 1e-9, states[..., :4], commands,
                          tuple(self.plan_times_ms),
                          None if status is None else status.deadline_misses,
-                         yaws=states[..., 4], bag_messages=self.bag_messages())
-
-
-def _deep(qos):
-    """Return QOS with a queue of RECORDER_QUEUE_DEPTH (compatible: depth is not matched).
-
-    A lockstep team steps hundreds of times per second; between two spins of the recorder the
-    messages wait in this queue, and a shorter one would drop the oldest.
-    """
-    deep = copy.copy(qos)
-    deep.depth = RECORDER_QUEUE_DEPTH
-    return deep
-
-
-def _full_name(namespace, name):
-    """Return the node's fully qualified name, or UNNAMED_NODE while discovery lacks it."""
-    if name == _UNKNOWN_NODE_NAME:
-        return UNNAMED_NODE
-    return f"{namespace.rstrip('/')}/{name}"
+                         yaws=states[..., 4], bag_messages=bag_messages)
 
 
 def _shortened(items):
@@ -417,17 +445,19 @@ def _describe(found):
 
 
 def recording_gaps(ground_truth, commands, robot_names, dt, commands_expected,
-                   planned_names=None):
+                   planned_names=None, until=None):
     """Describe in one line what a recording lacks, else None.
 
     GROUND_TRUTH and COMMANDS are {robot: {stamp ns: ...}} (Recorder.ground_truth, .commands).
     A complete recording has every robot's ground truth at every step t = k DT from t = 0 to
-    its last, and, if COMMANDS_EXPECTED (lockstep: every step is answered), the command of
-    each of PLANNED_NAMES (default: every robot; scripted robots have none) answering each of
-    those steps but the last.
+    its last (the last at or before UNTIL [s], if given), and, if COMMANDS_EXPECTED (lockstep:
+    every step is answered), the command of each of PLANNED_NAMES (default: every robot;
+    scripted robots have none) answering each of those steps but the last.
     """
+    last_step = math.inf if until is None else round(until / dt)
     for name in robot_names:
-        steps = sorted(round(stamp * 1e-9 / dt) for stamp in ground_truth[name])
+        steps = sorted(step for step in (round(stamp * 1e-9 / dt) for stamp in ground_truth[name])
+                       if step <= last_step)
         if not steps:
             return f'the recorder received no ground truth of {name}'
         missing = sorted(set(range(steps[-1] + 1)) - set(steps))
@@ -448,8 +478,6 @@ def foreign_participants(domain_id, robot_names, duration=None):
 
     Listens DURATION s (default DOMAIN_CHECK_TIME) for discovery to show what is there.
     """
-    from prvo_sim.runner.session import DOMAIN_CHECK_TIME
-
     recorder = Recorder(domain_id, robot_names, role='domain_check')
     try:
         return recorder.foreign_traffic(DOMAIN_CHECK_TIME if duration is None else duration)

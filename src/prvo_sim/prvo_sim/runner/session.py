@@ -7,22 +7,20 @@ ground truth and to /diagnostics before it takes its first step.
 """
 
 import math
-import os
 import pathlib
 import shlex
 import sys
 import time
-import types
 
 import numpy as np
 
 from prvo_sim.runner.outputs import Ending, RunResult, write_outputs
 from prvo_sim.runner.processes import (
+    INTERRUPTS,
     Children,
     RunInterruptedError,
     child_environment,
     package_command,
-    signals_ignored,
 )
 
 METHODS = ('prvo', 'rvo', 'inflate', 'prvo-no-ego')
@@ -32,11 +30,12 @@ ENGINES = ('ros', 'inprocess')
 DEFAULT_ETA = 0.8
 SIM_NODE = 'prvo_sim'
 PLANNER_NODE = 'planner'
-# Set once a recorder's DDS teardown hung in this process (see Recorder.close).
-DDS_HANG = types.SimpleNamespace(noticed=False)
 STEP_TIMEOUT = 2.0  # wall seconds the sim waits for a late planner before reusing its command
 STARTUP_LIMIT = 60.0  # wall seconds for each start-up stage before the run counts as failed
 SETTLE_TIME = 1.0  # sim seconds every robot must stay at its goal before the run ends
+# Sim seconds below which two times count as equal: the engines' clocks (stamps in ns, sums of
+# steps) differ by rounding, and the end of a run must not.
+TIME_EPSILON = 1e-6
 PROGRESS_PERIOD = 0.5
 RECORDING_GRACE = 2.0  # wall seconds for messages in flight when a run ends to arrive
 GRAPH_CHECK_PERIOD = 1.0  # wall seconds between looks for intruders during a run
@@ -45,33 +44,10 @@ GRAPH_CHECK_PERIOD = 1.0  # wall seconds between looks for intruders during a ru
 # taken, and a plan made without it parted the run from the in-process one); and for every
 # listed neighbour's first message.
 LOCKSTEP_SYNC = {'sync_timeout': STEP_TIMEOUT - 0.1, 'neighbor_timeout': 5.0}
-# Wall seconds of listening for strangers on the domain before a run. Longer than Fast DDS's
-# periodic participant announcement (3 s): a stranger starved of CPU when the check's own
-# announcements arrive is still heard once.
-DOMAIN_CHECK_TIME = 3.5
 # Parameters the runner sets itself; a scenario's planner block cannot override them.
 RUNNER_PARAMETERS = ('use_sim_time', 'goal', 'radius', 'max_speed', 'actuation_std',
                      'goal_tolerance', 'model', 'eta', 'kinematics', 'max_angular_speed',
                      'max_acceleration', 'max_angular_acceleration')
-
-
-def run_topics(robot_names):
-    """Return every topic a run of ROBOT_NAMES uses."""
-    from prvo_msgs_util import (
-        CLOCK,
-        CMD_VEL,
-        CONTACTS,
-        DIAGNOSTICS,
-        GOAL_POSE,
-        GROUND_TRUTH,
-        MARKERS,
-        ODOM,
-        robot_topic,
-    )
-
-    return [CLOCK, DIAGNOSTICS, CONTACTS, *(robot_topic(name, leaf) for name in robot_names
-                                           for leaf in (ODOM, GROUND_TRUTH, CMD_VEL, GOAL_POSE,
-                                                        MARKERS))]
 
 
 def ros_parameter(value):
@@ -184,11 +160,22 @@ class RunSpec:
         self.out_dir = pathlib.Path(out_dir)
         self.timeout = options.timeout or 10.0 * scenario.duration + 60.0
         self.quiet = options.quiet
-        self.sim_command = (shlex.split(options.sim_command) if options.sim_command
-                            else package_command('prvo_sim', 'sim', 'prvo_sim.sim_node'))
-        self.planner_command = (
-            shlex.split(options.planner_command) if options.planner_command
-            else package_command('prvo_planner', 'planner', 'prvo_planner.planner_node'))
+        self._sim_command = getattr(options, 'sim_command', None)
+        self._planner_command = getattr(options, 'planner_command', None)
+
+    @property
+    def sim_command(self):
+        """The simulator's argv prefix (the ROS engine's; looked up only when asked for)."""
+        if self._sim_command:
+            return shlex.split(self._sim_command)
+        return package_command('prvo_sim', 'sim', 'prvo_sim.sim_node')
+
+    @property
+    def planner_command(self):
+        """A planner's argv prefix (the ROS engine's; looked up only when asked for)."""
+        if self._planner_command:
+            return shlex.split(self._planner_command)
+        return package_command('prvo_planner', 'planner', 'prvo_planner.planner_node')
 
     def own_nodes(self):
         """Return the fully qualified names of the nodes the run's children create."""
@@ -243,6 +230,8 @@ class _Watch:
     def failure(self):
         """Return a one-line failure, or None while the run may go on."""
         now = time.monotonic()
+        if self._recorder.lost is not None:
+            return self._recorder.lost
         exited = self._children.first_exited()
         if exited is not None:
             return (f'{exited.label} exited with code {exited.returncode} '
@@ -302,7 +291,7 @@ def wait_for_end(recorder, watch, spec, progress):
             progress(sim_time, int(arrived.sum()), now - started)
             next_progress = now + PROGRESS_PERIOD
         settled_since = settled(arrived, sim_time, settled_since)
-        if settled_since is not None and sim_time - settled_since >= SETTLE_TIME:
+        if has_settled(sim_time, settled_since):
             return Ending.ARRIVED
         if finished:
             return Ending.DURATION
@@ -319,27 +308,53 @@ def settled(arrived, sim_time, settled_since):
     return sim_time if settled_since is None else settled_since
 
 
+def has_settled(sim_time, settled_since):
+    """Whether a run whose robots have all been at their goal since SETTLED_SINCE ends now."""
+    return settled_since is not None and sim_time - settled_since >= SETTLE_TIME - TIME_EPSILON
+
+
+def arrival_end(times, positions, goals, goal_tolerance, planned):
+    """Return the time [s] at which a run ends because every planned robot arrived, else None.
+
+    TIMES (T,) and POSITIONS (T, N, 2) are the recorded steps; GOALS (N, 2); PLANNED (N,) says
+    which robots end the run (scripted ones do not arrive). The end is the first step at which
+    every planned robot has been within GOAL_TOLERANCE of its goal for SETTLE_TIME: a function
+    of the simulated run only, so identical runs end at the same step on either engine,
+    however late the runner noticed.
+    """
+    settled_since = None
+    for sim_time, position in zip(times, positions, strict=True):
+        arrived = (np.linalg.norm(position - goals, axis=1) <= goal_tolerance)[planned]
+        settled_since = settled(arrived, sim_time, settled_since)
+        if has_settled(sim_time, settled_since):
+            return float(sim_time)
+    return None
+
+
 def run_once(spec, domain_id, monitor=None):
     """Run SPEC once on DOMAIN_ID; write its outputs; return its `RunResult`.
 
-    The caller holds DOMAIN_ID (and has checked it for strangers). The children are stopped
-    whatever happens, including SIGINT/SIGTERM/SIGHUP (the result's `interrupted`). MONITOR, if
-    given,
+    The caller holds DOMAIN_ID (and has checked it for strangers). Results first: once the run
+    has ended, the team is told to stop, the recorder's listener is stopped (bounded: it is
+    killed if it hangs), the results are written from what was recorded, and only then does
+    the runner wait for the children to exit (SIGKILL after SHUTDOWN_GRACE). SIGINT, SIGTERM
+    or SIGHUP end the run (the result's `interrupted`); one during the teardown cuts the
+    children's grace and the animation short, never the other results. MONITOR, if given,
     watches the run from inside (the team benchmark measures the children with it):
     monitor.started(children, recorder) is called once every child has been started,
     monitor.ending(children, recorder) once the run has ended, just before the children are
     stopped (not when the run was interrupted).
     """
-    from prvo_sim.runner.recorder import Recorder
+    from prvo_sim.runner.recorder import Recorder, RecorderError
 
     scenario = spec.scenario
     log_dir = spec.out_dir / 'logs'
-    os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
     children = Children(child_environment(domain_id), log_dir)
     recorder = None
     failure = None
     ending = Ending.FAILED
     interrupted = None
+    end_time = None
     progress = ProgressLine(spec, quiet=spec.quiet)
     started = time.monotonic()
     try:
@@ -360,9 +375,16 @@ def run_once(spec, domain_id, monitor=None):
                 ending = end
             else:
                 failure = end
+        if ending is Ending.ARRIVED:
+            recording = recorder.recording()
+            end_time = arrival_end(
+                recording.times, recording.states[..., :2],
+                np.array([robot.goal for robot in scenario.robots], dtype=float),
+                scenario.goal_tolerance, np.array([robot.scripted is None
+                                                   for robot in scenario.robots]))
         if failure is None:
             failure = recorder.recording_gaps(scenario.dt, spec.mode == 'lockstep',
-                                              RECORDING_GRACE)
+                                              RECORDING_GRACE, until=end_time)
             if failure is not None:
                 ending = Ending.FAILED
         if monitor is not None:
@@ -371,23 +393,25 @@ def run_once(spec, domain_id, monitor=None):
         interrupted = interruption.signum
         ending = Ending.INTERRUPTED
         failure = f'interrupted by {interruption}'
-    finally:
-        with signals_ignored():
-            try:
-                children.stop()
-                if recorder is not None and not recorder.close():
-                    DDS_HANG.noticed = True
-                    print('run_scenario: warning: the DDS layer hung while closing the recorder '
-                          '(a known Fast DDS deadlock); the results are still written, and the '
-                          'runner exits without DDS cleanup', file=sys.stderr)
-            finally:
-                progress.finish()
-    if not children.processes:
-        # Interrupted before anything started: nothing to report, nothing written.
-        raise RunInterruptedError(interrupted)
-    wall_time = time.monotonic() - started
-    recording = recorder.recording() if recorder is not None else None
-    run_metrics = write_outputs(spec, recording, ending, failure, wall_time)
+    except RecorderError as error:
+        failure = str(error)
+    with INTERRUPTS.teardown() as teardown:
+        progress.finish()
+        try:
+            children.interrupt()
+            if recorder is not None:
+                recorder.close()
+            if not children.processes and interrupted is not None:
+                # Interrupted before anything started: nothing to report, nothing written.
+                raise RunInterruptedError(interrupted)
+            spec.out_dir.mkdir(parents=True, exist_ok=True)
+            recording = recorder.recording(until=end_time) if recorder is not None else None
+            run_metrics = write_outputs(spec, recording, ending, failure,
+                                        time.monotonic() - started)
+        finally:
+            children.stop()
+        if interrupted is None:
+            interrupted = teardown.last_signal
     return RunResult(ending, run_metrics, interrupted)
 
 
