@@ -40,7 +40,8 @@ def test_simulator_starts_after_every_cmd_vel_is_matched_and_waits_for_the_recor
                          for index in (0, 1)), 60, 'both planners running')
     # Both planners are up without a cmd_vel publisher: nothing can have matched.
     assert not (out / 'logs' / 'sim.log').exists()
-    assert len(processes_with_token(runner.token, exclude={runner.pid})) == 5  # + watchdog
+    # Two planners and their grandchildren, the watchdog and the recorder's listener.
+    assert len(processes_with_token(runner.token, exclude={runner.pid})) == 6
     gate.touch()
     sim_log = wait_for(lambda: log_text(out, 'sim'), 60, 'the simulator starting')
     assert all('publishing' in log_text(out, f'planner_robot_{index}') for index in (0, 1))
