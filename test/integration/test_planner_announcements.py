@@ -4,9 +4,10 @@ import math
 import threading
 
 from diagnostic_msgs.msg import DiagnosticArray
-from geometry_msgs.msg import PolygonStamped
+from geometry_msgs.msg import Point32, PolygonStamped, Vector3Stamped
+import numpy as np
 import pytest
-from std_msgs.msg import Float32
+from rclpy.duration import Duration
 from test_planner_robustness import FedPlanner
 
 from prvo_msgs_util import (
@@ -16,6 +17,8 @@ from prvo_msgs_util import (
     diagnostic_values,
     footprint_message,
     robot_topic,
+    share_message,
+    stamp_to_seconds,
 )
 
 pytestmark = pytest.mark.integration
@@ -46,27 +49,33 @@ def test_a_planner_announces_itself_and_plans_with_what_its_neighbours_announce(
     footprint, share = Latest(), Latest()
     probe.node.create_subscription(PolygonStamped, robot_topic('robot_0', 'footprint'),
                                    footprint, ANNOUNCEMENT_QOS)
-    probe.node.create_subscription(Float32, robot_topic('robot_0', 'avoidance_share'), share,
-                                   ANNOUNCEMENT_QOS)
+    probe.node.create_subscription(Vector3Stamped, robot_topic('robot_0', 'avoidance_share'),
+                                   share, ANNOUNCEMENT_QOS)
     probe.wait_until(lambda: footprint.get() is not None and share.get() is not None,
                      timeout=30.0, what="the planner's announcements")
     assert footprint.get().header.frame_id == 'robot_0/base_link'
     assert len(footprint.get().polygon.points) == 16
     assert all(math.hypot(point.x, point.y) == pytest.approx(0.3, rel=1e-6)
                for point in footprint.get().polygon.points)
-    assert share.get().data == 0.5
+    assert share.get().header.frame_id == 'robot_0/base_link'
+    assert (share.get().vector.x, share.get().vector.y, share.get().vector.z) == (0.5, 0.0, 0.0)
+    # Before its first plan: from the start.
+    for message in (footprint.get(), share.get()):
+        assert (message.header.stamp.sec, message.header.stamp.nanosec) == (0, 0)
 
     # robot_1 announces a footprint of radius 0.6 and no share; robot_2 an impossible share.
     publishers = {(robot, kind): probe.node.create_publisher(
         message_type, robot_topic(robot, kind), ANNOUNCEMENT_QOS)
         for robot in ('robot_1', 'robot_2')
         for kind, message_type in (('footprint', PolygonStamped),
-                                   ('avoidance_share', Float32))}
+                                   ('avoidance_share', Vector3Stamped))}
     probe.wait_until(lambda: all(publisher.get_subscription_count() > 0
                                  for publisher in publishers.values()),
                      timeout=30.0, what='the planner subscribing to the announcements')
-    publishers['robot_1', 'footprint'].publish(footprint_message(0.6, 'robot_1/base_link'))
-    publishers['robot_2', 'avoidance_share'].publish(Float32(data=1.5))
+    publishers['robot_1', 'footprint'].publish(footprint_message(0.6, 'robot_1/base_link', 0.0))
+    impossible_share = Vector3Stamped()
+    impossible_share.vector.x = 1.5
+    publishers['robot_2', 'avoidance_share'].publish(impossible_share)
     statuses = Latest()
     probe.node.create_subscription(
         DiagnosticArray, DIAGNOSTICS, lambda message: [
@@ -87,4 +96,66 @@ def test_a_planner_announces_itself_and_plans_with_what_its_neighbours_announce(
     probe.wait_until(lambda: 'ignoring announcement on /robot_2/avoidance_share: avoidance '
                      'share must be in [0, 1), got 1.5' in children.output(planner.process),
                      timeout=20.0, what='the warning about the bad share')
+    assert planner.process.poll() is None
+
+
+def footprint_of_radius(radius, robot):
+    """Return a footprint of one vertex at RADIUS [m], from the start."""
+    message = PolygonStamped()
+    message.header.frame_id = f'{robot}/base_link'
+    message.polygon.points = [Point32(x=radius, y=0.0, z=0.0)]
+    return message
+
+
+def test_a_stamped_share_counts_from_the_plan_after_its_stamp_and_implausible_footprints_not(
+        children, ros2_executable, probe):
+    planner = FedPlanner(children, ros2_executable, probe, status_period=0.0)
+    statuses = {}
+    probe.node.create_subscription(
+        DiagnosticArray, DIAGNOSTICS, lambda message: [
+            statuses.__setitem__(stamp_to_seconds(message.header.stamp),
+                                 diagnostic_values(status))
+            for status in message.status if status.name == 'prvo_planner/robot_0'],
+        DIAGNOSTICS_QOS)
+    planner.send_step(10.0)
+    planner.wait_answer(10.0)
+    # robot_1 stops avoiding with its plan of 10.2 (it arrived); a foreign giant and a point
+    # then claim the footprints of robot_1 and robot_2.
+    publishers = {(robot, kind): probe.node.create_publisher(
+        message_type, robot_topic(robot, kind), ANNOUNCEMENT_QOS)
+        for robot in ('robot_1', 'robot_2')
+        for kind, message_type in (('footprint', PolygonStamped),
+                                   ('avoidance_share', Vector3Stamped))}
+    probe.wait_until(lambda: all(publisher.get_subscription_count() > 0
+                                 for publisher in publishers.values()),
+                     timeout=30.0, what='the planner subscribing to the announcements')
+    publishers['robot_1', 'avoidance_share'].publish(
+        share_message(0.0, 'robot_1/base_link', 10.2))
+    publishers['robot_1', 'footprint'].publish(footprint_of_radius(1.0e6, 'robot_1'))
+    publishers['robot_2', 'footprint'].publish(footprint_of_radius(1.0e-12, 'robot_2'))
+    # Point32 is single precision: 1e-12 arrives as the nearest float32.
+    for topic, value in (('/robot_1/footprint', '1000000.0'),
+                         ('/robot_2/footprint', repr(float(np.float32(1.0e-12))))):
+        probe.wait_until(
+            lambda topic=topic, value=value: f'ignoring announcement on {topic}: footprint '
+            f'radius must be in [0.01, 100] m, got {value}' in children.output(planner.process),
+            timeout=20.0, what=f'the warning about the footprint on {topic}')
+    assert all(publisher.wait_for_all_acked(Duration(seconds=10.0))
+               for publisher in publishers.values())
+    stamps = [round(10.0 + 0.1 * step, 9) for step in range(1, 6)]
+    for stamp in stamps:
+        planner.send_step(stamp)
+        planner.wait_answer(stamp)
+    probe.wait_until(lambda: all(stamp in statuses for stamp in stamps), timeout=20.0,
+                     what='the diagnostics of every plan')
+    for stamp in stamps:
+        values = statuses[stamp]
+        assert values['neighbour.robot_1.avoidance_share'] == (
+            '0.5' if stamp <= 10.2 else '0.0'), (stamp, values)
+        # The last valid footprints (radius 0.3, single precision) stay; the plans stay
+        # feasible.
+        for robot in ('robot_1', 'robot_2'):
+            assert values[f'neighbour.{robot}.radius'] == '0.30000001192092896', (stamp, values)
+        assert values['neighbour.robot_2.avoidance_share'] == '0.5'
+        assert values['feasible'] == 'true', (stamp, values)
     assert planner.process.poll() is None

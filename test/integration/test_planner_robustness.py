@@ -3,10 +3,9 @@
 import signal
 import threading
 
-from geometry_msgs.msg import PolygonStamped, TwistStamped
+from geometry_msgs.msg import PolygonStamped, TwistStamped, Vector3Stamped
 import numpy as np
 import pytest
-from std_msgs.msg import Float32
 
 from prvo_msgs_util import (
     ANNOUNCEMENT_QOS,
@@ -29,7 +28,8 @@ class FedPlanner:
     """A planner for robot_0 with neighbours robot_1 and robot_2, whose odometry a probe sends.
 
     With ANNOUNCE, the probe also announces the neighbours as planners do (radius 0.3, share
-    0.5, latched): a planner waits for its listed neighbours' announcements before it plans.
+    0.5, from the start, latched): a planner waits for its listed neighbours' announcements
+    before it plans.
     """
 
     def __init__(self, children, ros2_executable, probe, announce=True, **parameters):
@@ -53,10 +53,10 @@ class FedPlanner:
             for robot in ROBOTS[1:]:
                 probe.node.create_publisher(
                     PolygonStamped, robot_topic(robot, 'footprint'), ANNOUNCEMENT_QOS).publish(
-                    footprint_message(0.3, f'{robot}/base_link'))
+                    footprint_message(0.3, f'{robot}/base_link', 0.0))
                 probe.node.create_publisher(
-                    Float32, robot_topic(robot, 'avoidance_share'), ANNOUNCEMENT_QOS).publish(
-                    share_message(0.5))
+                    Vector3Stamped, robot_topic(robot, 'avoidance_share'),
+                    ANNOUNCEMENT_QOS).publish(share_message(0.5, f'{robot}/base_link', 0.0))
         probe.wait_until(
             lambda: all(p.get_subscription_count() > 0 for p in self.publishers.values())
             or self.process.poll() is not None, timeout=60.0, what='the planner subscribing')

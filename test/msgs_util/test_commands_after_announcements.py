@@ -10,12 +10,12 @@ import pytest
 
 SUBSCRIBER = """
 import rclpy
-from std_msgs.msg import Float32
+from geometry_msgs.msg import Vector3Stamped
 from prvo_msgs_util import ANNOUNCEMENT_QOS
 rclpy.init()
 node = rclpy.create_node('share_listener')
-node.create_subscription(Float32, '/robot_x/avoidance_share',
-                         lambda message: print(f'share {message.data:.2f}', flush=True),
+node.create_subscription(Vector3Stamped, '/robot_x/avoidance_share',
+                         lambda message: print(f'share {message.vector.x:.2f}', flush=True),
                          ANNOUNCEMENT_QOS)
 rclpy.spin(node)
 """
@@ -54,7 +54,7 @@ def announcing_robot(ros_domain):
 def started_listener(children, probe, announcing_robot):
     """Start the share listener in its own process; return it once it holds share 0.5."""
     listener = children.start('listener', [sys.executable, '-c', SUBSCRIBER])
-    announcing_robot['announcer'].announce(0.3, 0.5)
+    announcing_robot['announcer'].announce(0.3, 0.5, 0.0)
     probe.wait_until(lambda: 'share 0.50' in children.output(listener), 30.0,
                      'the listener to receive the first announcement')
     return listener
@@ -70,13 +70,13 @@ def test_a_command_waits_for_a_subscriber_to_hold_the_change(children, probe,
     commands = announcing_robot['commands'](60.0)
     listener = started_listener(children, probe, announcing_robot)
     # Without a change the command goes at once.
-    commands.publish(Twist(), announcing_robot['announcer'].announce(0.3, 0.5))
+    commands.publish(Twist(), announcing_robot['announcer'].announce(0.3, 0.5, 0.0))
     assert not commands.holding
     probe.wait_until(lambda: len(commands_received) == 1, 15.0, 'the first command')
     # A stopped process acknowledges nothing: the command after a change waits for it.
     os.kill(listener.pid, signal.SIGSTOP)
     try:
-        changed = announcing_robot['announcer'].announce(0.3, 0.0)
+        changed = announcing_robot['announcer'].announce(0.3, 0.0, 0.1)
         assert changed == [announcing_robot['announcer'].share_publisher]
         commands.publish(Twist(), changed)
         time.sleep(1.0)
@@ -99,7 +99,7 @@ def test_an_unacknowledged_command_goes_after_the_timeout_with_a_warning(childre
     listener = started_listener(children, probe, announcing_robot)
     os.kill(listener.pid, signal.SIGSTOP)
     try:
-        commands.publish(Twist(), announcing_robot['announcer'].announce(0.3, 0.0))
+        commands.publish(Twist(), announcing_robot['announcer'].announce(0.3, 0.0, 0.1))
         probe.wait_until(lambda: len(commands_received) == 1, 15.0, 'the command')
     finally:
         os.kill(listener.pid, signal.SIGCONT)

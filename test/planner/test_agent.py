@@ -77,8 +77,8 @@ def test_agent_plans_as_the_core_does_on_the_tracked_beliefs(announce):
     if announce:
         for robot, ((radius, share), expected) in ANNOUNCED.items():
             if radius is not None:
-                agent.receive_footprint(robot, radius)
-                agent.receive_share(robot, share)
+                agent.receive_footprint(robot, radius, 0.0)
+                agent.receive_share(robot, share, 0.0)
             planned_with[robot] = expected
     commands = run(agent, data, 12)
     trackers = {robot: ConstantVelocityTracker(1.0) for robot in data}
@@ -108,45 +108,28 @@ def test_agent_plans_as_the_core_does_on_the_tracked_beliefs(announce):
         previous = expected.velocity
 
 
-@pytest.mark.parametrize('radius, share, fault', [
-    (0.0, 0.5, 'radius must be finite and > 0, got 0.0'),
-    (float('nan'), 0.5, 'radius must be finite and > 0, got nan'),
-    (0.6, 1.0, r'avoidance_share must be in \[0, 1\), got 1.0'),
-    (0.6, -0.1, r'avoidance_share must be in \[0, 1\), got -0.1')])
-def test_a_bad_announcement_is_refused_and_the_neighbour_keeps_what_it_had(radius, share, fault):
+@pytest.mark.parametrize('receive, value, stamp, fault', [
+    (PlannerAgent.receive_footprint, 0.0, 0.0, 'radius must be finite and > 0, got 0.0'),
+    (PlannerAgent.receive_footprint, float('nan'), 0.0, 'radius must be finite and > 0, got nan'),
+    (PlannerAgent.receive_share, 1.0, 0.0, r'avoidance_share must be in \[0, 1\), got 1.0'),
+    (PlannerAgent.receive_share, -0.1, 0.0, r'avoidance_share must be in \[0, 1\), got -0.1'),
+    (PlannerAgent.receive_footprint, 0.6, -0.1, 'announcement stamp must be finite and >= 0, '
+     'got -0.1'),
+    (PlannerAgent.receive_share, 0.25, float('inf'), 'announcement stamp must be finite and '
+     '>= 0, got inf')])
+def test_a_bad_announcement_is_refused_and_the_neighbour_keeps_what_it_had(receive, value, stamp,
+                                                                           fault):
     agent = PlannerAgent('self', CONFIG, SETTINGS, GOAL)
-    with pytest.raises(ValueError, match=fault):
-        agent.receive_footprint('a', radius)
-        agent.receive_share('a', share)
-    assert agent.announcement_of('a') == NeighbourAnnouncement(
-        0.4 if radius != 0.6 else 0.6, 0.0)
-    agent.receive_footprint('a', 0.8)
-    agent.receive_share('a', 0.5)
-    agent.receive_own(standing(0.0, [0.0, 0.0]), 0.0)
-    assert agent.announcement_of('a') == NeighbourAnnouncement(0.8, 0.5)
-    with pytest.raises(ValueError, match=fault):
-        agent.receive_footprint('a', radius)
-        agent.receive_share('a', share)
-    agent.receive_own(standing(0.1, [0.0, 0.0]), 0.1)
-    assert agent.announcement_of('a') == NeighbourAnnouncement(
-        0.8 if radius != 0.6 else 0.6, 0.5)
+    with pytest.raises(ValueError, match=f'^{fault}$'):
+        receive(agent, 'a', value, stamp)
+    assert agent.announcement_of('a', 0.0) == NeighbourAnnouncement(0.4, 0.0)
+    agent.receive_footprint('a', 0.8, 0.0)
+    agent.receive_share('a', 0.5, 0.0)
+    with pytest.raises(ValueError, match=f'^{fault}$'):
+        receive(agent, 'a', value, stamp)
+    assert agent.announcement_of('a', 0.1) == NeighbourAnnouncement(0.8, 0.5)
     agent.forget_announcements('a')
-    assert agent.announcement_of('a') == NeighbourAnnouncement(0.4, 0.0)
-
-
-def test_a_first_announcement_counts_at_once_a_change_from_the_next_own_measurement():
-    agent = PlannerAgent('self', CONFIG, SETTINGS, GOAL)
-    agent.receive_footprint('a', 0.6)
-    agent.receive_share('a', 0.5)
-    assert agent.announcement_of('a') == NeighbourAnnouncement(0.6, 0.5)
-    agent.receive_own(standing(0.0, [0.0, 0.0]), 0.0)
-    # Announced while this stamp is planned (in lockstep: by a neighbour planning the same
-    # step): the plan of this stamp does not see it, the next one does.
-    agent.receive_share('a', 0.0)
-    agent.receive_footprint('a', 0.7)
-    assert agent.announcement_of('a') == NeighbourAnnouncement(0.6, 0.5)
-    agent.receive_own(standing(0.1, [0.0, 0.0]), 0.1)
-    assert agent.announcement_of('a') == NeighbourAnnouncement(0.7, 0.0)
+    assert agent.announcement_of('a', 0.1) == NeighbourAnnouncement(0.4, 0.0)
 
 
 def test_the_robot_announces_its_radius_and_a_share_only_on_its_way():
@@ -214,8 +197,8 @@ def test_plans_wait_for_every_neighbour_and_listed_ones_at_start():
     data = team()
     agent = PlannerAgent('self', CONFIG, SETTINGS, GOAL, listed_neighbours=['a', 'b', 'self'])
     for robot in ('a', 'b'):
-        agent.receive_footprint(robot, 0.3)
-    agent.receive_share('a', 0.5)
+        agent.receive_footprint(robot, 0.3, 0.0)
+    agent.receive_share('a', 0.5, 0.0)
     agent.receive_neighbour('a', data['a'][0], 0.0)
     agent.receive_own(data['self'][0], 0.0)
     # b is listed and not heard yet: wait for it, up to neighbor_timeout after the first odometry.
@@ -224,7 +207,7 @@ def test_plans_wait_for_every_neighbour_and_listed_ones_at_start():
     agent.receive_neighbour('b', data['b'][0], 1.0)
     # Heard in full only with its announcements: its share is still missing.
     assert agent.awaiting_listed(1.0) and not agent.ready(1.0)
-    agent.receive_share('b', 0.5)
+    agent.receive_share('b', 0.5, 0.0)
     assert agent.ready(1.0)
     agent.plan()
     assert agent.pending_stamp is None and not agent.ready(1.0)
@@ -264,8 +247,8 @@ def standing(stamp, position):
 
 def test_a_robot_at_its_goal_stands_while_nobody_comes_and_steps_aside_when_someone_does():
     agent = PlannerAgent('self', CONFIG, SETTINGS, [0.0, 0.0])
-    agent.receive_footprint('a', 0.3)
-    agent.receive_share('a', 0.5)
+    agent.receive_footprint('a', 0.3, 0.0)
+    agent.receive_share('a', 0.5, 0.0)
     # A neighbour standing 8 m away: nobody comes, it stands without a plan, announcing that
     # it does not mirror anyone's moves.
     agent.receive_neighbour('a', standing(0.0, [8.0, 0.0]), 0.0)

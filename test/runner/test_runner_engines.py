@@ -40,17 +40,11 @@ def rows_of(path):
             for row in csv.DictReader(csv_file)}
 
 
-# In mixed_drive robots arrive (their shares change) near others still planning, and half are
-# unicycles (yaw and body-frame commands). Its robots at their goal switch their announced share
-# every few steps, and a share announcement carries no stamp: on a loaded machine a planner can
-# take a switch one step early or late (about one run in three with a core kept busy). Until the
-# share is stamped, a difference there is reported, not failed.
-SHARE_RACE = pytest.mark.xfail(
-    strict=False, reason='unstamped share switches can reach a loaded planner a step early')
-
-
-@pytest.mark.parametrize('scenario', ['crossing4', 'circle8', 'walker2',
-                                      pytest.param('mixed_drive', marks=SHARE_RACE)])
+# In mixed_drive robots arrive (their shares change) near others still planning, and its robots
+# at their goal switch their announced share every few steps; half are unicycles (yaw and
+# body-frame commands). A switch is stamped with the step whose plan made it and counts from the
+# next step, however early it reaches a loaded planner.
+@pytest.mark.parametrize('scenario', ['crossing4', 'circle8', 'walker2', 'mixed_drive'])
 def test_both_engines_give_the_same_trajectories(scenario, tmp_path, runners):
     path = SCENARIOS / f'{scenario}.yaml'
     scripted = set()

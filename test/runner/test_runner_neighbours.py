@@ -33,7 +33,7 @@ def test_the_engine_gives_every_agent_what_the_others_announce():
     for agent in team.agents:
         for name, radius in radii.items():
             if name != agent.name:
-                announced = agent.announcement_of(name)
+                announced = agent.announcement_of(name, 0.0)
                 # Through the footprint message: single precision, as a planner node reads it.
                 assert announced.radius == pytest.approx(radius, rel=1e-7)
                 assert announced.avoidance_share == 0.5
@@ -45,14 +45,18 @@ def test_the_engine_gives_every_agent_what_the_others_announce():
         if large.arrived:
             break
     assert large.arrived
+
+    def shares_planned_with(robot):
+        """Return the share of ROBOT each other robot's plan of the last step took."""
+        return [planned.avoidance_share for command in team.last_commands
+                for name, planned in zip(command.neighbour_names, command.announcements,
+                                         strict=True) if name == robot]
+
     # As in lockstep: what it announced with this step's plan counts from the next step on.
-    assert all(agent.announcement_of('large').avoidance_share == 0.5
-               for agent in team.agents[1:])
+    assert shares_planned_with('large') == [0.5] * (len(team.agents) - 1)
     team.do_step()
-    assert all(agent.announcement_of('large').avoidance_share == 0.0
-               for agent in team.agents[1:])
-    assert all(agent.announcement_of('small_0').avoidance_share == 0.5
-               for agent in team.agents if agent.name != 'small_0')
+    assert shares_planned_with('large') == [0.0] * (len(team.agents) - 1)
+    assert shares_planned_with('small_0') == [0.5] * (len(team.agents) - 1)
 
 
 def test_small_robots_cross_a_large_parked_robot_without_contact(tmp_path):

@@ -1,9 +1,11 @@
 """Conversions between ROS 2 messages and numpy arrays for the PRVO stack."""
 
 from prvo_msgs_util.announcements import (
+    AnnouncementChanges,
     Announcer,
     CommandsAfterAnnouncements,
     all_acknowledged,
+    announcement_stamp,
     footprint_message,
     radius_of_footprint,
     share_message,
@@ -11,13 +13,16 @@ from prvo_msgs_util.announcements import (
     subscribe_announcements,
 )
 from prvo_msgs_util.conversions import (
+    MAX_FOOTPRINT_RADIUS,
     MAX_SPEED_COMPONENT,
     MAX_VARIANCE,
     MAX_WORLD_COORDINATE,
+    MIN_FOOTPRINT_RADIUS,
     MessageFault,
     OdometryMeasurement,
     body_to_world,
     check_world_point,
+    checked_stamp_seconds,
     make_odometry,
     make_pose_stamped,
     make_twist,
@@ -89,15 +94,18 @@ from prvo_msgs_util.topics import (
 
 __all__ = [
     'ANNOUNCEMENT_QOS', 'AVOIDANCE_SHARE', 'FOOTPRINT', 'footprint_message',
-    'radius_of_footprint', 'share_message', 'share_of', 'Announcer', 'subscribe_announcements',
+    'radius_of_footprint', 'share_message', 'share_of', 'announcement_stamp',
+    'AnnouncementChanges', 'Announcer', 'subscribe_announcements',
     'all_acknowledged', 'CommandsAfterAnnouncements',
     'CLOCK', 'CLOCK_QOS', 'CMD_VEL', 'CMD_VEL_QOS', 'CONTACTS', 'CONTACT_QOS', 'DIAGNOSTICS',
     'DIAGNOSTICS_QOS', 'GOAL_POSE', 'GOAL_QOS', 'GROUND_TRUTH', 'MARKERS', 'MARKER_QOS',
-    'MAX_SPEED_COMPONENT', 'MAX_VARIANCE', 'MAX_WORLD_COORDINATE',
+    'MAX_FOOTPRINT_RADIUS', 'MAX_SPEED_COMPONENT', 'MAX_VARIANCE', 'MAX_WORLD_COORDINATE',
+    'MIN_FOOTPRINT_RADIUS',
     'MessageFault', 'ODOM', 'ODOM_LATEST_QOS', 'ODOM_QOS', 'OdometryMeasurement',
     'QosWatch', 'quiet_publisher_events', 'quiet_subscription_events',
     'SigintRecorder', 'STOP_SIGNALS', 'hold_stop_signals', 'ignore_stop_signals',
-    'release_stop_signals', 'body_to_world', 'check_world_point', 'declare_parameters',
+    'release_stop_signals', 'body_to_world', 'check_world_point', 'checked_stamp_seconds',
+    'declare_parameters',
     'diagnostic_values', 'freeze_startup_objects', 'PARAMETER_TYPES', 'parameter_descriptor',
     'quiet_after_shutdown', 'spin_events', 'ThrottledWarnings',
     'make_belief_markers', 'make_diagnostic_array', 'make_diagnostic_status', 'make_odometry',

@@ -3,17 +3,25 @@
 Every planner publishes, latched (ANNOUNCEMENT_QOS), on `/<robot>/footprint` a
 `geometry_msgs/PolygonStamped` in `<robot>/base_link` (a regular polygon with its vertices on the
 robot's radius, as Nav2 publishes a circular footprint) and on `/<robot>/avoidance_share` a
-`std_msgs/Float32`: the share of a pair's avoidance the robot takes itself, in [0, 1) (0.5 for a
-reciprocating planner, 0 for a robot that does not avoid). See docs/interfaces.md.
+`geometry_msgs/Vector3Stamped` in `<robot>/base_link` whose `vector.x` is the share of a pair's
+avoidance the robot takes itself, in [0, 1) (0.5 for a reciprocating planner, 0 for a robot that
+does not avoid; y and z are 0). Each holds for the plans of odometry stamped after its
+`header.stamp`, the stamp of the plan that changed it; a zero stamp, from the start. See
+docs/interfaces.md.
 """
 
 import math
 import time
 
-from geometry_msgs.msg import Point32, PolygonStamped
+from geometry_msgs.msg import Point32, PolygonStamped, Vector3Stamped
 from rclpy.duration import Duration
-from std_msgs.msg import Float32
 
+from prvo_msgs_util.conversions import (
+    MAX_FOOTPRINT_RADIUS,
+    MIN_FOOTPRINT_RADIUS,
+    checked_stamp_seconds,
+    seconds_to_stamp,
+)
 from prvo_msgs_util.qos import (
     ANNOUNCEMENT_QOS,
     quiet_publisher_events,
@@ -25,16 +33,17 @@ from prvo_msgs_util.topics import AVOIDANCE_SHARE, FOOTPRINT, robot_topic
 FOOTPRINT_VERTICES = 16
 
 
-def footprint_message(radius, frame_id):
-    """Return the PolygonStamped footprint of a disk of RADIUS [m] in FRAME_ID.
+def footprint_message(radius, frame_id, stamp):
+    """Return the PolygonStamped footprint of a disk of RADIUS [m] in FRAME_ID, stamped STAMP [s].
 
-    Raises ValueError unless RADIUS is finite and > 0.
+    Raises ValueError unless RADIUS is finite and > 0 and STAMP is finite and >= 0.
     """
     radius = float(radius)
     if not (math.isfinite(radius) and radius > 0.0):
         raise ValueError(f'footprint radius must be finite and > 0, got {radius!r}')
     message = PolygonStamped()
     message.header.frame_id = frame_id
+    message.header.stamp = seconds_to_stamp(stamp)
     message.polygon.points = [
         Point32(x=radius * math.cos(angle), y=radius * math.sin(angle), z=0.0)
         for angle in (2.0 * math.pi * index / FOOTPRINT_VERTICES
@@ -46,7 +55,8 @@ def radius_of_footprint(message):
     """Return the circumscribed radius [m] of a PolygonStamped footprint about its frame origin.
 
     Raises ValueError naming the problem for a footprint without vertices, with a non-finite
-    coordinate, or whose radius is not > 0.
+    coordinate, or whose radius is outside the plausible [MIN_FOOTPRINT_RADIUS,
+    MAX_FOOTPRINT_RADIUS].
     """
     points = message.polygon.points
     if not points:
@@ -55,19 +65,44 @@ def radius_of_footprint(message):
     if not all(math.isfinite(x) and math.isfinite(y) for x, y in coordinates):
         raise ValueError(f'footprint has a non-finite vertex: {coordinates!r}')
     radius = max(math.hypot(x, y) for x, y in coordinates)
-    if not radius > 0.0:
-        raise ValueError(f'footprint radius must be > 0, got {radius!r}')
+    if not MIN_FOOTPRINT_RADIUS <= radius <= MAX_FOOTPRINT_RADIUS:
+        raise ValueError(f'footprint radius must be in [{MIN_FOOTPRINT_RADIUS:g}, '
+                         f'{MAX_FOOTPRINT_RADIUS:g}] m, got {radius!r}')
     return radius
 
 
-def share_message(avoidance_share):
-    """Return the Float32 announcement of AVOIDANCE_SHARE; ValueError unless it is in [0, 1)."""
-    return Float32(data=_checked_share(avoidance_share))
+def share_message(avoidance_share, frame_id, stamp):
+    """Return the Vector3Stamped announcement of AVOIDANCE_SHARE in FRAME_ID, stamped STAMP [s].
+
+    Raises ValueError unless the share is in [0, 1) and STAMP is finite and >= 0.
+    """
+    message = Vector3Stamped()
+    message.header.frame_id = frame_id
+    message.header.stamp = seconds_to_stamp(stamp)
+    message.vector.x = _checked_share(avoidance_share)
+    return message
 
 
 def share_of(message):
-    """Return the share a Float32 announcement states; ValueError unless it is in [0, 1)."""
-    return _checked_share(message.data)
+    """Return the share a Vector3Stamped announcement states (its vector.x).
+
+    Raises ValueError unless it is in [0, 1) and the vector's y and z are 0.
+    """
+    vector = message.vector
+    if vector.y != 0.0 or vector.z != 0.0:
+        raise ValueError(f'avoidance share must have vector.y = vector.z = 0, got '
+                         f'{[vector.x, vector.y, vector.z]!r}')
+    return _checked_share(vector.x)
+
+
+def announcement_stamp(message):
+    """Return the stamp [s] of an announcement (either kind): it holds for later plans.
+
+    For the plans of odometry stamped after it; 0 means from the start. Raises ValueError
+    (MessageFault) for a stamp that is no time (negative seconds, nanoseconds of a second or
+    more).
+    """
+    return checked_stamp_seconds(message.header.stamp, 'announcement header.stamp')
 
 
 def _checked_share(value):
@@ -75,6 +110,31 @@ def _checked_share(value):
     if not 0.0 <= share < 1.0:
         raise ValueError(f'avoidance share must be in [0, 1), got {share!r}')
     return share
+
+
+class AnnouncementChanges:
+    """The announcement messages of one robot that differ from those it announced before.
+
+    The `Announcer` publishes them; the in-process engine delivers them to its agents.
+    """
+
+    def __init__(self, robot):
+        self._frame_id = f'{robot}/base_link'
+        self._radius = self._share = None
+
+    def messages(self, radius, avoidance_share, stamp):
+        """Return (footprint, share) of RADIUS [m] and AVOIDANCE_SHARE, stamped STAMP [s].
+
+        Each message is None if its value is the one of the last call.
+        """
+        footprint = share = None
+        if radius != self._radius:
+            footprint = footprint_message(radius, self._frame_id, stamp)
+            self._radius = radius
+        if avoidance_share != self._share:
+            share = share_message(avoidance_share, self._frame_id, stamp)
+            self._share = avoidance_share
+        return footprint, share
 
 
 class Announcer:
@@ -93,31 +153,30 @@ class Announcer:
     """
 
     def __init__(self, node, robot, in_robot_namespace=True):
-        self._frame_id = f'{robot}/base_link'
+        self._changes = AnnouncementChanges(robot)
         footprint, share = FOOTPRINT, AVOIDANCE_SHARE
         if not in_robot_namespace:
             footprint, share = robot_topic(robot, FOOTPRINT), robot_topic(robot, AVOIDANCE_SHARE)
         self.footprint_publisher = node.create_publisher(
             PolygonStamped, footprint, ANNOUNCEMENT_QOS, event_callbacks=quiet_publisher_events())
         self.share_publisher = node.create_publisher(
-            Float32, share, ANNOUNCEMENT_QOS, event_callbacks=quiet_publisher_events())
-        self._radius = self._share = None
+            Vector3Stamped, share, ANNOUNCEMENT_QOS, event_callbacks=quiet_publisher_events())
 
-    def announce(self, radius, avoidance_share):
+    def announce(self, radius, avoidance_share, stamp):
         """Publish RADIUS [m] and AVOIDANCE_SHARE, each only if it differs from the last.
 
-        Returns the publishers that published (empty if nothing changed), for a caller that
-        waits until every subscriber has acknowledged the change (`all_acknowledged`).
+        STAMP [s]: the stamp of the plan that changed them (they hold for the plans of odometry
+        stamped after it), 0 for what holds from the start. Returns the publishers that
+        published (empty if nothing changed), for a caller that waits until every subscriber
+        has acknowledged the change (`all_acknowledged`).
         """
         published = []
-        if radius != self._radius:
-            self.footprint_publisher.publish(footprint_message(radius, self._frame_id))
-            self._radius = radius
-            published.append(self.footprint_publisher)
-        if avoidance_share != self._share:
-            self.share_publisher.publish(share_message(avoidance_share))
-            self._share = avoidance_share
-            published.append(self.share_publisher)
+        for publisher, message in zip(
+                (self.footprint_publisher, self.share_publisher),
+                self._changes.messages(radius, avoidance_share, stamp), strict=True):
+            if message is not None:
+                publisher.publish(message)
+                published.append(publisher)
         return published
 
 
@@ -206,14 +265,15 @@ class CommandsAfterAnnouncements:
 def subscribe_announcements(node, robot, receive_radius, receive_share, on_fault):
     """Subscribe NODE to ROBOT's footprint and share; return the two subscriptions.
 
-    `receive_radius(robot, radius)` and `receive_share(robot, share)` get the converted values.
-    A message that cannot be converted, or that they refuse with ValueError, goes to
-    `on_fault(topic, error)` instead.
+    `receive_radius(robot, radius, stamp)` and `receive_share(robot, share, stamp)` get the
+    converted values and the announcement's stamp [s] (`announcement_stamp`). A message that
+    cannot be converted, or that they refuse with ValueError, goes to `on_fault(topic, error)`
+    instead.
     """
     def handler(topic, convert, receive):
         def on_message(message):
             try:
-                receive(robot, convert(message))
+                receive(robot, convert(message), announcement_stamp(message))
             except ValueError as error:
                 on_fault(topic, error)
         return on_message
@@ -224,4 +284,4 @@ def subscribe_announcements(node, robot, receive_radius, receive_share, on_fault
                                      event_callbacks=quiet_subscription_events())
             for kind, topic, convert, receive in (
                 (PolygonStamped, footprint, radius_of_footprint, receive_radius),
-                (Float32, share, share_of, receive_share))]
+                (Vector3Stamped, share, share_of, receive_share))]

@@ -24,6 +24,10 @@ _MIN_QUATERNION_NORM = 1e-6
 MAX_WORLD_COORDINATE = 1.0e6  # m
 MAX_SPEED_COMPONENT = 1.0e3  # m/s
 MAX_VARIANCE = 1.0e6  # m^2 or (m/s)^2
+# An announced footprint's radius: a huge one makes every plan near it infeasible, a tiny one
+# makes a robot a point.
+MIN_FOOTPRINT_RADIUS = 0.01  # m
+MAX_FOOTPRINT_RADIUS = 100.0  # m
 # Serialized (CDR) nav_msgs/Odometry: a 4-byte encapsulation header (0, 1: little-endian;
 # 0, 0: big-endian), the header's stamp (int32 sec, uint32 nanosec) and frame_id, the
 # child_frame_id, then 85 float64 aligned to 8 bytes from the end of the encapsulation header:
@@ -46,6 +50,17 @@ class MessageFault(ValueError):  # noqa: N818 (the project's API name)
 def stamp_to_seconds(stamp):
     """Return a builtin_interfaces/Time as float seconds."""
     return stamp.sec + stamp.nanosec * 1e-9
+
+
+def checked_stamp_seconds(stamp, field):
+    """Return a builtin_interfaces/Time as float seconds; MessageFault unless it is a time >= 0.
+
+    Time's fields are integers: a negative sec, or a nanosec of a second or more, is no time.
+    """
+    if stamp.sec < 0 or stamp.nanosec >= _NS_PER_S:
+        raise MessageFault(
+            f'{field} is no time >= 0 (sec {stamp.sec}, nanosec {stamp.nanosec})')
+    return stamp_to_seconds(stamp)
 
 
 def seconds_to_stamp(seconds):

@@ -4,9 +4,9 @@ A `PlannerAgent` tracks its own robot and its neighbours from odometry measureme
 (`prvo_msgs_util.OdometryMeasurement` or anything with the same fields), waits for the
 neighbours' measurements of the stamp it plans for, applies the goal logic and plans with
 `prvo_planner.core.plan_velocity`, taking each neighbour's size and share of the avoidance from
-its announcements (`NeighbourAnnouncement`). It never reads a clock: every call that needs the
-time of day takes `now`, monotonic seconds of the caller's choosing. The planner node wraps it
-in ROS endpoints; an in-process engine can feed it step by step.
+its stamped announcements (`AnnouncedValues`, `NeighbourAnnouncement`). It never reads a clock:
+every call that needs the time of day takes `now`, monotonic seconds of the caller's choosing.
+The planner node wraps it in ROS endpoints; an in-process engine can feed it step by step.
 """
 
 import dataclasses
@@ -32,6 +32,16 @@ _STANDING_SPEED = 1e-6
 RECIPROCAL_SHARE = 0.5
 # A neighbour that has not announced its share is assumed not to avoid.
 UNANNOUNCED_SHARE = 0.0
+# An announcement stamped s > 0 holds for the plans of stamps after s; one stamped 0, from the
+# start (a robot's announcements before its first plan, the simulator's of scripted robots).
+ANNOUNCED_FROM_THE_START = 0.0
+# The stamp of a change made by the plan of stamp 0 (the simulator's clock starts at 0): 1 ns,
+# the first stamp after 0 a message can carry, so that it does not hold from the start.
+_AFTER_STAMP_ZERO = 1e-9
+# Announcements kept per neighbour and quantity: the plans to come use the newest before their
+# stamp and the later ones, of which a neighbour in lockstep has at most one or two; the bound
+# holds against a neighbour flooding changes faster than this robot plans.
+MAX_KEPT_ANNOUNCEMENTS = 16
 
 
 @dataclasses.dataclass(frozen=True)
@@ -52,6 +62,48 @@ class NeighbourAnnouncement:
         object.__setattr__(self, 'radius', radius)
         object.__setattr__(self, 'avoidance_share',
                            validated_share(self.avoidance_share, 'avoidance_share'))
+
+
+class AnnouncedValues:
+    """What one neighbour announced of one quantity (radius or share), each with its stamp.
+
+    `value_at(stamp)` is what holds for the plan of STAMP: the newest value announced with a
+    stamp before it, or from the start (ANNOUNCED_FROM_THE_START). An announcement replaces
+    those stamped at or after its own stamp (the neighbour restated them: it restarted, or its
+    clock went back); one from the start replaces all. `prune(stamp)` drops what no plan of
+    STAMP or later can use; at most MAX_KEPT_ANNOUNCEMENTS are kept, the oldest going first.
+    """
+
+    def __init__(self):
+        # (stamp, value), stamps increasing.
+        self._announced = []
+
+    def __len__(self):
+        return len(self._announced)
+
+    def add(self, stamp, value):
+        """Take VALUE, announced with STAMP [s] (finite, >= 0)."""
+        kept = [announced for announced in self._announced if announced[0] < stamp]
+        kept.append((stamp, value))
+        self._announced = kept[-MAX_KEPT_ANNOUNCEMENTS:]
+
+    def value_at(self, stamp):
+        """Return the value that holds for the plan of STAMP, None if none announced does."""
+        index = self._index_at(stamp)
+        return None if index is None else self._announced[index][1]
+
+    def prune(self, stamp):
+        """Drop what no plan of STAMP or later can use: all before the value at STAMP."""
+        index = self._index_at(stamp)
+        if index is not None:
+            del self._announced[:index]
+
+    def _index_at(self, stamp):
+        for index in range(len(self._announced) - 1, -1, -1):
+            announced_stamp = self._announced[index][0]
+            if announced_stamp < stamp or announced_stamp == ANNOUNCED_FROM_THE_START:
+                return index
+        return None
 
 
 def preferred_velocity(position, goal, max_speed, approach_time, goal_tolerance,
@@ -217,7 +269,8 @@ class PlannerAgent:
         then keeps its settings.
 
     Use: `receive_own` and `receive_neighbour` for every measurement, `receive_footprint` and
-    `receive_share` for every announcement; when `ready(now)`, or when
+    `receive_share` for every announcement (announce `own_announcement` with
+    `own_announcement_stamp` after each plan and each `reconfigure`); when `ready(now)`, or when
     the caller's wait for neighbours (`sync_timeout`) ran out and `awaiting_listed(now)` is
     false, `plan()` returns the `Command` for the pending own stamp.
 
@@ -239,12 +292,9 @@ class PlannerAgent:
         self._neighbour_tracks = (
             TrackTable(settings.acceleration_std, settings.neighbor_timeout)
             if neighbour_tracks is None else neighbour_tracks)
-        # Announced by each neighbour: robot -> radius, robot -> share; and changes received
-        # since the last own measurement, which take effect with the next one.
+        # Announced by each neighbour, with the stamps they hold after: robot -> AnnouncedValues.
         self._announced_radius = {}
         self._announced_share = {}
-        self._changed_radius = {}
-        self._changed_share = {}
         self._pending_stamp = None
         self._own_yaw = 0.0
         # The last planned velocity in the world frame, for the inertia term; None after a stop.
@@ -306,10 +356,6 @@ class PlannerAgent:
                                        self.settings.acceleration_std,
                                        self.settings.neighbor_timeout)
         if fusion.accepted:
-            self._announced_radius.update(self._changed_radius)
-            self._announced_share.update(self._changed_share)
-            self._changed_radius.clear()
-            self._changed_share.clear()
             if self._first_own_at is None:
                 self._first_own_at = now
             self._pending_stamp = measurement.stamp
@@ -335,48 +381,63 @@ class PlannerAgent:
         return NeighbourAnnouncement(
             self.settings.planning_radius, RECIPROCAL_SHARE if moving else UNANNOUNCED_SHARE)
 
-    def receive_footprint(self, robot, radius):
-        """Take neighbour ROBOT's announced RADIUS [m].
+    @property
+    def own_announcement_stamp(self):
+        """The stamp [s] to announce `own_announcement` with: it holds for plans after it.
 
-        A neighbour's first announcement counts at once; a change, from the next own
-        measurement on (see `receive_share`). Raises ValueError naming the value if it is not
-        finite and > 0; the neighbour then keeps what it had (its last valid announcement, else
+        It changes with a plan (the robot arrived) or with new parameters, and the robot's next
+        plan is of a later stamp than its last: the last plan's stamp, ANNOUNCED_FROM_THE_START
+        before any. A change by the plan of stamp 0 is stamped 1 ns (0 means from the start).
+        """
+        if self._command_stamp is None:
+            return ANNOUNCED_FROM_THE_START
+        return max(self._command_stamp, _AFTER_STAMP_ZERO)
+
+    def receive_footprint(self, robot, radius, stamp):
+        """Take neighbour ROBOT's RADIUS [m], announced with STAMP [s] (see `receive_share`).
+
+        Raises ValueError naming the value if RADIUS is not finite and > 0 or STAMP not finite
+        and >= 0; the neighbour then keeps what it had (its valid announcements, else
         `unknown_neighbor_radius`).
         """
-        self._take(robot, NeighbourAnnouncement(radius, UNANNOUNCED_SHARE).radius,
-                   self._announced_radius, self._changed_radius)
+        self._take(self._announced_radius, robot,
+                   NeighbourAnnouncement(radius, UNANNOUNCED_SHARE).radius, stamp)
 
-    def receive_share(self, robot, avoidance_share):
-        """Take neighbour ROBOT's announced share of the avoidance.
+    def receive_share(self, robot, avoidance_share, stamp):
+        """Take neighbour ROBOT's share of the avoidance, announced with STAMP [s].
 
-        A neighbour's first announcement counts at once; a change, from the next own
-        measurement on: in lockstep every robot plans a step at the same time, and a change
-        that a neighbour announces while planning one step then counts from the next step for
-        every robot, whichever plan it reached first. Raises ValueError naming the value if it
-        is not in [0, 1); the neighbour then keeps what it had (its last valid announcement,
+        It holds for the plans of own stamps after STAMP (0: for every plan), whether it
+        arrives before or after the own odometry of those stamps: in lockstep a robot stamps a
+        change with the step whose plan made it, and the change counts from the next step for
+        every robot. Raises ValueError naming the value if the share is not in [0, 1) or STAMP
+        not finite and >= 0; the neighbour then keeps what it had (its valid announcements,
         else not avoiding).
         """
-        self._take(robot, validated_share(avoidance_share, 'avoidance_share'),
-                   self._announced_share, self._changed_share)
+        self._take(self._announced_share, robot,
+                   validated_share(avoidance_share, 'avoidance_share'), stamp)
 
     @staticmethod
-    def _take(robot, value, announced, changed):
-        if robot in announced:
-            changed[robot] = value
-        else:
-            announced[robot] = value
+    def _take(announced, robot, value, stamp):
+        stamp = float(stamp)
+        if not (math.isfinite(stamp) and stamp >= 0.0):
+            raise ValueError(f'announcement stamp must be finite and >= 0, got {stamp!r}')
+        announced.setdefault(robot, AnnouncedValues()).add(stamp, value)
 
     def forget_announcements(self, robot):
         """Drop what ROBOT announced (it left: a robot of that name may come back another)."""
-        for values in (self._announced_radius, self._announced_share, self._changed_radius,
-                       self._changed_share):
-            values.pop(robot, None)
+        for announced in (self._announced_radius, self._announced_share):
+            announced.pop(robot, None)
 
-    def announcement_of(self, robot):
-        """Return the `NeighbourAnnouncement` planned with for ROBOT, defaults filled in."""
+    def announcement_of(self, robot, stamp):
+        """Return the `NeighbourAnnouncement` of ROBOT for the plan of STAMP, defaults filled in.
+
+        For a STAMP no earlier than the last plan's (what no later plan can use is dropped).
+        """
+        radius, share = (None if robot not in announced else announced[robot].value_at(stamp)
+                         for announced in (self._announced_radius, self._announced_share))
         return NeighbourAnnouncement(
-            self._announced_radius.get(robot, self.settings.unknown_neighbor_radius),
-            self._announced_share.get(robot, UNANNOUNCED_SHARE))
+            self.settings.unknown_neighbor_radius if radius is None else radius,
+            UNANNOUNCED_SHARE if share is None else share)
 
     def forget_neighbours(self, now, wanted=None):
         """Drop neighbours silent longer than neighbor_timeout, or not in WANTED (if given).
@@ -434,7 +495,9 @@ class PlannerAgent:
         names = tuple(self._neighbour_names())
         tracks = [self._neighbour_tracks.track(robot) for robot in names]
         neighbour_beliefs = tuple(track.belief_at(stamp) for track in tracks)
-        announcements = tuple(self.announcement_of(robot) for robot in names)
+        announcements = tuple(self.announcement_of(robot, stamp) for robot in names)
+        for announced in (*self._announced_radius.values(), *self._announced_share.values()):
+            announced.prune(stamp)
         if self._command_stamp is not None and 0.0 < stamp - self._command_stamp:
             self._control_period = stamp - self._command_stamp
         problem = None

@@ -171,7 +171,8 @@ class PlannerNode(Node):
 
     def _announce(self):
         """Publish the footprint and share (latched) where they changed; return the publishers."""
-        return self._announcer.announce(*dataclasses.astuple(self._agent.own_announcement))
+        return self._announcer.announce(*dataclasses.astuple(self._agent.own_announcement),
+                                        self._agent.own_announcement_stamp)
 
     def warm_up(self):
         """Pay the first plans' one-off costs before spinning (see PlannerAgent.warm_up)."""

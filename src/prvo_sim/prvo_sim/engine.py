@@ -20,15 +20,16 @@ from rclpy.serialization import deserialize_message, serialize_message
 
 from prvo_msgs_util import (
     WORLD_FRAME,
+    AnnouncementChanges,
+    announcement_stamp,
     body_to_world,
-    footprint_message,
     radius_of_footprint,
     serialized_odometry_to_measurement,
-    share_message,
     share_of,
     world_to_body,
 )
 from prvo_planner.agent import (
+    ANNOUNCED_FROM_THE_START,
     UNANNOUNCED_SHARE,
     AgentSettings,
     NeighbourAnnouncement,
@@ -128,29 +129,35 @@ class InProcessTeam:
         self._scripted_announcements = {
             index: NeighbourAnnouncement(robot.radius, UNANNOUNCED_SHARE)
             for index, robot in enumerate(scenario.robots) if robot.scripted is not None}
-        self._announced = [None] * len(self.agents)
+        self._announcement_changes = [AnnouncementChanges(name) for name in self.world.names]
         self._announce()
 
     def _announce(self):
         """Give every agent what each other robot announces now, where it changed.
 
-        As a planner node does: at start-up, then after each plan, before its command; through
-        the messages as they arrive (serialized: single-precision numbers).
+        As a planner node and the simulator do: at start-up, then after each plan, before its
+        command, stamped alike; through the messages as they arrive (serialized:
+        single-precision numbers).
         """
         names = self.world.names
         for index, agent in enumerate(self.agents):
-            announcement = (self._scripted_announcements[index] if agent is None
-                            else agent.own_announcement)
-            if announcement == self._announced[index]:
-                continue
-            self._announced[index] = announcement
-            radius = radius_of_footprint(_received(
-                footprint_message(announcement.radius, WORLD_FRAME)))
-            share = share_of(_received(share_message(announcement.avoidance_share)))
-            for _, other in self._planned:
-                if other is not agent:
-                    other.receive_footprint(names[index], radius)
-                    other.receive_share(names[index], share)
+            if agent is None:
+                announcement, stamp = (self._scripted_announcements[index],
+                                       ANNOUNCED_FROM_THE_START)
+            else:
+                announcement, stamp = agent.own_announcement, agent.own_announcement_stamp
+            footprint, share = self._announcement_changes[index].messages(
+                announcement.radius, announcement.avoidance_share, stamp)
+            for message, convert, receive in (
+                    (footprint, radius_of_footprint, PlannerAgent.receive_footprint),
+                    (share, share_of, PlannerAgent.receive_share)):
+                if message is None:
+                    continue
+                message = _received(message)
+                value, value_stamp = convert(message), announcement_stamp(message)
+                for _, other in self._planned:
+                    if other is not agent:
+                        receive(other, names[index], value, value_stamp)
 
     @property
     def finished(self):

@@ -47,6 +47,7 @@ from prvo_msgs_util import (
     seconds_to_stamp,
     spin_events,
 )
+from prvo_planner.agent import ANNOUNCED_FROM_THE_START, UNANNOUNCED_SHARE
 from prvo_sim.commands import command_velocity, unicycle_command
 from prvo_sim.observers import ObserverGate
 from prvo_sim.scenario import ScenarioError, find_scenario, load_scenario
@@ -131,7 +132,8 @@ class SimNode(Node):
                 # No planner speaks for a scripted robot: this node announces its size and that
                 # it takes no share of the avoidance, latched, as a planner announces its own.
                 announcer = Announcer(self, robot.name, in_robot_namespace=False)
-                announcer.announce(scenario.robots[index].radius, 0.0)
+                announcer.announce(scenario.robots[index].radius, UNANNOUNCED_SHARE,
+                                   ANNOUNCED_FROM_THE_START)
                 endpoints += [announcer.footprint_publisher, announcer.share_publisher]
                 continue
             endpoints.append(self.create_subscription(
