@@ -133,10 +133,25 @@ def test_valid_file_merges_blocks_under_robot_overrides(tmp_path):
     ('    max_speed: 0.5\n', '    max_speed: 0.5\n    max_angular_acceleration: 1.0\n',
      'robots[1].max_angular_acceleration', "only for kinematics: unicycle (robot 'robot_1'"),
     ('    max_speed: 0.5\n', '    max_speed: 0.5\n    max_acceleration: 0\n',
-     'robots[1].max_acceleration', 'must be in (0, 1000], got 0'),
+     'robots[1].max_acceleration', 'must be > 0, got 0.0'),
+    ('    max_speed: 0.5\n', '    max_speed: 0.5\n    max_acceleration: 1001\n',
+     'robots[1].max_acceleration', 'must be in (0, 1000], got 1001'),
     ('    max_speed: 0.5\n',
      '    max_speed: 0.5\n    kinematics: unicycle\n    max_angular_speed: -2\n',
-     'robots[1].max_angular_speed', 'must be in (0, 1000], got -2'),
+     'robots[1].max_angular_speed', 'must be >= 0.1 (slower, a half turn takes over 30 s), '
+     'got -2.0'),
+    # The planner's lower bounds: slower turns cannot track a plan (and used to hang it).
+    ('    max_speed: 0.5\n',
+     '    max_speed: 0.5\n    kinematics: unicycle\n    max_angular_speed: 1e-9\n',
+     'robots[1].max_angular_speed', 'must be >= 0.1 (slower, a half turn takes over 30 s), '
+     'got 1e-09'),
+    ('    max_speed: 0.5\n',
+     '    max_speed: 0.5\n    kinematics: unicycle\n    max_angular_acceleration: 1e-6\n',
+     'robots[1].max_angular_acceleration', 'must be >= 0.1 (slower, reaching 1 rad/s takes '
+     'over 10 s), got 1e-06'),
+    ('    max_speed: 0.5\n',
+     '    max_speed: 0.5\n    kinematics: unicycle\n    max_angular_speed: 1001\n',
+     'robots[1].max_angular_speed', 'must be in [0.1, 1000.0], got 1001.0'),
     ('    max_speed: 0.5\n',
      '    max_speed: 0.5\n    kinematics: unicycle\n    max_angular_acceleration: .inf\n',
      'robots[1].max_angular_acceleration', 'finite'),

@@ -337,10 +337,13 @@ def _robot(check, entry, key, file_noise, file_planner):
             if limit in entry:
                 check.fail(f'{key}.{limit}', f'only for kinematics: unicycle (robot {name!r} is '
                            'holonomic)')
-    limits = {limit: check.number(entry[limit], f'{key}.{limit}', 0.0, MAX_LIMIT,
-                                  low_open=True)
-              for limit in ('max_angular_speed', 'max_acceleration', 'max_angular_acceleration')
-              if limit in entry}
+    # The planner gets them as its parameters of the same names: its rules (lower bounds of the
+    # turn limits) apply, and a file states a finite limit or none.
+    limits = {limit: check.number(
+        check.planner_parameter(limit, entry[limit], f'{key}.{limit}'), f'{key}.{limit}', 0.0,
+        MAX_LIMIT, low_open=True)
+        for limit in ('max_angular_speed', 'max_acceleration', 'max_angular_acceleration')
+        if limit in entry}
     start_yaw = (check.number(entry['start_yaw'], f'{key}.start_yaw', -2.0 * math.pi,
                               2.0 * math.pi) if 'start_yaw' in entry else None)
     path = None
