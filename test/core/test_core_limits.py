@@ -6,7 +6,13 @@ import numpy as np
 import pytest
 
 from prvo_planner.core import AgentBelief, PlannerConfig, VelocityLimits, plan_velocity
-from prvo_planner.tracking import TrackingModel, tracking_command
+from prvo_planner.tracking import (
+    MAX_TABLE_PERIODS,
+    TrackingModel,
+    largest_offsets,
+    tracking_command,
+    wrapped,
+)
 
 COV = np.diag([0.01, 0.01, 0.02, 0.02])
 
@@ -88,9 +94,8 @@ def test_limits_that_are_not_limits_plan_as_before():
         unlimited.velocity - [1.0, 0.0]) + 1e-6
 
 
-def independent_tracking_error(speed, angle, model, period, duration):
+def independent_tracking_error(speed, angle, model, period, duration, substeps=200):
     """Drive the controller in small Euler steps and return its largest distance from the path."""
-    substeps = 200
     position, yaw, forward, turn = np.zeros(2), 0.0, 0.0, 0.0
     velocity = speed * unit(angle)
     largest = 0.0
@@ -114,6 +119,36 @@ def test_trackable_speeds_keep_the_tracking_error(angle, angular_acceleration):
     assert error <= 0.1 * (1.0 + 1e-3)
     # The bound is tight: 20% faster strays farther than the error.
     assert independent_tracking_error(1.2 * speed, angle, model, 0.1, 12.0) > 0.1
+
+
+@pytest.mark.parametrize(('angle', 'period', 'angular_acceleration', 'duration'), [
+    # A slow turn acceleration overshoots and swings about the heading for a minute or more.
+    (2.0, 0.1, 0.1, 150.0), (3.1, 0.1, 0.1, 150.0),
+    # A short period: the table's runs end at the period cap before the heading is aligned.
+    (1.0, 0.002, math.inf, 12.0), (3.1, 0.002, math.inf, 12.0)])
+def test_trackable_speeds_keep_the_tracking_error_when_turning_takes_long(
+        angle, period, angular_acceleration, duration):
+    model = TrackingModel(1.0, 2.0, math.inf, angular_acceleration, 0.5, 0.1)
+    speed = float(model.trackable_speeds(np.array([angle]), period)[0])
+    assert 0.0 < speed < 1.0
+    substeps = max(1, round(20 * period / 0.1))
+    error = independent_tracking_error(speed, angle, model, period, duration, substeps)
+    assert error <= 0.1 * (1.0 + 1e-3)
+
+
+@pytest.mark.parametrize(('angular_speed', 'angular_acceleration'), [
+    (1e-9, math.inf), (2.0, 1e-6)])
+def test_turn_limits_too_slow_to_track_end_the_table_at_the_cap_and_track_no_turn(
+        angular_speed, angular_acceleration):
+    model = TrackingModel(1.0, angular_speed, math.inf, angular_acceleration, 0.5, 0.1)
+    angles = np.linspace(0.0, math.pi, 37)
+    largest, end = largest_offsets(1.0, angles, model, 0.1)
+    assert end.periods == MAX_TABLE_PERIODS and largest.shape == angles.shape
+    # In the 200 s simulated the robot turns by 0.02 rad at most: it can follow no velocity off
+    # its heading.
+    assert np.all(np.abs(wrapped(end.heading_errors - angles)) < 0.05)
+    speeds = model.trackable_speeds(np.array([0.0, 0.02, 1.0, 3.0]), 0.1)
+    assert speeds[0] == 1.0 and np.all(speeds[1:] == 0.0)
 
 
 def test_the_tracking_command_turns_toward_and_drives_along_the_velocity():

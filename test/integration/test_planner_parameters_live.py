@@ -47,6 +47,10 @@ def test_set_parameters_rejects_bad_values_with_a_reason(children, ros2_executab
     assert not refused.successful and 'eta' in refused.reason
     refused = _set(probe, client, 'k', -2.0)
     assert not refused.successful and 'k' in refused.reason
+    # Turn limits too slow to track: they used to be taken, and the planner then hung.
+    for name, value in (('max_angular_speed', 1e-9), ('max_angular_acceleration', 1e-6)):
+        refused = _set(probe, client, name, value)
+        assert not refused.successful and name in refused.reason, refused.reason
     accepted = _set(probe, client, 'eta', 0.9)
     assert accepted.successful, accepted.reason
 

@@ -6,6 +6,7 @@ import subprocess
 import numpy as np
 import pytest
 
+from prvo_planner import tracking
 from prvo_planner.agent import (
     AgentSettings,
     NeighbourAnnouncement,
@@ -332,6 +333,37 @@ def test_a_unicycle_agent_plans_with_its_grown_radius_and_drives_forward_and_tur
     assert np.all(np.abs(np.diff(forward)) <= 0.1 + 1e-12) and forward[-1] > 0.3
     # The goal is a little to the left of the heading (yaw 0.1 rad): it turns toward it.
     assert np.all(np.abs(turn) <= 2.0)
+
+
+@pytest.mark.parametrize('limits', [{'max_angular_speed': 1e-9},
+                                    {'max_angular_acceleration': 1e-6}])
+def test_a_unicycle_too_slow_to_turn_plans_after_bounded_work(monkeypatch, limits):
+    """Limits the parameters refuse still plan: the tracking table's work is bounded.
+
+    It used to simulate about pi / omega seconds of turning, some 1e10 control periods.
+    """
+    steps = []
+    control_law = tracking._control_law
+
+    def counted(*arguments):
+        steps.append(1)
+        if len(steps) > 10 * tracking.MAX_TABLE_PERIODS:
+            raise AssertionError(f'more than {len(steps) - 1} control periods simulated')
+        return control_law(*arguments)
+
+    monkeypatch.setattr(tracking, '_control_law', counted)
+    agent = PlannerAgent('self', CONFIG, unicycle_settings(**limits), goal=GOAL)
+    data = team()['self']
+    commands = []
+    for step in range(2):
+        agent.receive_own(data[step], step * 0.1)
+        commands.append(agent.plan())
+    # Two tables (the first plan's period is the tracking horizon, then 0.1 s) and one command
+    # per plan.
+    assert len(steps) <= 2 * tracking.MAX_TABLE_PERIODS + 2
+    # Its goal lies 0.02 rad off its heading: it can track nothing but standing still.
+    for command in commands:
+        assert np.linalg.norm(command.velocity) < 1e-6 and command.drive == (0.0, 0.0)
 
 
 def test_an_accelerating_agent_changes_its_command_by_at_most_the_limit_and_brakes():

@@ -12,6 +12,8 @@ from prvo_planner.agent import goal_horizon, preferred_velocity
 from prvo_planner.core import AgentBelief, plan_velocity
 from prvo_planner.parameters import (
     DEFAULTS,
+    MIN_ANGULAR_ACCELERATION,
+    MIN_ANGULAR_SPEED,
     PARAMETERS,
     ParameterError,
     check_parameter,
@@ -164,6 +166,33 @@ def test_check_parameter_names_the_parameter_and_value(name, value, reason):
     assert raised.value.name == name
     assert str(raised.value) == f'{name}: {raised.value.reason}'
     assert reason in raised.value.reason
+
+
+@pytest.mark.parametrize('name, value, why', [
+    ('max_angular_speed', 1e-9, 'slower, a half turn takes over 30 s'),
+    ('max_angular_speed', 0.099, 'slower, a half turn takes over 30 s'),
+    ('max_angular_acceleration', 1e-6, 'slower, reaching 1 rad/s takes over 10 s'),
+    ('max_angular_acceleration', 0.0, 'slower, reaching 1 rad/s takes over 10 s'),
+])
+def test_turn_limits_too_slow_to_track_are_refused_at_start_and_live(name, value, why):
+    reason = f'{name}: must be >= 0.1 ({why}), got {value!r}'
+    for check in (check_parameter, check_parameter_update):
+        with pytest.raises(ParameterError) as raised:
+            check(name, value)
+        assert str(raised.value) == reason
+    with pytest.raises(ParameterError) as raised:
+        planner_config_from({name: value})
+    assert str(raised.value) == reason
+
+
+def test_the_slowest_turn_limits_and_none_are_accepted():
+    assert MIN_ANGULAR_SPEED == MIN_ANGULAR_ACCELERATION == 0.1
+    assert check_parameter('max_angular_speed', MIN_ANGULAR_SPEED) == 0.1
+    assert check_parameter('max_angular_acceleration', MIN_ANGULAR_ACCELERATION) == 0.1
+    assert check_parameter('max_angular_acceleration', math.inf) == math.inf
+    _, turn_rate = _PARAMETERS['max_angular_speed']
+    assert (turn_rate.floating_point_range[0].from_value,
+            turn_rate.floating_point_range[0].to_value) == (0.1, 1000.0)
 
 
 def test_check_parameter_types_values():

@@ -7,8 +7,21 @@ import sys
 
 import numpy as np
 import pytest
+import rclpy
+from rclpy.context import Context
+from rclpy.exceptions import NameValidationException
+from std_msgs.msg import String
 import yaml
 
+from prvo_msgs_util import (
+    AVOIDANCE_SHARE,
+    CMD_VEL,
+    FOOTPRINT,
+    GOAL_POSE,
+    GROUND_TRUTH,
+    MARKERS,
+    ODOM,
+)
 from prvo_sim.scenario import (
     PLANNER_MEMORY_MIB,
     RUNNER_MEMORY_MIB,
@@ -19,6 +32,7 @@ from prvo_sim.scenario import (
     estimate_team_memory,
     find_scenario,
     load_scenario,
+    ros_name_problem,
 )
 
 SHIPPED = ('circle8', 'crossing4', 'headon2', 'paper3', 'walkers', 'diffdrive_circle6',
@@ -133,10 +147,25 @@ def test_valid_file_merges_blocks_under_robot_overrides(tmp_path):
     ('    max_speed: 0.5\n', '    max_speed: 0.5\n    max_angular_acceleration: 1.0\n',
      'robots[1].max_angular_acceleration', "only for kinematics: unicycle (robot 'robot_1'"),
     ('    max_speed: 0.5\n', '    max_speed: 0.5\n    max_acceleration: 0\n',
-     'robots[1].max_acceleration', 'must be in (0, 1000], got 0'),
+     'robots[1].max_acceleration', 'must be > 0, got 0.0'),
+    ('    max_speed: 0.5\n', '    max_speed: 0.5\n    max_acceleration: 1001\n',
+     'robots[1].max_acceleration', 'must be in (0, 1000], got 1001'),
     ('    max_speed: 0.5\n',
      '    max_speed: 0.5\n    kinematics: unicycle\n    max_angular_speed: -2\n',
-     'robots[1].max_angular_speed', 'must be in (0, 1000], got -2'),
+     'robots[1].max_angular_speed', 'must be >= 0.1 (slower, a half turn takes over 30 s), '
+     'got -2.0'),
+    # The planner's lower bounds: slower turns cannot track a plan (and used to hang it).
+    ('    max_speed: 0.5\n',
+     '    max_speed: 0.5\n    kinematics: unicycle\n    max_angular_speed: 1e-9\n',
+     'robots[1].max_angular_speed', 'must be >= 0.1 (slower, a half turn takes over 30 s), '
+     'got 1e-09'),
+    ('    max_speed: 0.5\n',
+     '    max_speed: 0.5\n    kinematics: unicycle\n    max_angular_acceleration: 1e-6\n',
+     'robots[1].max_angular_acceleration', 'must be >= 0.1 (slower, reaching 1 rad/s takes '
+     'over 10 s), got 1e-06'),
+    ('    max_speed: 0.5\n',
+     '    max_speed: 0.5\n    kinematics: unicycle\n    max_angular_speed: 1001\n',
+     'robots[1].max_angular_speed', 'must be in [0.1, 1000.0], got 1001.0'),
     ('    max_speed: 0.5\n',
      '    max_speed: 0.5\n    kinematics: unicycle\n    max_angular_acceleration: .inf\n',
      'robots[1].max_angular_acceleration', 'finite'),
@@ -213,6 +242,8 @@ BAD_FILES = [
      'set by the runner'),
     ('  eta: 0.8\n', '  eta: 0.8\n  neighbors: [robot_1, 2bad]\n', 'planner.neighbors',
      'not a valid ROS name'),
+    ('  eta: 0.8\n', '  eta: 0.8\n  neighbors: [robot_1, robot__1]\n', 'planner.neighbors',
+     "robot name 'robot__1' holds '__'"),
     ('  eta: 0.8\n', '  eta: 0.8\n  neighbor_radius: 0.0\n', 'planner.neighbor_radius',
      'retired (got 0.0): neighbours announce their own footprints'),
     ('dt: 0.1\n', 'dt: 1e-300\n', 'dt', 'must be in [0.0001, 10], got 1e-300'),
@@ -350,6 +381,58 @@ def test_runner_exits_2_on_a_bad_file_before_starting_anything(tmp_path, old, ne
     assert len(lines) == 1 and f'{path}: {key}: ' in lines[0], result.stderr
     assert not marker.exists()
     assert not (tmp_path / 'out').exists()
+
+
+# Names ROS refuses for different reasons, and names it takes; 'a' * 215 passes as a namespace
+# and as topics but not in the planner's parameter services, 'a' * 235 not even in the topics.
+REFUSED_NAMES = {
+    'robot__0': "holds '__': ROS cannot parse the remap rule __ns:=/robot__0",
+    '__robot': "holds '__'",
+    '0robot': 'not a valid ROS name segment',
+    'robot-0': 'not a valid ROS name segment',
+    'a' * 215: 'Invalid service name: topic length should not exceed',
+    'a' * 235: 'Invalid topic name: topic length should not exceed',
+}
+ACCEPTED_NAMES = ('robot_', '_robot', 'Robot0', 'r', 'a' * 210)
+
+
+@pytest.mark.parametrize('name', list(REFUSED_NAMES))
+def test_a_robot_name_ros_refuses_is_refused_in_one_line(tmp_path, name):
+    path = write(tmp_path, VALID.replace('  - name: robot_1\n', f'  - name: {name}\n'))
+    with pytest.raises(ScenarioError) as raised:
+        load_scenario(path)
+    message = str(raised.value)
+    assert message.startswith(f'{path}: robots[1].name: robot name {name!r}'), message
+    assert REFUSED_NAMES[name] in message and '\n' not in message
+
+
+@pytest.mark.parametrize('name', ACCEPTED_NAMES)
+def test_a_robot_name_ros_takes_loads(tmp_path, name):
+    path = write(tmp_path, VALID.replace('  - name: robot_1\n', f'  - name: {name}\n'))
+    assert load_scenario(path).robots[1].name == name
+
+
+def ros_starts_a_planner_as(name):
+    """Whether rclpy starts a node 'planner' under `-r __ns:=/NAME` with every robot topic."""
+    context = Context()
+    try:
+        rclpy.init(args=['--ros-args', '-r', f'__ns:=/{name}'], context=context)
+        node = rclpy.create_node('planner', context=context)
+        for leaf in (ODOM, GROUND_TRUTH, CMD_VEL, GOAL_POSE, MARKERS, FOOTPRINT, AVOIDANCE_SHARE):
+            node.create_publisher(String, leaf, 1)
+        node.destroy_node()
+        return True
+    except (RuntimeError, NameValidationException):
+        # rcl's RCLError (a RuntimeError): the remap rule or the node's names.
+        return False
+    finally:
+        rclpy.try_shutdown(context=context)
+
+
+def test_the_schema_refuses_a_robot_name_exactly_when_ros_does(ros_domain, monkeypatch):
+    monkeypatch.setenv('ROS_DOMAIN_ID', str(ros_domain))
+    for name in (*REFUSED_NAMES, *ACCEPTED_NAMES):
+        assert ros_starts_a_planner_as(name) == (ros_name_problem(name) is None), name
 
 
 def test_robot_kinematics_and_limits_are_read_with_their_defaults(tmp_path):

@@ -109,3 +109,33 @@ def test_timeouts_changed_while_running_apply_at_once():
     assert timing.due(1.5, first_step=False) == STEP
     timing.step_timeout = 2.0
     assert timing.due(1.5, first_step=False) is None
+
+
+def test_the_deadline_miss_message_says_what_each_late_robot_executes():
+    names = ['robot_0', 'walker', 'robot_2']
+    timing = started_timing(realtime=True)
+    timing.command_received(0, True, 0.0)
+    timing.command_received(2, True, 0.0)
+    timing.close_step(0.1)
+    timing.step_published(0.1)
+    # Robot 2 keeps answering late; robot 0 falls silent for longer than cmd_timeout (0.5 s).
+    timing.command_received(2, False, 0.55)
+    late, stopped = timing.close_step(0.6)
+    assert late == [0, 2] and stopped == [(0, pytest.approx(0.6))]
+    assert timing.deadline_miss_message(late, names, 12.3) == (
+        'deadline miss at t=12.300: no cmd_vel from robot_2: reusing the last command (within '
+        'cmd_timeout 0.5 s); robot_0: executing zero velocity (past cmd_timeout 0.5 s)')
+    # Once robot 0 is heard again, it reuses its new command when late.
+    timing.step_published(0.6)
+    timing.command_received(0, False, 0.65)
+    late, _ = timing.close_step(0.7)
+    assert timing.deadline_miss_message(late, names, 12.4).endswith(
+        'no cmd_vel from robot_0, robot_2: reusing the last command (within cmd_timeout 0.5 s)')
+
+
+def test_a_robot_never_heard_from_is_said_to_execute_zero():
+    timing = started_timing()
+    late, _ = timing.close_step(100.0)
+    assert timing.deadline_miss_message(late, ['a', 'b', 'c'], 0.1) == (
+        'deadline miss at t=0.100: no cmd_vel from a, c: executing zero velocity (no command '
+        'yet)')

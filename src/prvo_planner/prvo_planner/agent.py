@@ -194,6 +194,29 @@ class AgentSettings:
 
 
 @dataclasses.dataclass(frozen=True)
+class PlanTally:
+    """What the robot's plans achieved since its agent started (a new goal keeps counting).
+
+    A plan is one the core made (`PlanResult`); standing still without one is none. `plans`
+    counts them, `infeasible` those without a velocity that meets every constraint;
+    `min_achieved_eta` is the lowest eta bound a plan achieved and `last_stamp` the stamp of
+    the last plan counted, both None before the first.
+    """
+
+    plans: int = 0
+    infeasible: int = 0
+    min_achieved_eta: float | None = None
+    last_stamp: float | None = None
+
+    def counted(self, result, stamp):
+        """Return this tally with RESULT, the core's plan for STAMP, counted."""
+        eta = float(result.eta_bound)
+        return PlanTally(
+            self.plans + 1, self.infeasible + (not result.feasible),
+            eta if self.min_achieved_eta is None else min(self.min_achieved_eta, eta), stamp)
+
+
+@dataclasses.dataclass(frozen=True)
 class Command:
     """One plan: the command for `stamp` and what it was planned from.
 
@@ -203,7 +226,7 @@ class Command:
     at `stamp`; `neighbour_names` and `announcements` (`NeighbourAnnouncement`s, defaults for
     what was not announced) are in the same order. `drive` is a unicycle's (forward speed, turn
     rate) that tracks `velocity`, None for a holonomic robot. `arrival` marks the first plan at
-    the goal since the robot set off for it.
+    the goal since the robot set off for it. `tally` is the agent's `PlanTally` with this plan.
     """
 
     stamp: float
@@ -217,6 +240,7 @@ class Command:
     announcements: tuple
     drive: tuple = None
     arrival: bool = False
+    tally: PlanTally = PlanTally()
 
     def announcement_values(self):
         """Return {'neighbour.<robot>.radius': m, 'neighbour.<robot>.avoidance_share': a}."""
@@ -308,6 +332,7 @@ class PlannerAgent:
         # Listed neighbours are waited for from the first own measurement on, not from start-up:
         # a team's processes start at different speeds, and a run begins with all of them.
         self._first_own_at = None
+        self.tally = PlanTally()
 
     @property
     def pending_stamp(self):
@@ -553,11 +578,13 @@ class PlannerAgent:
                                      self._period(request))
             self._drive = drive
         self._command_in_force, self._command_stamp = velocity, request.stamp
+        if result is not None:
+            self.tally = self.tally.counted(result, request.stamp)
         return Command(stamp=request.stamp, velocity=velocity, yaw=self._own_yaw, result=result,
                        arrived=self.arrived, own=request.own, neighbours=request.neighbours,
                        neighbour_names=request.neighbour_names,
                        announcements=request.announcements, drive=drive,
-                       arrival=request.arrival)
+                       arrival=request.arrival, tally=self.tally)
 
     def _period(self, request):
         """Return the time [s] the command for REQUEST will be in force (0 before any)."""

@@ -29,6 +29,11 @@ KINEMATICS = ('holonomic', 'unicycle')
 # Goals (and the scenario's coordinates) are in metres of one shared map: 1000 km is plenty and
 # keeps every product of coordinates far from floating-point trouble.
 COORDINATE_LIMIT = 1.0e6
+# A unicycle's slowest turn limits [rad/s, rad/s^2]. Slower, a half turn takes over 30 s (or
+# reaching 1 rad/s over 10 s) while a plan looks 5 s ahead: the robot cannot follow its plans,
+# and its tracking table would be all but empty.
+MIN_ANGULAR_SPEED = 0.1
+MIN_ANGULAR_ACCELERATION = 0.1
 
 
 class ParameterError(ValueError):
@@ -86,6 +91,13 @@ def _retired_neighbour_radius(value):
     return None if value == -1.0 else (
         f'retired (got {_shown(value)}): neighbours announce their own footprints; set '
         'unknown_neighbor_radius for those that announce none')
+
+
+def _at_least(low, why):
+    """Return a rule that refuses a value below LOW, saying WHY."""
+    def rule(value):
+        return None if value >= low else f'must be >= {low:g} ({why}), got {_shown(value)}'
+    return rule
 
 
 def _goal_rule(value):
@@ -172,13 +184,16 @@ _SPECS = (
                   'linear x, y) or unicycle (differential drive: linear.x and angular.z).',
                   choices=KINEMATICS),
     ParameterSpec('max_angular_speed', FLOAT, 2.0, 'Turn rate limit of a unicycle [rad/s], in '
-                  '(0, 1000].', (0.0, 1.0e3), rule=_positive),
+                  f'[{MIN_ANGULAR_SPEED:g}, 1000].', (MIN_ANGULAR_SPEED, 1.0e3),
+                  rule=_at_least(MIN_ANGULAR_SPEED, 'slower, a half turn takes over 30 s')),
     # Unbounded ranges: .inf (the default) means no limit.
     ParameterSpec('max_acceleration', FLOAT, math.inf, 'Limit of the change of the commanded '
                   'velocity (unicycle: forward speed) [m/s^2], > 0; .inf for none.',
                   rule=_positive),
     ParameterSpec('max_angular_acceleration', FLOAT, math.inf, 'Limit of the change of a '
-                  "unicycle's turn rate [rad/s^2], > 0; .inf for none.", rule=_positive),
+                  f"unicycle's turn rate [rad/s^2], >= {MIN_ANGULAR_ACCELERATION:g}; .inf for "
+                  'none.', rule=_at_least(MIN_ANGULAR_ACCELERATION,
+                                          'slower, reaching 1 rad/s takes over 10 s')),
     ParameterSpec('tracking_error', FLOAT, 0.1, 'Largest distance [m] a unicycle may stray from '
                   'the holonomic plan it tracks; its radius is grown by it, in (0, 10].',
                   (0.0, 10.0), rule=_positive),

@@ -44,21 +44,29 @@ def plan_status(robot, command, plan_time_ms, model, planning_radius):
     """Return the `prvo_planner/<ROBOT>` DiagnosticStatus of COMMAND (an agent `Command`).
 
     PLANNING_RADIUS [m] is the ego radius the plan used (grown by a unicycle's tracking error):
-    the eta bound holds for it.
+    the eta bound holds for it. The tally's keys count every plan since the planner started:
+    `min_achieved_eta` and `tally_stamp` are 'none' before the first.
     """
     result = command.result
     feasible = True if result is None else bool(result.feasible)
     achieved_k = math.inf if result is None else result.achieved_k
     eta_bound = 1.0 if result is None else result.eta_bound
+    tally = command.tally
     return make_diagnostic_status(
         f'prvo_planner/{robot}',
         'ok' if feasible else 'no velocity meets the chance constraint',
         {'achieved_k': achieved_k, 'eta_bound': eta_bound, 'feasible': feasible,
          'neighbours_tracked': len(command.neighbours), 'plan_time_ms': plan_time_ms,
          'arrived': command.arrived, 'model': model, 'planning_radius': planning_radius,
-         **command.announcement_values()},
+         'plans': tally.plans, 'infeasible_plans': tally.infeasible,
+         'min_achieved_eta': _or_none(tally.min_achieved_eta),
+         'tally_stamp': _or_none(tally.last_stamp), **command.announcement_values()},
         level=DiagnosticStatus.OK if feasible else DiagnosticStatus.WARN,
         hardware_id=robot)
+
+
+def _or_none(value):
+    return 'none' if value is None else float(value)
 
 
 def plan_markers(robot, command, frame_id, effective_k):

@@ -9,9 +9,12 @@ period, this moves the robot away from the straight path `t v_h` by at most a tr
 that is proportional to `|v_h|` for a given initial heading error, so the largest speed whose
 error stays within `E` is a function of that angle alone. The planner plans only such
 velocities and with its radius grown by `E`: the robot then stays within `E` of a holonomic
-robot that meets the chance constraint.
+robot that meets the chance constraint. The errors are tabulated by simulating the controller
+for a bounded number of periods; an angle from which the robot is still turning at a limit by
+then has no trackable speed.
 """
 
+from dataclasses import dataclass
 import functools
 import math
 
@@ -21,9 +24,12 @@ import numpy as np
 _TABLE_ANGLES = np.linspace(0.0, math.pi, 361)
 # Samples of the path within each control period at which the error is measured.
 _SAMPLES_PER_PERIOD = 8
-# The tabulated run lasts until the heading error is below this [rad]; later the path is
-# parallel to the reference and the error no longer grows.
+# The tabulated runs last until every heading error is below this [rad] for good; later the
+# path is parallel to the reference and the error barely grows (`_tail_bound`).
 _ALIGNED = 1e-6
+# Control periods the tabulated runs last at most (under a second of work), whatever the
+# limits; a run still turning at a limit then is untrackable.
+MAX_TABLE_PERIODS = 2000
 
 
 def wrapped(angle):
@@ -110,51 +116,104 @@ class TrackingModel:
         return functools.partial(self.trackable_speeds, period=period)
 
 
-def tracked_path(speed, heading_errors, model, period, duration):
-    """Return (times, offsets (A, K, 2)) of unicycles tracking constant velocities, noise-free.
+def largest_offsets(speed, heading_errors, model, period):
+    """Return (largest offsets (A,), `RunEnd`) of unicycles tracking constant velocities.
 
     Each robot starts at the origin heading along +x, at rest and not turning; its velocity has
-    length SPEED and points one of HEADING_ERRORS (A,) from +x. `offsets` are the robots'
-    positions minus the straight paths `t velocity`, sampled within every control period (held
-    commands, exact arcs) up to DURATION [s].
+    length SPEED and points one of HEADING_ERRORS (A,) from +x. They are driven, noise-free, in
+    control periods of PERIOD [s] (held commands, exact arcs) until every one has settled
+    (`_settled`) within `_ALIGNED` of its velocity's heading, or for MAX_TABLE_PERIODS. A
+    robot's offset is its position minus the straight path `t velocity`; the largest is over
+    samples within every period. Memory does not grow with the periods.
     """
     heading_errors = np.asarray(heading_errors, dtype=float)
     velocities = speed * np.stack([np.cos(heading_errors), np.sin(heading_errors)], axis=1)
     positions = np.zeros_like(velocities)
     yaws = np.zeros_like(heading_errors)
     forward = turn = np.zeros_like(heading_errors)
-    fractions = np.arange(1, _SAMPLES_PER_PERIOD + 1) / _SAMPLES_PER_PERIOD
-    times, offsets = [0.0], [np.zeros_like(velocities)]
-    for step in range(math.ceil(duration / period - 1e-9)):
+    # Every sample of a period at once: (samples, A).
+    fractions = (np.arange(1, _SAMPLES_PER_PERIOD + 1) / _SAMPLES_PER_PERIOD)[:, None]
+    largest = np.zeros_like(heading_errors)
+    for step in range(MAX_TABLE_PERIODS):
         forward, turn = _control_law(speed, wrapped(heading_errors - yaws), forward, turn,
                                      model, period)
-        for fraction in fractions:
-            moved, turned = _arc(forward, turn, yaws, fraction * period)
-            times.append((step + fraction) * period)
-            offsets.append(positions + moved - times[-1] * velocities)
-        positions = positions + moved
-        yaws = turned
-    return np.array(times), np.stack(offsets, axis=1)
+        moved, turned = _arc(forward, turn, yaws, fractions * period)
+        offsets = positions + moved - ((step + fractions) * period)[..., None] * velocities
+        largest = np.maximum(largest, np.max(np.linalg.norm(offsets, axis=-1), axis=0))
+        positions = positions + moved[-1]
+        yaws = turned[-1]
+        end = RunEnd(offsets[-1], wrapped(heading_errors - yaws), turn, step + 1)
+        if np.all(np.abs(end.heading_errors) <= _ALIGNED) and np.all(
+                _settled(end, model, period)):
+            break
+    return largest, end
 
 
-def _arc(forward, turn, yaws, duration):
-    """Return displacements (A, 2) and yaws (A,) after DURATION of exact unicycle arcs."""
-    half = 0.5 * turn * duration
-    chord = forward * duration * np.sinc(half / math.pi)
-    moved = np.stack([chord * np.cos(yaws + half), chord * np.sin(yaws + half)], axis=1)
+@dataclass(frozen=True)
+class RunEnd:
+    """Where tracking runs are after their last period.
+
+    `offsets` (A, 2) from their straight paths [m], `heading_errors` (A,) [rad],
+    the turn rates `turn` (A,) [rad/s] commanded over the last period and the number of
+    `periods` run.
+    """
+
+    offsets: np.ndarray
+    heading_errors: np.ndarray
+    turn: np.ndarray
+    periods: int
+
+
+def _arc(forward, turn, yaws, durations):
+    """Return displacements (S, A, 2) and yaws (S, A) after DURATIONS (S, 1) of exact arcs."""
+    half = 0.5 * turn * durations
+    chord = forward * durations * np.sinc(half / math.pi)
+    moved = np.stack([chord * np.cos(yaws + half), chord * np.sin(yaws + half)], axis=-1)
     return moved, yaws + 2.0 * half
+
+
+def _settled(end, model, period):
+    """Whether each run ending at END (a `RunEnd`) turns from now on at neither limit (A,).
+
+    Its controller then turns at the heading error e / max(T, period) exactly, which shrinks e
+    by a factor (1 - period / max(T, period)) per period without overshoot: the turn rate
+    stays within the limit, and so does its change if |e| <= max_angular_acceleration
+    max(T, period)^2 (the change is |e| period / max(T, period)^2).
+    """
+    horizon = max(model.horizon, period)
+    error = np.abs(end.heading_errors)
+    calm = (error < 0.5 * math.pi) & (error <= model.max_angular_speed * horizon)
+    if not math.isfinite(model.max_angular_acceleration):
+        return calm
+    return calm & (np.abs(end.heading_errors / horizon - end.turn)
+                   <= model.max_angular_acceleration * period) & (
+                       error <= model.max_angular_acceleration * horizon ** 2)
+
+
+def _tail_bound(end, model, period):
+    """Return how much farther (A,) the runs ending at END may stray per unit speed.
+
+    For a model without a forward acceleration limit (the table's). A settled run's heading
+    error e shrinks geometrically; the robot drives at cos(e) along a heading within e of its
+    velocity's, moving off its path at most at |e| (1 + |e| / 2) per unit speed: at most
+    |e| (1 + |e| / 2) max(T, period) in all. Any other run may stray without a bound known
+    here: inf.
+    """
+    error = np.abs(end.heading_errors)
+    return np.where(_settled(end, model, period),
+                    error * (1.0 + 0.5 * error) * max(model.horizon, period), math.inf)
 
 
 @functools.lru_cache(maxsize=32)
 def _unit_error_table(max_angular_speed, max_angular_acceleration, horizon, period):
-    """Tracking error at speed 1 for every angle of _TABLE_ANGLES, made non-decreasing."""
+    """Tracking error at speed 1 for every angle of _TABLE_ANGLES, made non-decreasing.
+
+    Each angle's error is the largest of its run, or its error at the end plus `_tail_bound`
+    if larger: inf for a run still turning at a limit when the period cap ends it.
+    """
     model = TrackingModel(1.0, max_angular_speed, math.inf, max_angular_acceleration, horizon,
                           1.0)
-    # Turning pi at the limits, then converging by a factor (1 - period / T) per period.
-    convergence = math.log(_ALIGNED / math.pi) / math.log(
-        max(abs(1.0 - min(period / horizon, 1.0)), 1e-12))
-    duration = (math.pi / max_angular_speed + (
-        max_angular_speed / max_angular_acceleration if math.isfinite(
-            max_angular_acceleration) else 0.0) + max(convergence, 1.0) * period + period)
-    offsets = tracked_path(1.0, _TABLE_ANGLES, model, period, duration)[1]
-    return np.maximum.accumulate(np.max(np.linalg.norm(offsets, axis=2), axis=1))
+    largest, end = largest_offsets(1.0, _TABLE_ANGLES, model, period)
+    largest = np.maximum(largest, np.linalg.norm(end.offsets, axis=1)
+                         + _tail_bound(end, model, period))
+    return np.maximum.accumulate(largest)

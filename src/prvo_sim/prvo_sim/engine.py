@@ -164,6 +164,11 @@ class InProcessTeam:
         """Whether the scenario's duration has been reached."""
         return self.world.finished
 
+    def plan_tallies(self):
+        """Return {robot name: its agent's `PlanTally`} of every planned robot, so far."""
+        names = self.world.names
+        return {names[index]: agent.tally for index, agent in self._planned}
+
     def observe(self):
         """Return (odometry measurements, ground-truth states (N, 5)) of the current state.
 

@@ -130,6 +130,30 @@ def run_metrics(times, positions, radii, goals, goal_tolerance, robot_names, scr
     }
 
 
+def plan_quality(tallies):
+    """Return how far the robots' plans met the chance constraint, per robot and overall.
+
+    TALLIES maps each planned robot to (plans, infeasible plans, lowest achieved eta). Returns
+    {'robots': {name: {'plans', 'infeasible_fraction', 'min_achieved_eta'}},
+    'infeasible_fraction': infeasible plans / plans of all robots, 'min_achieved_eta': the
+    lowest of all}; a fraction or eta is None where there was no plan.
+    """
+    robots = {}
+    for name, (plans, infeasible, min_achieved_eta) in tallies.items():
+        if not 0 <= infeasible <= plans:
+            raise ValueError(f'{name}: {infeasible} infeasible plans of {plans}')
+        robots[name] = {
+            'plans': int(plans),
+            'infeasible_fraction': infeasible / plans if plans else None,
+            'min_achieved_eta': float(min_achieved_eta) if plans else None}
+    plans = sum(plans for plans, _, _ in tallies.values())
+    etas = [robot['min_achieved_eta'] for robot in robots.values() if robot['plans']]
+    return {'robots': robots,
+            'infeasible_fraction': (sum(infeasible for _, infeasible, _ in tallies.values())
+                                    / plans if plans else None),
+            'min_achieved_eta': min(etas) if etas else None}
+
+
 def aggregate(metrics_list, keys):
     """Return {key: {'mean', 'std', 'min', 'max', 'n'}} over the runs' numeric values of KEYS.
 

@@ -13,9 +13,21 @@ import sys
 
 from ament_index_python.packages import PackageNotFoundError, get_package_share_directory
 import numpy as np
+from rclpy.exceptions import NameValidationException
+from rclpy.validate_full_topic_name import validate_full_topic_name
+from rclpy.validate_namespace import validate_namespace
 import yaml
 
-from prvo_msgs_util import validate_robot_name
+from prvo_msgs_util import (
+    AVOIDANCE_SHARE,
+    CMD_VEL,
+    FOOTPRINT,
+    GOAL_POSE,
+    GROUND_TRUTH,
+    MARKERS,
+    ODOM,
+    validate_robot_name,
+)
 from prvo_planner.parameters import (
     COORDINATE_LIMIT,
     KINEMATICS,
@@ -67,8 +79,38 @@ SET_BY_RUNNER = {
 PLANNER_MEMORY_MIB = 150
 SIMULATOR_MEMORY_MIB = 80
 RUNNER_MEMORY_MIB = 120
+# Every topic the stack names after a robot: /<name>/<leaf>.
+_ROBOT_TOPIC_LEAVES = (ODOM, GROUND_TRUTH, CMD_VEL, GOAL_POSE, MARKERS, FOOTPRINT, AVOIDANCE_SHARE)
+# The longest name of the services rclpy gives the robot's planner node: /<name>/<service>.
+_LONGEST_PLANNER_SERVICE = 'planner/set_parameters_atomically'
 _YAML_1_2_FLOAT = re.compile(
     r'^[-+]?(?:\.[0-9]+|[0-9]+(?:\.[0-9]*)?)(?:[eE][-+]?[0-9]+)?$')
+
+
+def ros_name_problem(name):
+    """Return why ROS refuses robot NAME as the namespace /NAME of its nodes and topics, or None.
+
+    The namespace, the robot's topics and its planner's services must pass rclpy's validators.
+    The ROS engine starts each robot's nodes with the remap rule `__ns:=/NAME`, whose parser
+    reads `__` as the start of one of its own tokens (`__ns`, `__node`): a name holding repeated
+    underscores fails there, although the validators take it.
+    """
+    try:
+        validate_robot_name(name)
+    except ValueError as error:
+        return str(error)
+    if '__' in name:
+        return (f"robot name {name!r} holds '__': ROS cannot parse the remap rule "
+                f'__ns:=/{name} (no repeated underscores in a ROS name)')
+    try:
+        validate_namespace(f'/{name}')
+        for leaf in _ROBOT_TOPIC_LEAVES:
+            validate_full_topic_name(f'/{name}/{leaf}')
+        validate_full_topic_name(f'/{name}/{_LONGEST_PLANNER_SERVICE}', is_service=True)
+    except NameValidationException as error:
+        # The first line names the rule broken; the others point at the character.
+        return f'robot name {name!r}: {str(error).splitlines()[0].rstrip(":")}'
+    return None
 
 
 class ScenarioError(ValueError):
@@ -254,10 +296,9 @@ class _Validator:
             checked[name] = self.planner_parameter(name, parameter, path)
             if name == 'neighbors':
                 for robot in checked[name] or ():
-                    try:
-                        validate_robot_name(robot)
-                    except ValueError as error:
-                        self.fail(path, str(error))
+                    problem = ros_name_problem(robot)
+                    if problem is not None:
+                        self.fail(path, problem)
         return checked
 
 
@@ -320,10 +361,9 @@ def _robot(check, entry, key, file_noise, file_planner):
     required = _ROBOT_REQUIRED - {'goal'} if scripted else _ROBOT_REQUIRED
     entry = check.mapping(entry, key, _ROBOT_KEYS, required)
     name = check.string(entry['name'], f'{key}.name')
-    try:
-        validate_robot_name(name)
-    except ValueError as error:
-        check.fail(f'{key}.name', str(error))
+    problem = ros_name_problem(name)
+    if problem is not None:
+        check.fail(f'{key}.name', problem)
     noise = {**file_noise, **check.noise(entry.get('noise'), f'{key}.noise')}
     # A planner gets both as its parameters of the same name: the same rules apply.
     radius = check.planner_parameter('radius', entry['radius'], f'{key}.radius')
@@ -338,10 +378,13 @@ def _robot(check, entry, key, file_noise, file_planner):
             if limit in entry:
                 check.fail(f'{key}.{limit}', f'only for kinematics: unicycle (robot {name!r} is '
                            'holonomic)')
-    limits = {limit: check.number(entry[limit], f'{key}.{limit}', 0.0, MAX_LIMIT,
-                                  low_open=True)
-              for limit in ('max_angular_speed', 'max_acceleration', 'max_angular_acceleration')
-              if limit in entry}
+    # The planner gets them as its parameters of the same names: its rules (lower bounds of the
+    # turn limits) apply, and a file states a finite limit or none.
+    limits = {limit: check.number(
+        check.planner_parameter(limit, entry[limit], f'{key}.{limit}'), f'{key}.{limit}', 0.0,
+        MAX_LIMIT, low_open=True)
+        for limit in ('max_angular_speed', 'max_acceleration', 'max_angular_acceleration')
+        if limit in entry}
     start_yaw = (check.number(entry['start_yaw'], f'{key}.start_yaw', -2.0 * math.pi,
                               2.0 * math.pi) if 'start_yaw' in entry else None)
     path = None

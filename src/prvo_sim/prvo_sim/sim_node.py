@@ -251,10 +251,9 @@ class SimNode(Node):
             return
         late, stopped = self._timing.close_step(time.monotonic())
         if late:
-            self.get_logger().warning(
-                f'deadline miss at t={world.time:.3f}: no cmd_vel from '
-                f'{", ".join(self._robots[index].name for index in late)}; reusing the last '
-                'command', throttle_duration_sec=_WARNING_THROTTLE)
+            self.get_logger().warning(self._timing.deadline_miss_message(
+                late, [robot.name for robot in self._robots], world.time),
+                throttle_duration_sec=_WARNING_THROTTLE)
         for index, silence in stopped:
             robot = self._robots[index]
             robot.command = np.zeros(2)

@@ -117,6 +117,25 @@ class StepTiming:
                 stopped.append((index, now - robot.commanded_at))
         return late, stopped
 
+    def deadline_miss_message(self, late, names, sim_time):
+        """Return the warning for the LATE robots (indices) of the step closed at SIM_TIME [s].
+
+        NAMES are every robot's, in order. It says what each late robot executes, as
+        `close_step` decided: its last command again while within `cmd_timeout`, zero velocity
+        once stopped or before its first command.
+        """
+        reusing, stopped, never = [], [], []
+        for index in late:
+            robot = self.robots[index]
+            group = never if robot.commanded_at is None else stopped if robot.stopped else reusing
+            group.append(names[index])
+        timeout = f'cmd_timeout {self.cmd_timeout:g} s'
+        parts = ((reusing, f'reusing the last command (within {timeout})'),
+                 (stopped, f'executing zero velocity (past {timeout})'),
+                 (never, 'executing zero velocity (no command yet)'))
+        return f'deadline miss at t={sim_time:.3f}: no cmd_vel from ' + '; '.join(
+            f'{", ".join(robots)}: {what}' for robots, what in parts if robots)
+
     def _silent(self, robot, now):
         if robot.stopped or robot.commanded_at is None:
             return False

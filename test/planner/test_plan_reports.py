@@ -1,0 +1,60 @@
+"""A plan's diagnostic status carries the planner's tally of its plans so far."""
+
+import dataclasses
+
+import numpy as np
+
+from prvo_msgs_util import diagnostic_values
+from prvo_planner.agent import AgentSettings, PlannerAgent
+from prvo_planner.core import PlannerConfig
+from prvo_planner.reports import plan_status
+
+
+@dataclasses.dataclass(frozen=True)
+class Measurement:
+    """The fields of prvo_msgs_util.OdometryMeasurement the agent reads."""
+
+    stamp: float
+    position: np.ndarray
+    velocity: np.ndarray
+    covariance: np.ndarray
+    yaw: float = 0.0
+
+
+def head_on(agent, rng, steps, first=0):
+    """Feed AGENT measurements of itself and a neighbour head-on from step FIRST; plan each."""
+    commands = []
+    for step in range(first, first + steps):
+        stamp = round(0.1 * step, 9)
+        for robot, start, velocity in (('self', -2.0, 0.8), ('other', 2.0, -0.8)):
+            position = np.array([start + velocity * stamp, 0.0]) + rng.normal(0.0, 0.02, 2)
+            measurement = Measurement(stamp, position, np.array([velocity, 0.0]),
+                                      4e-4 * np.eye(4))
+            if robot == 'self':
+                agent.receive_own(measurement, stamp)
+            else:
+                agent.receive_neighbour(robot, measurement, stamp)
+        agent.receive_footprint('other', 0.3)
+        agent.receive_share('other', 0.5)
+        commands.append(agent.plan())
+    return commands
+
+
+def test_the_status_reports_the_plans_so_far_and_their_worst_eta():
+    rng = np.random.default_rng(7)
+    config = PlannerConfig(eta=0.9999, max_speed=1.0, actuation_cov=0.0025 * np.eye(2))
+    agent = PlannerAgent('self', config, AgentSettings(), goal=None)
+    idle = head_on(agent, rng, 2)[-1]
+    values = diagnostic_values(plan_status('self', idle, 1.0, 'prvo', 0.3))
+    # No goal: it stood still without planning.
+    assert (values['plans'], values['infeasible_plans'], values['min_achieved_eta'],
+            values['tally_stamp']) == ('0', '0', 'none', 'none')
+    agent.set_goal([3.0, 0.0])
+    commands = head_on(agent, rng, 12, first=2)
+    results = [command.result for command in commands]
+    values = diagnostic_values(plan_status('self', commands[-1], 1.0, 'prvo', 0.3))
+    assert values['plans'] == '12'
+    assert values['infeasible_plans'] == str(sum(not result.feasible for result in results))
+    assert int(values['infeasible_plans']) > 0
+    assert float(values['min_achieved_eta']) == min(result.eta_bound for result in results)
+    assert float(values['tally_stamp']) == commands[-1].stamp
