@@ -240,3 +240,23 @@ def test_the_ros_engine_finds_its_own_executables_without_the_ament_index(monkey
     monkeypatch.delenv('AMENT_PREFIX_PATH', raising=False)
     (command,) = package_command('prvo_sim', 'sim', 'prvo_sim.sim_node')
     assert command.endswith('/lib/prvo_sim/sim') and os.access(command, os.X_OK)
+
+
+@pytest.mark.parametrize('engine', ['inprocess', 'ros'])
+def test_a_run_reports_the_guarantee_its_plans_did_not_have(engine, tmp_path, runners):
+    # At eta 0.9999 no velocity of a head-on encounter meets the constraint: the run arrives
+    # without contact on the fallback, and must not read as if the guarantee had held.
+    out = tmp_path / 'out'
+    runner = start_runner([HEADON, '--engine', engine, '--eta', '0.9999', '--out', str(out),
+                           '--quiet', '--no-bag', '--no-animation'], tmp_path)
+    runners.append(runner)
+    assert runner.wait(timeout=300) == 0, output(runner)
+    recorded = json.loads((out / 'metrics.json').read_text())
+    assert recorded['infeasible_fraction'] > 0.5
+    assert recorded['min_achieved_eta'] < 0.9
+    for robot in recorded['robots'].values():
+        assert robot['plans'] > 20 and robot['infeasible_fraction'] > 0.5
+        assert recorded['min_achieved_eta'] <= robot['min_achieved_eta'] < 0.9999
+    outcome = next(line for line in runner.out_path.read_text().splitlines()
+                   if 'outcome:' in line)
+    assert '% of plans infeasible (achieved eta down to ' in outcome, outcome

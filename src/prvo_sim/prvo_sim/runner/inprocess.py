@@ -76,7 +76,9 @@ def run_inprocess(spec):
                 np.array([step.commands for step in steps]),
                 tuple(np.concatenate([step.plan_ms for step in steps]).tolist()),
                 deadline_misses=0, yaws=np.array([step.yaws for step in steps]),
-                bag_messages=None if messages is None else messages.bag_messages)
+                bag_messages=None if messages is None else messages.bag_messages,
+                plan_tallies={robot: (tally.plans, tally.infeasible, tally.min_achieved_eta)
+                              for robot, tally in team.plan_tallies().items() if tally.plans})
         spec.out_dir.mkdir(parents=True, exist_ok=True)
         run_metrics = write_outputs(spec, recording, ending, failure, wall_time)
         if interrupted is None:

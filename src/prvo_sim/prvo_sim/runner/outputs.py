@@ -29,8 +29,9 @@ from prvo_sim.runner.processes import INTERRUPTS, RunInterruptedError
 
 RUN_RESULTS = ('trajectories.csv', 'trajectories.png', 'trajectories.gif', 'metrics.json')
 AGGREGATED_KEYS = ('success_rate', 'collisions', 'min_separation', 'makespan',
-                   'mean_time_to_goal', 'planner_ms.median', 'planner_ms.p95', 'planner_ms.max',
-                   'deadline_misses', 'sim_time', 'wall_time')
+                   'mean_time_to_goal', 'infeasible_fraction', 'min_achieved_eta',
+                   'planner_ms.median', 'planner_ms.p95', 'planner_ms.max', 'deadline_misses',
+                   'sim_time', 'wall_time')
 
 
 class OutputError(Exception):
@@ -59,7 +60,9 @@ class Recording:
     world-frame command answering each state, NaN where none; `plan_times_ms` every plan's
     time [ms]; `deadline_misses` the simulator's count, None where unknown; `yaws` (T, N) the
     ground-truth headings [rad], None where unknown; `bag_messages` the run's messages for its
-    bag (`runner.bag.BagMessages`), None when not recorded.
+    bag (`runner.bag.BagMessages`), None when not recorded; `plan_tallies` {robot: (plans,
+    infeasible plans, lowest achieved eta)} of the planned robots that planned, None where
+    unknown.
     """
 
     times: np.ndarray
@@ -69,6 +72,7 @@ class Recording:
     deadline_misses: int = None
     yaws: np.ndarray = None
     bag_messages: object = None
+    plan_tallies: dict = None
 
     @classmethod
     def empty(cls, robot_count):
@@ -138,6 +142,7 @@ def write_outputs(spec, recording, ending, failure, wall_time):
         'sim_time': measured['sim_time'],
         'wall_time': round(wall_time, 3),
     })
+    add_plan_quality(run_metrics, recording.plan_tallies)
     if failure is not None:
         run_metrics['failure'] = failure
     run_metrics = finite_or_none(run_metrics)
@@ -170,6 +175,23 @@ def write_outputs(spec, recording, ending, failure, wall_time):
                 warn(f'trajectories.gif not written: interrupted by '
                      f'{signal.Signals(INTERRUPTS.last_signal).name}')
     return run_metrics
+
+
+def add_plan_quality(run_metrics, tallies):
+    """Add to RUN_METRICS how far the plans met the chance constraint (metrics.plan_quality).
+
+    Per planned robot and overall: `plans`, `infeasible_fraction` (plans without a velocity
+    that meets every constraint: the returned one then carries a lower eta) and
+    `min_achieved_eta`; None where unknown. A run never claims a guarantee it did not have.
+    """
+    quality = metrics.plan_quality(tallies or {})
+    for name, robot in run_metrics['robots'].items():
+        if robot.get('scripted'):
+            continue
+        robot.update(quality['robots'].get(
+            name, {'plans': None, 'infeasible_fraction': None, 'min_achieved_eta': None}))
+    run_metrics['infeasible_fraction'] = quality['infeasible_fraction']
+    run_metrics['min_achieved_eta'] = quality['min_achieved_eta']
 
 
 def warn(text):
@@ -291,7 +313,17 @@ def outcome(run_metrics):
     contact_text = 'no contact' if collisions == 0 else f'{collisions} contact(s)'
     walkers = len(run_metrics['robots']) - len(planned)
     scripted_text = f' ({walkers} scripted)' if walkers else ''
-    return f'{arrived}/{len(planned)} arrived{scripted_text}, {contact_text}'
+    return (f'{arrived}/{len(planned)} arrived{scripted_text}, {contact_text}'
+            f'{guarantee(run_metrics)}')
+
+
+def guarantee(run_metrics):
+    """Return ', <p>% of plans infeasible (achieved eta down to <e>)', or '' if none was."""
+    fraction = run_metrics.get('infeasible_fraction')
+    if not fraction:
+        return ''
+    return (f', {100.0 * fraction:.0f}% of plans infeasible (achieved eta down to '
+            f"{run_metrics['min_achieved_eta']:.2f})")
 
 
 def plot_title(run_metrics):

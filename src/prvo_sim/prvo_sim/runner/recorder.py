@@ -26,6 +26,8 @@ import numpy as np
 from prvo_sim.runner.listener import UNNAMED_NODE
 from prvo_sim.runner.processes import child_environment, die_with
 
+# Sim seconds within which two stamps count as equal (the runner's end is a float of a stamp).
+TIME_EPSILON = 1e-6
 LISTENER_START_LIMIT = 60.0  # wall seconds for the listener to start (rclpy, DDS discovery)
 LISTENER_STOP_WAIT = 1.0  # wall seconds the listener gets to leave before SIGKILL
 # Wall seconds of listening for strangers on the domain before a run. Longer than Fast DDS's
@@ -89,6 +91,9 @@ class Recorder:
         # Called with every DiagnosticArray received (the team benchmark times steps so).
         self.diagnostics_listeners = []
         self._serialized_diagnostics = []
+        # Per planned robot, the plan tallies of its statuses: (stamp s, plans, infeasible,
+        # lowest achieved eta).
+        self._tallies = {}
         self._publishers = {}
         self._matched = {}
         # Each subscribed topic, with its kind and where its messages go.
@@ -283,12 +288,39 @@ class Recorder:
             if status.name == 'prvo_sim':
                 self.sim_status = sim_status_of(status)
             elif status.name.startswith('prvo_planner/'):
-                value = diagnostic_values(status).get('plan_time_ms')
+                values = diagnostic_values(status)
+                value = values.get('plan_time_ms')
                 if value is not None:
                     with contextlib.suppress(ValueError):
                         self.plan_times_ms.append(float(value))
+                self._take_tally(status.name.removeprefix('prvo_planner/'), values)
         for listener in self.diagnostics_listeners:
             listener(message)
+
+    def _take_tally(self, robot, values):
+        """Keep ROBOT's plan tally of a planner status (see plan_tallies)."""
+        try:
+            tally = (float(values['tally_stamp']), int(values['plans']),
+                     int(values['infeasible_plans']), float(values['min_achieved_eta']))
+        except (KeyError, ValueError):
+            # Before its first plan ('none'), or not a prvo planner's status.
+            return
+        self._tallies.setdefault(robot, []).append(tally)
+
+    def plan_tallies(self, until=None):
+        """Return {robot: (plans, infeasible plans, lowest achieved eta)} of the planners.
+
+        Each planner's newest tally in its status, of the plans up to UNTIL [s] if given (the
+        end of the run); statuses come a few times per second, so the plans of the last
+        fraction of a second may be missing. Robots without a tally are left out.
+        """
+        tallies = {}
+        for robot, received in self._tallies.items():
+            counted = [tally for tally in received
+                       if until is None or tally[0] <= until + TIME_EPSILON]
+            if counted:
+                tallies[robot] = max(counted)[1:]
+        return tallies
 
     def _strangers(self):
         """Return {node: {what it publishes}} of every node here but this one's listener."""
@@ -427,7 +459,8 @@ class Recorder:
         return Recording(np.asarray(stamps, dtype=float) * 1e-9, states[..., :4], commands,
                          tuple(self.plan_times_ms),
                          None if status is None else status.deadline_misses,
-                         yaws=states[..., 4], bag_messages=bag_messages)
+                         yaws=states[..., 4], bag_messages=bag_messages,
+                         plan_tallies=self.plan_tallies(until))
 
 
 def _shortened(items):
