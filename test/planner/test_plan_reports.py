@@ -34,8 +34,9 @@ def head_on(agent, rng, steps, first=0):
                 agent.receive_own(measurement, stamp)
             else:
                 agent.receive_neighbour(robot, measurement, stamp)
-        agent.receive_footprint('other', 0.3)
-        agent.receive_share('other', 0.5)
+        # Announced from the start (stamp 0).
+        agent.receive_footprint('other', 0.3, 0.0)
+        agent.receive_share('other', 0.5, 0.0)
         commands.append(agent.plan())
     return commands
 
