@@ -116,8 +116,9 @@ class SimNode(Node):
         self._contacts_publisher = self.create_publisher(
             DiagnosticArray, CONTACTS, CONTACT_QOS, event_callbacks=quiet())
         endpoints = [self._clock_publisher, self._diagnostics_publisher, self._contacts_publisher]
-        # What every observer must subscribe to: each robot's ground truth and /diagnostics.
-        observed = [(DIAGNOSTICS, self._diagnostics_publisher)]
+        # What every observer must subscribe to: each robot's ground truth, /diagnostics and
+        # /clock (a recording is complete from t_0).
+        observed = [(DIAGNOSTICS, self._diagnostics_publisher), (CLOCK, self._clock_publisher)]
         command_type = TwistStamped if values['stamped_cmd_vel'] else Twist
         for index, robot in enumerate(self._robots):
             robot.odom_publisher = self.create_publisher(

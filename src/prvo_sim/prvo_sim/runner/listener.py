@@ -129,8 +129,10 @@ def listen(spec, connection):
             next_graph = now + GRAPH_PERIOD
             connection.send(('graph', graph_snapshot(node, matched)))
         if connection.poll():
-            # The only request is to stop.
+            # The only request is to stop: what arrived meanwhile goes first.
             connection.recv()
+            executor.spin_until_future_complete(never_done, timeout_sec=0.0)
+            connection.send(('messages', list(pending)))
             _leave(0)
 
 

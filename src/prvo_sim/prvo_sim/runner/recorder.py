@@ -104,10 +104,12 @@ class Recorder:
             routes.append((robot_topic(name, CMD_VEL), 'command',
                            self._serialized['commands'][name].append))
         routes.append((DIAGNOSTICS, 'diagnostics', self._on_diagnostics))
+        # The simulator waits for /clock too (its observers), so that a bag starts at t_0.
+        self._clock = []
+        routes.append((CLOCK, 'clock', self._clock.append))
         self._bag_topics = None
         if record_bag:
-            self._bag_topics = {CLOCK: [], DIAGNOSTICS: self._serialized_diagnostics}
-            routes.append((CLOCK, 'clock', self._bag_topics[CLOCK].append))
+            self._bag_topics = {CLOCK: self._clock, DIAGNOSTICS: self._serialized_diagnostics}
             for name in self.robot_names:
                 self._bag_topics[robot_topic(name, GROUND_TRUTH)] = (
                     self._serialized['ground_truth'][name])
@@ -124,6 +126,7 @@ class Recorder:
         matched = [*self._command_topics.values(), DIAGNOSTICS] if routes else []
         self.name = f'/prvo_run_{role}_d{domain_id}_p{os.getpid()}_{next(_INSTANCES)}'
         self.lost = None
+        self._stopping = False
         self._start_listener({'domain_id': domain_id, 'node_name': self.name[1:],
                               'topics': [[topic, kind] for topic, kind, _ in routes],
                               'matched': matched})
@@ -196,9 +199,10 @@ class Recorder:
             try:
                 self._handle(*self._connection.recv())
             except (EOFError, OSError):
-                self._process.wait()
-                self.lost = (f'the recorder exited with code {self._process.returncode}'
-                             f'{self._log_tail()}')
+                if not self._stopping:
+                    self._process.wait()
+                    self.lost = (f'the recorder exited with code {self._process.returncode}'
+                                 f'{self._log_tail()}')
                 self._drop_connection()
                 return
 
@@ -405,11 +409,15 @@ class Recorder:
     def close(self):
         """Stop the listener: ask it to leave, SIGKILL it if it has not within a second.
 
-        Bounded whatever DDS does in the listener; what was received stays here.
+        What it sent until it left is taken (also what it sent while the runner was not
+        listening); bounded whatever DDS does in the listener.
         """
         if self._connection is not None:
+            self._stopping = True
             with contextlib.suppress(OSError, ValueError):
                 self._connection.send(('stop', None))
+            # It sends what it holds, then leaves: the connection ends.
+            self.spin_for(LISTENER_STOP_WAIT)
         with contextlib.suppress(subprocess.TimeoutExpired):
             self._process.wait(timeout=LISTENER_STOP_WAIT)
         if self._process.poll() is None:
