@@ -24,7 +24,7 @@ import time
 import numpy as np
 
 from prvo_sim.runner.listener import UNNAMED_NODE
-from prvo_sim.runner.processes import child_environment, die_with
+from prvo_sim.runner.processes import RunInterruptedError, child_environment, die_with
 
 # Sim seconds within which two stamps count as equal (the runner's end is a float of a stamp).
 TIME_EPSILON = 1e-6
@@ -149,8 +149,13 @@ class Recorder:
         self._socket = runner_end
         self._connection = Connection(os.dup(runner_end.fileno()))
         deadline = time.monotonic() + LISTENER_START_LIMIT
-        while self._connection is not None and not self._ready(deadline):
-            pass
+        try:
+            while self._connection is not None and not self._ready(deadline):
+                pass
+        except RunInterruptedError:
+            # Not yet the caller's to close.
+            self.close()
+            raise
 
     def _ready(self, deadline):
         """Take one message of the listener's start-up; return whether it is subscribed."""
