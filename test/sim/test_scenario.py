@@ -1,5 +1,6 @@
 """Scenario loading: the shipped files load, every kind of bad file is named precisely."""
 
+import dataclasses
 import pathlib
 import re
 import subprocess
@@ -22,6 +23,8 @@ from prvo_msgs_util import (
     MARKERS,
     ODOM,
 )
+from prvo_sim.bench_crowds import circle_radius_of, crowd_circle_document
+from prvo_sim.bench_team import write_scenario
 from prvo_sim.scenario import (
     PLANNER_MEMORY_MIB,
     RUNNER_MEMORY_MIB,
@@ -356,6 +359,74 @@ def test_team_memory_check_against_available_memory(tmp_path):
                        'MemAvailable:    2048000 kB\n')
     assert available_memory_mib(meminfo) == 2000
     assert available_memory_mib(tmp_path / 'no-such-file') is None
+
+
+@pytest.fixture(scope='module')
+def crowd_circle(tmp_path_factory):
+    """Return a function of (count, duration): that crowd circle (`bench_crowds`), loaded.
+
+    Each team is written and loaded once (a large one takes seconds); DURATION [s] replaces its
+    duration.
+    """
+    folder = tmp_path_factory.mktemp('circles')
+    loaded = {}
+
+    def circle(count, duration):
+        if count not in loaded:
+            loaded[count] = write_scenario(crowd_circle_document(count, circle_radius_of(count)),
+                                           folder / f'circle{count}.yaml')
+        return dataclasses.replace(loaded[count], duration=duration)
+
+    return circle
+
+
+# Peak resident sizes [MiB] of `prvo-run --engine inprocess` on crowd circles: robots, sim
+# duration run [s], whether it recorded a bag (and drew the animation), the peak.
+MEASURED_IN_PROCESS = [(8, 11.2, True, 274), (64, 15.0, True, 496), (64, 86.5, True, 1383),
+                       (128, 22.0, True, 1272), (256, 9.9, True, 2001), (16, 20.4, False, 179),
+                       (128, 30.0, False, 355), (256, 9.9, False, 374)]
+
+
+@pytest.mark.parametrize(('count', 'duration', 'bag', 'peak'), MEASURED_IN_PROCESS)
+def test_the_in_process_estimate_covers_the_measured_peaks(crowd_circle, count, duration, bag,
+                                                          peak):
+    estimate = estimate_team_memory(crowd_circle(count, duration), 'inprocess', bag)
+    # Above the peak, and not by so much that it refuses what would fit.
+    assert peak <= estimate <= 2.0 * peak
+
+
+def test_the_in_process_bag_grows_with_the_steps_and_the_team_squared(crowd_circle):
+    def bag(count, duration):
+        scenario = crowd_circle(count, duration)
+        return (estimate_team_memory(scenario, 'inprocess')
+                - estimate_team_memory(scenario, 'inprocess', bag=False))
+
+    # Every planner's status and markers name every other robot: per step ~ n^2 for a crowd.
+    assert bag(64, 60.0) == pytest.approx(2.0 * bag(64, 30.0), rel=0.01)
+    assert 3.0 < bag(128, 30.0) / bag(64, 30.0) < 4.0
+
+
+def test_each_engine_checks_its_own_memory_estimate(crowd_circle):
+    # The issue's 256 robots against 23508 MiB: the ROS estimate refuses them, in process they fit
+    # without a bag, and with one for a short run.
+    team, available = crowd_circle(256, 10.0), 23508
+    with pytest.raises(ScenarioError, match=r'256 robots need an estimated 38600 MiB \(150 MiB '
+                       r'per planner, 80 MiB simulator, 120 MiB runner\), more than the 23508 '
+                       'MiB available'):
+        check_team_memory(team, available_mib=available)
+    check_team_memory(team, available_mib=available, engine='inprocess')
+    check_team_memory(team, available_mib=available, engine='inprocess', bag=False)
+    # A long run's bag does not fit; without one it does.
+    long_run = crowd_circle(256, 600.0)
+    with pytest.raises(ScenarioError) as raised:
+        check_team_memory(long_run, available_mib=available, engine='inprocess')
+    message = str(raised.value)
+    assert message.startswith(f'{long_run.path}: robots: 256 robots need an estimated ')
+    assert 'in process: 320 MiB, 0.5 MiB per robot, ' in message
+    assert 'MiB for the bag of 6001 steps (--no-bag: none)' in message
+    check_team_memory(long_run, available_mib=available, engine='inprocess', bag=False)
+    with pytest.raises(ValueError, match="^engine must be one of ros, inprocess, got 'dds'$"):
+        check_team_memory(team, available_mib=available, engine='dds')
 
 
 @pytest.mark.parametrize(('old', 'new', 'key'), [

@@ -74,11 +74,21 @@ SET_BY_RUNNER = {
                                 'set it there',
     'use_sim_time': 'set by the runner (always true: the simulator keeps the time)',
 }
-# Resident memory of one process of a run [MiB], measured by prvo_sim.bench_team (planners
-# 141-149 MiB, simulator 73-81 MiB) and rounded up: an estimate, not a bound.
+ENGINES = ('ros', 'inprocess')
+# Resident memory of one process of a run on the ROS engine [MiB], measured by
+# prvo_sim.bench_team (planners 141-149 MiB, simulator 73-81 MiB) and rounded up: an estimate,
+# not a bound.
 PLANNER_MEMORY_MIB = 150
 SIMULATOR_MEMORY_MIB = 80
 RUNNER_MEMORY_MIB = 120
+# The in-process engine's one process [MiB], and per robot: above every peak measured without
+# a bag (see estimate_team_memory).
+INPROCESS_MEMORY_MIB = 320
+INPROCESS_ROBOT_MEMORY_MIB = 0.5
+# The bag of an in-process run, held in memory until the run ends [KiB per step]: per robot,
+# and per planned robot and neighbour (its status and markers name every other robot).
+BAG_ROBOT_STEP_KIB = 8.0
+BAG_NEIGHBOUR_STEP_KIB = 0.25
 # Every topic the stack names after a robot: /<name>/<leaf>.
 _ROBOT_TOPIC_LEAVES = (ODOM, GROUND_TRUTH, CMD_VEL, GOAL_POSE, MARKERS, FOOTPRINT, AVOIDANCE_SHARE)
 # The longest name of the services rclpy gives the robot's planner node: /<name>/<service>.
@@ -473,15 +483,46 @@ def find_scenario(name_or_path):
         str(directory) for directory in directories))
 
 
-def estimate_team_memory(scenario):
-    """Return the memory a run of SCENARIO is estimated to need [MiB].
+def estimate_team_memory(scenario, engine='ros', bag=True):
+    """Return the memory a run of SCENARIO on ENGINE ('ros' or 'inprocess') needs [MiB].
 
-    One planner process per robot (scripted robots have none), the simulator and the runner,
-    each at the resident size measured for it (PLANNER_MEMORY_MIB, ...): an estimate that
-    ignores sharing between processes and growth with the team, good to a few tens of percent.
+    An estimate, not a bound. 'ros': one planner process per robot (scripted robots have
+    none), the simulator and the runner, each at the resident size measured for it
+    (PLANNER_MEMORY_MIB, ...), ignoring sharing between processes and growth with the team;
+    good to a few tens of percent.
+
+    'inprocess': one process holding every robot, INPROCESS_MEMORY_MIB and
+    INPROCESS_ROBOT_MEMORY_MIB per robot; with BAG, the run's bag, which it holds until the run
+    ends, for the scenario's whole duration (a run that arrives sooner needs less). Peak
+    resident sizes of `prvo-run --engine inprocess` on crowd circles (`bench_crowds`) measured
+    them: without bag or animation 179 MiB for 16 robots (204 steps), 320 for 64 (300 steps),
+    355 for 128 (300) and 374 for 256 (100); with both, 496, 640, 1032 and 1383 MiB for 64
+    robots over 150, 300, 600 and 865 steps, 1070 and 1272 MiB for 128 over 174 and 220 (about
+    6 KiB per robot and step and 0.22 KiB more per neighbour), 274 MiB for 8 over 112 and 2001
+    MiB for 256 over 100. The constants round those up: the estimate is 8-25% above each peak,
+    83% above the smallest.
     """
+    robots = len(scenario.robots)
     planners = sum(robot.scripted is None for robot in scenario.robots)
-    return planners * PLANNER_MEMORY_MIB + SIMULATOR_MEMORY_MIB + RUNNER_MEMORY_MIB
+    if engine == 'ros':
+        return planners * PLANNER_MEMORY_MIB + SIMULATOR_MEMORY_MIB + RUNNER_MEMORY_MIB
+    if engine != 'inprocess':
+        raise ValueError(f'engine must be one of {", ".join(ENGINES)}, got {engine!r}')
+    return math.ceil(INPROCESS_MEMORY_MIB + robots * INPROCESS_ROBOT_MEMORY_MIB + (
+        _bag_memory_mib(scenario) if bag else 0.0))
+
+
+def _run_steps(scenario):
+    """Return the number of states a run of SCENARIO records at most."""
+    return math.ceil(scenario.duration / scenario.dt - 1e-9) + 1
+
+
+def _bag_memory_mib(scenario):
+    """Return the memory the bag of an in-process run of SCENARIO holds at most [MiB]."""
+    robots = len(scenario.robots)
+    planners = sum(robot.scripted is None for robot in scenario.robots)
+    per_step = robots * BAG_ROBOT_STEP_KIB + planners * (robots - 1) * BAG_NEIGHBOUR_STEP_KIB
+    return _run_steps(scenario) * per_step / 1024.0
 
 
 def available_memory_mib(meminfo='/proc/meminfo'):
@@ -496,17 +537,25 @@ def available_memory_mib(meminfo='/proc/meminfo'):
     return None
 
 
-def check_team_memory(scenario, available_mib=None, engine='ros'):
-    """Raise ScenarioError if a run of SCENARIO needs more memory than is available.
+def check_team_memory(scenario, available_mib=None, engine='ros', bag=True):
+    """Raise ScenarioError if a run of SCENARIO on ENGINE needs more memory than is available.
 
+    ENGINE and BAG (whether the run records a bag) as in `estimate_team_memory`.
     AVAILABLE_MIB defaults to the machine's MemAvailable; where that is unknown, nothing is
     checked. Call before starting anything.
     """
+    needed = estimate_team_memory(scenario, engine, bag)
     available = available_memory_mib() if available_mib is None else available_mib
-    needed = estimate_team_memory(scenario)
-    if available is not None and needed > available:
-        raise ScenarioError(
-            scenario.path, 'robots',
-            f'{len(scenario.robots)} robots need an estimated {needed} MiB '
-            f'({PLANNER_MEMORY_MIB} MiB per planner, {SIMULATOR_MEMORY_MIB} MiB simulator, '
-            f'{RUNNER_MEMORY_MIB} MiB runner), more than the {available} MiB available')
+    if available is None or needed <= available:
+        return
+    if engine == 'ros':
+        parts = (f'{PLANNER_MEMORY_MIB} MiB per planner, {SIMULATOR_MEMORY_MIB} MiB simulator, '
+                 f'{RUNNER_MEMORY_MIB} MiB runner')
+    else:
+        parts = (f'in process: {INPROCESS_MEMORY_MIB} MiB, {INPROCESS_ROBOT_MEMORY_MIB:g} MiB '
+                 'per robot' + (f', {math.ceil(_bag_memory_mib(scenario))} MiB for the bag of '
+                                f'{_run_steps(scenario)} steps (--no-bag: none)' if bag else ''))
+    raise ScenarioError(
+        scenario.path, 'robots',
+        f'{len(scenario.robots)} robots need an estimated {needed} MiB ({parts}), more than '
+        f'the {available} MiB available')

@@ -133,7 +133,7 @@ def parse_arguments(argv, environment=None):
             raise UsageError(f"--{name.replace('_', '-')}: empty command")
     try:
         scenario = load_scenario(find_scenario(options.scenario), seed=options.seed)
-        check_team_memory(scenario, engine=options.engine)
+        check_team_memory(scenario, engine=options.engine, bag=options.bag)
     except ScenarioError as error:
         raise UsageError(str(error)) from None
     except OSError as error:
