@@ -459,21 +459,27 @@ def _certified_bounds(search, velocities, achieved):
     Per neighbour, a lower bound on the probability of its accepted condition, and its kind.
 
     At each robot's velocity the certified bounds on ``P(f >= 0)`` and (where the gate counts)
-    ``P(g >= 0)`` are computed for every neighbour in one batched call each; Cantelli's bound
-    of the ACHIEVED margin covers the horizon pair (and is the floor). The condition holds if
-    any alternative does, so the largest is a bound; it is certified where it is a Gaussian one.
+    ``P(g >= 0)`` are computed for all its neighbours in one batched call each; Cantelli's
+    bound of the ACHIEVED margin covers the horizon pair (and is the floor). The condition
+    holds if any alternative does, so the largest is a bound; it is certified where it is a
+    Gaussian one. The calls are per robot: numpy's vectorised transcendental functions round a
+    value by its place in the batch, and a robot's plan must not depend on its companions.
     """
-    plans = search.plans
-    mean = np.concatenate([plan.encounter.origin for plan in plans])
-    lead = np.concatenate([plan.encounter.lead for plan in plans])
-    mean[:, 2:] += lead[:, None] * velocities[search.pair_robot]
-    cov = np.concatenate([plan.cov for plan in plans])
-    gaussian = rvo_certificate(mean, cov, np.concatenate([plan.radius for plan in plans]),
-                               ).probability
-    enabled = np.concatenate([plan.layout.receding_enabled for plan in plans])
-    if plans[0].layout.has_receding and enabled.any():
-        gaussian[enabled] = np.maximum(gaussian[enabled], receding_certificate(
-            mean[enabled], cov[enabled]).probability)
+    gaussian = np.empty(achieved.shape)
+    for robot, plan in enumerate(search.plans):
+        pairs = slice(search.pair_starts[robot],
+                      search.pair_starts[robot] + search.pair_counts[robot])
+        encounter = plan.encounter
+        mean = encounter.origin.copy()
+        mean[:, 2:] += encounter.lead[:, None] * velocities[robot]
+        # A view: the receding bounds are written into GAUSSIAN.
+        robot_bounds = gaussian[pairs]
+        robot_bounds[...] = rvo_certificate(mean, plan.cov, plan.radius).probability
+        enabled = plan.layout.receding_enabled
+        if enabled.any():
+            robot_bounds[enabled] = np.maximum(
+                robot_bounds[enabled],
+                receding_certificate(mean[enabled], plan.cov[enabled]).probability)
     cantelli = eta_from_k(np.maximum(achieved, 0.0))
     return np.maximum(gaussian, cantelli), gaussian > cantelli
 
