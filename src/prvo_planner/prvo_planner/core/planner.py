@@ -12,7 +12,8 @@ directions of every robot of a team into the same few numpy calls; a robot's val
 computed by the same operations whatever it is planned with, so its plan is bit for bit the
 one ``plan_velocity`` returns. The steps live in ``encounter`` (relative Gaussians, candidate
 directions), ``feasibility`` (accepted intervals, achieved margins) and ``choice`` (costs,
-fallback ranking).
+fallback ranking). With ``certificate='certified'`` the search runs with smaller margins and the
+chosen velocity is certified per neighbour (``certificate``; docs/method.md, section 13).
 """
 
 from dataclasses import dataclass, replace
