@@ -11,7 +11,7 @@ import pytest
 from prvo_planner.core import AgentBelief, PlannerConfig, eta_from_k, plan_velocity
 
 SAMPLES = 20000
-# One-sided z for a family-wise false alarm below 1e-3 over the ~1500 checks of this module.
+# One-sided z for a family-wise false alarm below 1e-3 over the ~600 checks of this module.
 Z = 4.9
 
 
