@@ -40,6 +40,17 @@ def test_circle_swap_steps_are_planned_as_alone(count):
     assert checked >= 5
 
 
+def test_certified_circle_swap_steps_are_planned_as_alone():
+    # Certificates are computed per robot, so a robot's shortfalls and retries are its own.
+    config = dataclasses.replace(team_config(), certificate='certified', eta=0.95)
+    checked = 0
+    for step, (egos, neighbours, v_prefs, previous) in enumerate(circle_swap(6, config)):
+        if step % 11 == 0:
+            team = assert_each_as_alone(egos, neighbours, v_prefs, config, previous)
+            checked += any('certified' in result.bound_kinds for result in team)
+    assert checked >= 3
+
+
 def test_robots_of_other_horizons_neighbours_and_directions_are_planned_as_alone():
     # One call solves robots whose time horizons (shortened near their goals), numbers of
     # neighbours and numbers of candidate directions (acceleration limits add some) differ.
@@ -90,7 +101,8 @@ def random_config(rng):
         risk=rng.choice(['pairwise', 'joint']), receding_gate=bool(rng.integers(2)),
         # Unseeded Monte Carlo plans differ from call to call by design.
         mc_samples=50, seed=int(rng.integers(3)) if model == 'mc' or rng.integers(2) else None,
-        inertia=rng.choice([0.0, 0.5]), passing_bias=rng.choice([0.0, 0.1]))
+        inertia=rng.choice([0.0, 0.5]), passing_bias=rng.choice([0.0, 0.1]),
+        certificate=rng.choice(['cantelli', 'certified']))
 
 
 @pytest.mark.parametrize('seed', range(40))

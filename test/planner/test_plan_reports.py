@@ -59,3 +59,22 @@ def test_the_status_reports_the_plans_so_far_and_their_worst_eta():
     assert int(values['infeasible_plans']) > 0
     assert float(values['min_achieved_eta']) == min(result.eta_bound for result in results)
     assert float(values['tally_stamp']) == commands[-1].stamp
+
+
+def test_the_status_reports_the_certificate_mode_and_the_lowest_certified_bound():
+    rng = np.random.default_rng(8)
+    values = {}
+    for certificate in ('cantelli', 'certified'):
+        config = PlannerConfig(eta=0.95, max_speed=1.0, actuation_cov=0.0025 * np.eye(2),
+                               certificate=certificate)
+        agent = PlannerAgent('self', config, AgentSettings(), goal=[3.0, 0.0])
+        command = head_on(agent, rng, 4)[-1]
+        values[certificate] = (command.result, diagnostic_values(
+            plan_status('self', command, 1.0, 'prvo', 0.3)))
+    result, status = values['cantelli']
+    assert (status['certificate'], status['min_certified_probability']) == ('cantelli', 'none')
+    result, status = values['certified']
+    assert status['certificate'] == 'certified'
+    assert result.bound_kinds == ('certified',)
+    assert float(status['min_certified_probability']) == float(result.neighbour_bounds[0])
+    assert float(status['eta_bound']) == result.eta_bound >= 0.95

@@ -38,6 +38,7 @@ def test_defaults_give_a_valid_configuration():
     ('eta', 1.5, 'eta'), ('eta', 0.0, 'eta'), ('k', -0.5, 'k'), ('time_horizon', 0.0,
                                                                 'time_horizon'),
     ('model', 'magic', 'model'), ('method', 'newton', 'method'), ('risk', 'yolo', 'risk'),
+    ('certificate', 'gaussian', 'certificate'),
     ('inertia', 1.0, 'inertia'), ('passing_bias', -1.0, 'passing_bias'),
     ('progress_weight', 1.0, 'progress_weight'),
 ])
@@ -45,6 +46,11 @@ def test_invalid_values_are_rejected_by_name(name, value, named):
     values = dict(DEFAULTS, **{name: value})
     with pytest.raises(ParameterError, match=named):
         planner_config_from(values)
+
+
+def test_the_certificate_parameter_reaches_the_configuration():
+    assert planner_config_from(DEFAULTS).certificate == 'cantelli'
+    assert planner_config_from(dict(DEFAULTS, certificate='certified')).certificate == 'certified'
 
 
 def test_k_wins_over_eta_and_actuation_noise_becomes_a_covariance():

@@ -150,6 +150,8 @@ def same_plan(first, second):
     return (np.array_equal(first.velocity, second.velocity)
             and np.array_equal(first.achieved_k, second.achieved_k)
             and np.array_equal(first.eta_bound, second.eta_bound)
+            and np.array_equal(first.neighbour_bounds, second.neighbour_bounds)
+            and first.bound_kinds == second.bound_kinds
             and (first.feasible, first.num_constraints, first.candidates_feasible)
             == (second.feasible, second.num_constraints, second.candidates_feasible))
 

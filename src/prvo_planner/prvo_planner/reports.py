@@ -45,12 +45,17 @@ def plan_status(robot, command, plan_time_ms, model, planning_radius):
 
     PLANNING_RADIUS [m] is the ego radius the plan used (grown by a unicycle's tracking error):
     the eta bound holds for it. The tally's keys count every plan since the planner started:
-    `min_achieved_eta` and `tally_stamp` are 'none' before the first.
+    `min_achieved_eta` and `tally_stamp` are 'none' before the first. `certificate` is the
+    plan's mode and `min_certified_probability` the lowest of its neighbours' bounds that are
+    certified ('none' without one).
     """
     result = command.result
     feasible = True if result is None else bool(result.feasible)
     achieved_k = math.inf if result is None else result.achieved_k
     eta_bound = 1.0 if result is None else result.eta_bound
+    certified = [] if result is None else [
+        bound for bound, kind in zip(result.neighbour_bounds, result.bound_kinds, strict=True)
+        if kind == 'certified']
     tally = command.tally
     return make_diagnostic_status(
         f'prvo_planner/{robot}',
@@ -58,6 +63,8 @@ def plan_status(robot, command, plan_time_ms, model, planning_radius):
         {'achieved_k': achieved_k, 'eta_bound': eta_bound, 'feasible': feasible,
          'neighbours_tracked': len(command.neighbours), 'plan_time_ms': plan_time_ms,
          'arrived': command.arrived, 'model': model, 'planning_radius': planning_radius,
+         'certificate': 'cantelli' if result is None else result.certificate,
+         'min_certified_probability': _or_none(min(certified, default=None)),
          'plans': tally.plans, 'infeasible_plans': tally.infeasible,
          'min_achieved_eta': _or_none(tally.min_achieved_eta),
          'tally_stamp': _or_none(tally.last_stamp), **command.announcement_values()},

@@ -79,6 +79,10 @@ ADAPTIVE_SPAN = 6.0
 # cross-covariance left after the shift makes the wedge bound inapplicable (Cantelli's is used).
 CONDITION_LIMIT = 1e-9
 METHODS = ('deterministic', 'known-velocity', 'wedge', 'cantelli')
+# The median k = E[f] / sd[f] at which the bound of 64 wedges first reaches eta, tracked beliefs
+# (docs/method.md, section 13): where the planner in certified mode searches the rays.
+SEARCH_ETAS = (0.8, 0.9, 0.95, 0.99)
+SEARCH_MARGINS = (0.99, 1.26, 1.51, 1.89)
 # Relative widening of the ranges of m and s^2, and shrinking of the density bound.
 _WIDENING = 1e-9
 
@@ -118,6 +122,36 @@ class Certificate:
 
     probability: np.ndarray
     method: np.ndarray
+
+
+def search_margin(eta):
+    """
+    Return the margin ``k`` the rays are searched with to meet ``eta`` by the certified bound.
+
+    Linear in ``eta`` between the measured edges (:data:`SEARCH_MARGINS`); outside them the
+    measured ratio to Cantelli's ``k`` at the nearer end, which grows with Cantelli's (faster
+    than the Gaussian's edge, so the searched velocities fall short less often). Never above
+    Cantelli's ``k``. Only the search uses it: a velocity is kept only if certified.
+
+    Parameters
+    ----------
+    eta : array_like
+        Required probabilities, in (0, 1).
+
+    Returns
+    -------
+    numpy.ndarray
+        ``k`` per ``eta``.
+
+    """
+    eta = np.asarray(eta, dtype=float)
+    cantelli = np.sqrt(eta / (1.0 - eta))
+    low, high = (margin / math.sqrt(edge / (1.0 - edge)) for edge, margin in (
+        (SEARCH_ETAS[0], SEARCH_MARGINS[0]), (SEARCH_ETAS[-1], SEARCH_MARGINS[-1])))
+    margin = np.where(eta < SEARCH_ETAS[0], low * cantelli,
+                      np.where(eta > SEARCH_ETAS[-1], high * cantelli,
+                               np.interp(eta, SEARCH_ETAS, SEARCH_MARGINS)))
+    return np.minimum(margin, cantelli)
 
 
 def normal_cdf(x):

@@ -12,6 +12,8 @@ from .probability import eta_from_k, k_from_eta
 METHODS = ('exact', 'taylor')
 MODELS = ('prvo', 'rvo', 'inflate', 'mc')
 RISKS = ('pairwise', 'joint')
+CERTIFICATES = ('cantelli', 'certified')
+BOUND_KINDS = ('cantelli', 'certified')
 
 
 def _positive(value, field_name, allow_inf=False):
@@ -107,6 +109,12 @@ class PlannerConfig:
         How long a command stays in force, seconds, > 0 (the simulator's ``dt`` by default):
         without a feasible velocity, a neighbour the command would touch within it counts as
         in contact.
+    certificate : str
+        The bound a velocity must meet ``eta`` with (docs/method.md, section 13):
+        ``'cantelli'`` (the margin ``k`` on every condition) or ``'certified'`` (for
+        ``model='prvo'``: rays searched with the smaller margin at which the Gaussian bound
+        typically reaches ``eta``, the chosen velocity certified against every neighbour, and
+        Cantelli's margin restored for the neighbours it falls short for).
 
     """
 
@@ -128,6 +136,7 @@ class PlannerConfig:
     passing_bias: float = 0.0
     progress_weight: float = 0.0
     control_period: float = 0.1
+    certificate: str = 'cantelli'
 
     def __post_init__(self):
         eta = _real(self.eta, 'PlannerConfig.eta')
@@ -157,6 +166,7 @@ class PlannerConfig:
         _choice(self.method, 'PlannerConfig.method', METHODS)
         _choice(self.model, 'PlannerConfig.model', MODELS)
         _choice(self.risk, 'PlannerConfig.risk', RISKS)
+        _choice(self.certificate, 'PlannerConfig.certificate', CERTIFICATES)
         if not isinstance(self.receding_gate, (bool, np.bool_)):
             raise ValueError(f'PlannerConfig.receding_gate must be a bool, got '
                              f'{self.receding_gate!r}')
@@ -208,11 +218,20 @@ class PlanResult:
         Smallest over neighbours of the largest margin ``k`` an accepted condition meets at
         ``velocity`` under the given beliefs (``inf`` when nothing constrains).
     eta_bound : float
-        Cantelli bound ``k^2 / (1 + k^2)`` of ``max(achieved_k, 0)``.
+        Smallest over neighbours of ``neighbour_bounds``; with ``certificate='cantelli'``
+        Cantelli's bound ``k^2 / (1 + k^2)`` of ``max(achieved_k, 0)``.
     num_constraints : int
         Number of neighbours considered.
     candidates_feasible : int
         Number of candidate directions with a feasible speed.
+    neighbour_bounds : numpy.ndarray
+        Per neighbour considered, a lower bound on the probability that its accepted condition
+        holds at ``velocity``, shape (num_constraints,).
+    bound_kinds : tuple of str
+        Per neighbour, which bound that is: ``'certified'`` (the Gaussian bound of
+        docs/method.md, section 13, on ``f`` or ``g``) or ``'cantelli'``.
+    certificate : str
+        The configuration's ``certificate``.
 
     """
 
@@ -222,7 +241,17 @@ class PlanResult:
     eta_bound: float
     num_constraints: int
     candidates_feasible: int
+    neighbour_bounds: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    bound_kinds: tuple = ()
+    certificate: str = 'cantelli'
 
     def __post_init__(self):
         object.__setattr__(self, 'velocity',
                            as_finite_array(self.velocity, (2,), 'PlanResult.velocity'))
+        object.__setattr__(self, 'bound_kinds', tuple(self.bound_kinds))
+        if len(self.bound_kinds) != len(self.neighbour_bounds):
+            raise ValueError(f'PlanResult.bound_kinds must have one entry per neighbour bound '
+                             f'({len(self.neighbour_bounds)}), got {len(self.bound_kinds)}')
+        for kind in self.bound_kinds:
+            _choice(kind, 'PlanResult.bound_kinds', BOUND_KINDS)
+        _choice(self.certificate, 'PlanResult.certificate', CERTIFICATES)

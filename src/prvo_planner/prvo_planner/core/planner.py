@@ -12,15 +12,17 @@ directions of every robot of a team into the same few numpy calls; a robot's val
 computed by the same operations whatever it is planned with, so its plan is bit for bit the
 one ``plan_velocity`` returns. The steps live in ``encounter`` (relative Gaussians, candidate
 directions), ``feasibility`` (accepted intervals, achieved margins) and ``choice`` (costs,
-fallback ranking).
+fallback ranking). With ``certificate='certified'`` the search runs with smaller margins and the
+chosen velocity is certified per neighbour (``certificate``; docs/method.md, section 13).
 """
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 import math
 
 import numpy as np
 
 from .beliefs import AgentBelief, as_finite_array
+from .certificate import receding_certificate, rvo_certificate, search_margin
 from .choice import (
     INTERIOR,
     CostTerms,
@@ -175,7 +177,8 @@ def plan_velocities(egos, neighbours_per_ego, v_prefs, configs, previous=None, l
             results[index] = PlanResult(
                 velocity=velocity, feasible=True,
                 achieved_k=math.inf, eta_bound=1.0, num_constraints=0,
-                candidates_feasible=plan.directions.shape[0])
+                candidates_feasible=plan.directions.shape[0],
+                certificate=plan.config.certificate)
         elif plan.config.model == 'mc':
             results[index] = _monte_carlo_plan(plan)
         else:
@@ -208,7 +211,7 @@ class _Plan:
     def structure(self):
         """What plans solved together must share: the kind of problem, not its size or horizon."""
         return (self.config.model, self.config.method, self.layout.has_horizon,
-                self.layout.has_receding, self.deterministic)
+                self.layout.has_receding, self.deterministic, self.config.certificate)
 
 
 def _prepared_plan(ego, neighbours, v_pref, config, previous, limits=None):
@@ -253,18 +256,25 @@ def _monte_carlo_plan(plan):
     at_velocity = [moment[:, 0] for moment in condition_moments(
         encounter.origin, encounter.cov, encounter.combined_radius, velocity[None, :],
         config.time_horizon, plan.layout.has_receding, encounter.lead)]
-    return _result(plan, velocity, candidates_feasible,
-                   float(achieved_margins(*at_velocity, plan.layout,
-                                          plan.layout.receding_enabled).min()))
+    achieved = achieved_margins(*at_velocity, plan.layout, plan.layout.receding_enabled)
+    return _result(plan, velocity, candidates_feasible, achieved,
+                   eta_from_k(np.maximum(achieved, 0.0)), np.zeros(achieved.shape, dtype=bool))
 
 
-def _result(plan, velocity, candidates_feasible, achieved):
+def _result(plan, velocity, candidates_feasible, achieved, bounds, certified):
+    """PLAN's result; ACHIEVED, BOUNDS, CERTIFIED per neighbour (see ``_Choice``)."""
+    smallest = float(achieved.min())
+    certificate = plan.config.certificate
     return PlanResult(velocity=_clip_speed(velocity, plan.config.max_speed),
                       feasible=bool(candidates_feasible)
                       and not plan.encounter.overlapping.any(),
-                      achieved_k=achieved, eta_bound=eta_from_k(max(achieved, 0.0)),
+                      achieved_k=smallest,
+                      eta_bound=(eta_from_k(max(smallest, 0.0)) if certificate == 'cantelli'
+                                 else float(bounds.min())),
                       num_constraints=plan.encounter.origin.shape[0],
-                      candidates_feasible=candidates_feasible)
+                      candidates_feasible=candidates_feasible, neighbour_bounds=bounds,
+                      bound_kinds=['certified' if flag else 'cantelli' for flag in certified],
+                      certificate=certificate)
 
 
 def _solve_group(plans):
@@ -295,10 +305,59 @@ def _shape(plan):
     return plan.encounter.origin.shape[0], plan.directions.shape[0]
 
 
+@dataclass(frozen=True)
+class _Search:
+    """The rays of robots of one structure, their links, and how neighbours are laid out."""
+
+    plans: list
+    rows: RayRows
+    # Polynomials (L, P, C) of every link, coefficient-major.
+    means: np.ndarray
+    variances: np.ndarray
+    directions: np.ndarray
+    pair_counts: np.ndarray
+    pair_starts: np.ndarray
+    ray_starts: np.ndarray
+    ray_counts: np.ndarray
+    link_starts: np.ndarray
+    # Neighbour (pair) of every link, and robot of every pair.
+    link_pair: np.ndarray
+    pair_robot: np.ndarray
+    pair_horizons: float | np.ndarray
+
+
+@dataclass(frozen=True)
+class _Choice:
+    """Each robot's chosen velocity, and per neighbour the margin and the bound it meets."""
+
+    velocities: np.ndarray
+    candidates_feasible: np.ndarray
+    achieved: np.ndarray
+    bounds: np.ndarray
+    certified: np.ndarray
+
+
+def _certifies(plan):
+    """Whether PLAN's velocities are certified: Gaussian beliefs with some uncertainty."""
+    return (plan.config.certificate == 'certified' and plan.config.model == 'prvo'
+            and not plan.deterministic)
+
+
 def _solve_sorted(plans):
     """Plan robots of one structure, sorted by shape; return their results in order."""
-    first = plans[0]
-    layout, config = first.layout, first.config
+    search = _ray_search(plans)
+    choice = (_certified_choice(search) if _certifies(plans[0])
+              else _choose(search, search.rows.margins, False))
+    return [_result(plan, choice.velocities[robot], int(choice.candidates_feasible[robot]),
+                    *(values[search.pair_starts[robot]:search.pair_starts[robot]
+                             + search.pair_counts[robot]]
+                      for values in (choice.achieved, choice.bounds, choice.certified)))
+            for robot, plan in enumerate(plans)]
+
+
+def _ray_search(plans):
+    """Build the ray polynomials and links of PLANS (one structure, sorted by shape)."""
+    layout = plans[0].layout
     robots = len(plans)
     pair_counts = np.array([plan.encounter.origin.shape[0] for plan in plans])
     ray_counts = np.array([plan.directions.shape[0] for plan in plans])
@@ -349,8 +408,22 @@ def _solve_sorted(plans):
         ray_local=np.arange(directions.shape[0]) - ray_starts[ray_robot],
         ray_robot=ray_robot,
         preferred=np.concatenate([plan.preferred for plan in plans]))
+    return _Search(plans=plans, rows=rows, means=means, variances=variances,
+                   directions=directions, pair_counts=pair_counts, pair_starts=pair_starts,
+                   ray_starts=ray_starts, ray_counts=ray_counts, link_starts=link_starts,
+                   link_pair=pair_starts[link_robot] + link_local // ray_counts[link_robot],
+                   pair_robot=np.repeat(np.arange(robots), pair_counts),
+                   pair_horizons=pair_horizons)
+
+
+def _choose(search, margins, certify):
+    """Choose every robot's velocity with MARGINS (P, C) per link; CERTIFY: certify it too."""
+    plans, directions, ray_starts = search.plans, search.directions, search.ray_starts
+    first = plans[0]
+    rows = replace(search.rows, margins=margins)
+    robots = len(plans)
     gap_ray, lower, upper = _allowed_gaps(
-        plans, *team_ray_gaps(rows, layout, config.method, first.deterministic))
+        plans, *team_ray_gaps(rows, first.layout, first.config.method, first.deterministic))
     feasible_rays = np.bincount(gap_ray, minlength=directions.shape[0]) > 0
     candidates_feasible = np.add.reduceat(feasible_rays.astype(int), ray_starts)
     chosen = _choose_on_gaps(plans, rows, gap_ray, lower, upper)
@@ -369,14 +442,91 @@ def _solve_sorted(plans):
     max_speed = np.array([plan.config.max_speed for plan in plans])
     velocities = (max_speed * chosen_t)[:, None] * directions[ray_starts + direction_index]
     # Per neighbour of every robot: its link on the robot's chosen direction.
-    pair_robot = np.repeat(np.arange(robots), pair_counts)
-    chosen_links = (link_starts[pair_robot] + direction_index[pair_robot]
-                    + (np.arange(pair_robot.size) - pair_starts[pair_robot])
+    pair_robot, ray_counts = search.pair_robot, search.ray_counts
+    chosen_links = (search.link_starts[pair_robot] + direction_index[pair_robot]
+                    + (np.arange(pair_robot.size) - search.pair_starts[pair_robot])
                     * ray_counts[pair_robot])
-    achieved = _achieved(plans, means, variances, chosen_links, pair_robot, pair_starts,
-                         chosen_t, velocities, pair_horizons)
-    return [_result(plan, velocities[robot], int(candidates_feasible[robot]),
-                    float(achieved[robot])) for robot, plan in enumerate(plans)]
+    achieved = _achieved(plans, search.means, search.variances, chosen_links, pair_robot,
+                         chosen_t, velocities, search.pair_horizons)
+    bounds, certified = (_certified_bounds(search, velocities, achieved) if certify
+                         else (eta_from_k(np.maximum(achieved, 0.0)),
+                               np.zeros(achieved.shape, dtype=bool)))
+    return _Choice(velocities=velocities, candidates_feasible=candidates_feasible,
+                   achieved=achieved, bounds=bounds, certified=certified)
+
+
+def _certified_bounds(search, velocities, achieved):
+    """
+    Per neighbour, a lower bound on the probability of its accepted condition, and its kind.
+
+    At each robot's velocity the certified bounds on ``P(f >= 0)`` and (where the gate counts)
+    ``P(g >= 0)`` are computed for all its neighbours in one batched call each; Cantelli's
+    bound of the ACHIEVED margin covers the horizon pair (and is the floor). The condition
+    holds if any alternative does, so the largest is a bound; it is certified where it is a
+    Gaussian one. The calls are per robot: numpy's vectorised transcendental functions round a
+    value by its place in the batch, and a robot's plan must not depend on its companions.
+    """
+    gaussian = np.empty(achieved.shape)
+    for robot, plan in enumerate(search.plans):
+        pairs = slice(search.pair_starts[robot],
+                      search.pair_starts[robot] + search.pair_counts[robot])
+        encounter = plan.encounter
+        mean = encounter.origin.copy()
+        mean[:, 2:] += encounter.lead[:, None] * velocities[robot]
+        # A view: the receding bounds are written into GAUSSIAN.
+        robot_bounds = gaussian[pairs]
+        robot_bounds[...] = rvo_certificate(mean, plan.cov, plan.radius).probability
+        enabled = plan.layout.receding_enabled
+        if enabled.any():
+            robot_bounds[enabled] = np.maximum(
+                robot_bounds[enabled],
+                receding_certificate(mean[enabled], plan.cov[enabled]).probability)
+    cantelli = eta_from_k(np.maximum(achieved, 0.0))
+    return np.maximum(gaussian, cantelli), gaussian > cantelli
+
+
+def _certified_choice(search):
+    """
+    Choose velocities that meet each neighbour's probability by a stated bound (section 13).
+
+    The f and g conditions are searched with :func:`search_margin` of each neighbour's
+    required probability (the horizon pair keeps Cantelli's ``k'``) and the choice certified.
+    A robot whose choice falls short for some neighbours searches again with Cantelli's margins
+    on those neighbours' links; after a second shortfall, with Cantelli's margins everywhere.
+    A robot without a feasible velocity keeps its fallback: larger margins accept no more.
+    """
+    plans, pair_robot, link_pair = search.plans, search.pair_robot, search.link_pair
+    cantelli = search.rows.margins
+    required = np.array([plan.encounter.eta for plan in plans])[pair_robot]
+    columns = 1 + plans[0].layout.has_receding
+    margins = cantelli.copy()
+    margins[:, :columns] = search_margin(required)[link_pair, None]
+    choice = _choose(search, margins, True)
+    retry = (choice.candidates_feasible > 0) & _any_per_robot(search, choice.bounds < required)
+    if not retry.any():
+        return choice
+    short = (choice.bounds < required) & retry[pair_robot]
+    margins = np.where(short[link_pair, None], cantelli, margins)
+    choice = _merged(choice, _choose(search, margins, True), retry, retry[pair_robot])
+    retry &= ((choice.candidates_feasible == 0)
+              | _any_per_robot(search, choice.bounds < required))
+    if not retry.any():
+        return choice
+    return _merged(choice, _choose(search, cantelli, True), retry, retry[pair_robot])
+
+
+def _any_per_robot(search, flags):
+    """Per robot, whether any of its neighbours' FLAGS is set."""
+    return np.logical_or.reduceat(flags, search.pair_starts)
+
+
+def _merged(kept, other, robots, pairs):
+    """KEPT with the values of OTHER for the ROBOTS and PAIRS marked."""
+    return _Choice(velocities=np.where(robots[:, None], other.velocities, kept.velocities),
+                   candidates_feasible=np.where(robots, other.candidates_feasible,
+                                                kept.candidates_feasible),
+                   **{name: np.where(pairs, getattr(other, name), getattr(kept, name))
+                      for name in ('achieved', 'bounds', 'certified')})
 
 
 def _allowed_gaps(plans, gap_ray, lower, upper):
@@ -434,13 +584,13 @@ def _fallback_choice(plan, speeds, costs):
                                            costs.reshape(-1)), speeds.shape)
 
 
-def _achieved(plans, means, variances, chosen_links, pair_robot, pair_starts, chosen_t,
-              velocities, pair_horizons):
-    """Per robot, the smallest over neighbours of the k met at its chosen velocity.
+def _achieved(plans, means, variances, chosen_links, pair_robot, chosen_t, velocities,
+              pair_horizons):
+    """Per neighbour of every robot, the k met at its robot's chosen velocity.
 
     CHOSEN_LINKS are the links of each neighbour on its robot's chosen direction, robot after
-    robot; PAIR_ROBOT the robot of each, PAIR_STARTS the first neighbour of each robot,
-    PAIR_HORIZONS the time horizon of each (as ``_pair_horizons`` gives them).
+    robot; PAIR_ROBOT the robot of each, PAIR_HORIZONS the time horizon of each (as
+    ``_pair_horizons`` gives them).
     """
     first = plans[0]
     enabled = np.concatenate([plan.layout.receding_enabled for plan in plans])
@@ -457,5 +607,4 @@ def _achieved(plans, means, variances, chosen_links, pair_robot, pair_starts, ch
             velocities[pair_robot][:, None, :], pair_horizons,
             first.layout.has_receding,
             np.concatenate([plan.encounter.lead for plan in plans]))]
-    return np.minimum.reduceat(achieved_margins(*at_velocity, first.layout, enabled),
-                               pair_starts)
+    return achieved_margins(*at_velocity, first.layout, enabled)

@@ -1,0 +1,151 @@
+"""The planner's certified mode: what it returns meets eta by sampling, and it detours less."""
+
+import dataclasses
+import math
+
+from independent import line_clear, relative_samples
+import numpy as np
+from prvo_core_testing import random_two_robot_encounter
+import pytest
+
+from prvo_planner.core import AgentBelief, PlannerConfig, eta_from_k, plan_velocity
+
+SAMPLES = 20000
+# One-sided z for a family-wise false alarm below 1e-3 over the ~600 checks of this module.
+Z = 4.9
+
+
+def holds(rng, ego, neighbour, velocity, actuation, config):
+    """Sample the planner's condition f >= 0 or g >= 0 or (h1 and h2), written out.
+
+    f: the line of relative motion clears R; g (with the gate): the robots move apart; h1, h2
+    (finite horizon): the closest approach is beyond tau and the robots are R apart at tau.
+    """
+    r, u = relative_samples(rng, ego, neighbour, velocity, actuation, SAMPLES)
+    radius = ego.radius + neighbour.radius
+    event = line_clear(r, u, radius)
+    closing = np.sum(r * u, axis=1)
+    if config.receding_gate:
+        event |= closing >= 0.0
+    tau = config.time_horizon
+    if math.isfinite(tau):
+        event |= ((-closing - tau * np.sum(u * u, axis=1) >= 0.0)
+                  & (np.sum((r + tau * u) ** 2, axis=1) >= radius ** 2))
+    return event.mean()
+
+
+def tolerance(probability):
+    return Z * math.sqrt(probability * (1.0 - probability) / SAMPLES)
+
+
+@pytest.mark.parametrize('eta, risk, gate, horizon', [
+    (0.8, 'pairwise', False, math.inf), (0.9, 'pairwise', True, math.inf),
+    (0.95, 'pairwise', True, 5.0), (0.99, 'pairwise', False, math.inf),
+    (0.9, 'joint', True, 5.0), (0.95, 'joint', False, math.inf)])
+def test_certified_plans_meet_eta_for_every_neighbour_by_sampling(eta, risk, gate, horizon):
+    rng = np.random.default_rng(int(1000 * eta) + 7 * gate + (risk == 'joint'))
+    feasible = certified = below_cantelli = 0
+    for _ in range(60):
+        ego, first = random_two_robot_encounter(rng)
+        _, second = random_two_robot_encounter(rng)
+        neighbours = [first, second] if risk == 'joint' else [first]
+        actuation = np.diag(rng.uniform(0.0, 0.02, size=2))
+        config = PlannerConfig(eta=eta, risk=risk, receding_gate=gate, time_horizon=horizon,
+                               num_directions=32, actuation_cov=actuation,
+                               certificate='certified')
+        # Heading at the first neighbour, so that the constraint usually binds.
+        v_pref = first.position / np.hypot(*first.position) + rng.normal(0.0, 0.2, 2)
+        result = plan_velocity(ego, neighbours, v_pref, config)
+        if not result.feasible:
+            continue
+        feasible += 1
+        required = 1.0 - (1.0 - eta) / len(neighbours) if risk == 'joint' else eta
+        # The planner derives the joint split through k: equal to rounding.
+        assert result.eta_bound >= required - 1e-12
+        assert result.eta_bound == min(result.neighbour_bounds)
+        certified += 'certified' in result.bound_kinds
+        # Velocities Cantelli's margin rejects are returned, with their certified bound.
+        below_cantelli += result.achieved_k < math.sqrt(required / (1.0 - required)) - 1e-9
+        for neighbour, bound in zip(neighbours, result.neighbour_bounds, strict=True):
+            assert bound >= required - 1e-12
+            probability = holds(rng, ego, neighbour, result.velocity, actuation, config)
+            # The bound is a lower bound on the probability, hence so is eta.
+            assert probability >= bound - tolerance(bound), (probability, bound)
+    print(f'eta={eta} {risk}: {feasible}/60 feasible, {certified} certified, {below_cantelli} '
+          'below the Cantelli margin')
+    assert feasible >= 40 and certified >= 20 and below_cantelli >= 10
+
+
+def head_on(distance, std):
+    """Two robots of radius 0.3 head-on at DISTANCE m, 0.8 m/s each, every std STD."""
+    covariance = std ** 2 * np.eye(4)
+    ego = AgentBelief([0.0, 0.0], [0.8, 0.0], covariance, 0.3)
+    other = AgentBelief([distance, 0.0], [-0.8, 0.0], covariance, 0.3)
+    return ego, other
+
+
+@pytest.mark.parametrize('distance, eta', [(3.0, 0.8), (3.0, 0.95), (3.0, 0.99), (5.0, 0.9),
+                                           (5.0, 0.99)])
+def test_certified_mode_deviates_less_head_on_at_the_same_eta(distance, eta):
+    ego, other = head_on(distance, 0.05)
+    v_pref = np.array([1.0, 0.0])
+    base = PlannerConfig(eta=eta, actuation_cov=0.0025 * np.eye(2))
+    cantelli = plan_velocity(ego, [other], v_pref, base)
+    certified = plan_velocity(ego, [other], v_pref,
+                              dataclasses.replace(base, certificate='certified'))
+    assert cantelli.feasible and certified.feasible
+    # The certified velocity is closer to v_pref and makes more progress towards the goal.
+    assert (np.linalg.norm(certified.velocity - v_pref)
+            < np.linalg.norm(cantelli.velocity - v_pref) - 0.05)
+    assert certified.velocity[0] > cantelli.velocity[0]
+    # Cantelli's bound rejects it; the certified bound accepts it.
+    assert certified.achieved_k < base.effective_k
+    assert certified.bound_kinds == ('certified',) and certified.eta_bound >= eta
+    assert cantelli.bound_kinds == ('cantelli',) and cantelli.eta_bound >= eta
+
+
+def test_a_shortfall_restores_cantelli_margin_for_that_neighbour():
+    # Head-on at 3 m, eta 0.9: the velocity found with the smaller margin is not certified to
+    # 0.9, so the neighbour's links are searched again with Cantelli's k = 3, which gives
+    # Cantelli's plan (and its certificate, above Cantelli's bound).
+    ego, other = head_on(3.0, 0.05)
+    base = PlannerConfig(eta=0.9, actuation_cov=0.0025 * np.eye(2))
+    cantelli = plan_velocity(ego, [other], [1.0, 0.0], base)
+    certified = plan_velocity(ego, [other], [1.0, 0.0],
+                              dataclasses.replace(base, certificate='certified'))
+    assert np.array_equal(certified.velocity, cantelli.velocity)
+    assert certified.achieved_k >= base.effective_k - 1e-9
+    assert certified.eta_bound >= cantelli.eta_bound >= 0.9 - 1e-12
+
+
+def test_the_default_mode_reports_cantelli_bounds_per_neighbour():
+    rng = np.random.default_rng(3)
+    ego, first = random_two_robot_encounter(rng)
+    _, second = random_two_robot_encounter(rng)
+    config = PlannerConfig(eta=0.9)
+    result = plan_velocity(ego, [first, second], first.position, config)
+    assert config.certificate == 'cantelli' and result.certificate == 'cantelli'
+    assert result.bound_kinds == ('cantelli', 'cantelli')
+    assert result.eta_bound == eta_from_k(max(result.achieved_k, 0.0))
+    assert min(result.neighbour_bounds) == pytest.approx(result.eta_bound, abs=1e-15)
+    explicit = plan_velocity(ego, [first, second], first.position,
+                             dataclasses.replace(config, certificate='cantelli'))
+    assert np.array_equal(explicit.velocity, result.velocity)
+
+
+def test_models_without_gaussian_beliefs_plan_as_in_cantelli_mode():
+    ego, other = head_on(3.0, 0.05)
+    for model in ('rvo', 'inflate'):
+        config = PlannerConfig(eta=0.9, model=model)
+        plain = plan_velocity(ego, [other], [1.0, 0.0], config)
+        certified = plan_velocity(ego, [other], [1.0, 0.0],
+                                  dataclasses.replace(config, certificate='certified'))
+        assert np.array_equal(plain.velocity, certified.velocity)
+        assert certified.bound_kinds == ('cantelli',)
+
+
+@pytest.mark.parametrize('value', ['gaussian', '', None, 1])
+def test_bad_certificate_values_are_refused_by_name(value):
+    with pytest.raises(ValueError, match='PlannerConfig.certificate must be one of') as error:
+        PlannerConfig(certificate=value)
+    assert '\n' not in str(error.value) and repr(value) in str(error.value)
