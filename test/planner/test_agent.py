@@ -231,6 +231,18 @@ def test_silent_and_unwanted_neighbours_are_forgotten():
     assert agent.neighbours == set()
 
 
+def test_a_neighbour_repeating_its_state_is_not_silent():
+    # A lockstep simulator re-sends t_0 until every node is up; under load that takes longer
+    # than neighbor_timeout, and dropping the neighbours then would restart their tracks.
+    agent = PlannerAgent('self', CONFIG, SETTINGS, GOAL)
+    first = team()['a'][0]
+    for now in (0.0, 1.5, 3.0, 4.5):
+        agent.receive_neighbour('a', first, now)
+    assert agent.forget_neighbours(5.0) == []
+    ((robot, silent),) = agent.forget_neighbours(6.6)
+    assert robot == 'a' and silent == pytest.approx(2.1)
+
+
 def test_no_goal_stands_still_without_a_plan():
     data = team()
     agent = PlannerAgent('self', CONFIG, SETTINGS)

@@ -110,6 +110,9 @@ def fuse(track, measurement, now, acceleration_std, neighbor_timeout):
         # A single stamp from the past replaced the track; time goes on from the old one.
         return _update(track.superseded, measurement, now, 'fused')
     if stamp == last:
+        # The source is alive, repeating its state (a lockstep simulator re-sends t_0 until
+        # every node is up): not silent, though nothing is fused.
+        track.last_heard = now
         return track, Fusion('duplicate')
     if stamp < last:
         if last - stamp <= TIME_RESET_SECONDS:
