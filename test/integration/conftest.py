@@ -8,8 +8,11 @@ from diagnostic_msgs.msg import DiagnosticArray
 from nav_msgs.msg import Odometry
 import numpy as np
 import pytest
+from rosgraph_msgs.msg import Clock
 
 from prvo_msgs_util import (
+    CLOCK,
+    CLOCK_QOS,
     DIAGNOSTICS,
     DIAGNOSTICS_QOS,
     GROUND_TRUTH,
@@ -41,6 +44,8 @@ class TeamObserver:
                 lambda msg, name=name: self._on_ground_truth(name, msg), deep)
         probe.node.create_subscription(
             DiagnosticArray, DIAGNOSTICS, self._on_diagnostics, DIAGNOSTICS_QOS)
+        # The simulator's observers listen to /clock too; the team's clock is not needed here.
+        probe.node.create_subscription(Clock, CLOCK, lambda msg: None, CLOCK_QOS)
 
     def _on_ground_truth(self, name, msg):
         position = msg.pose.pose.position
