@@ -114,3 +114,18 @@ def test_a_recording_with_missing_steps_or_commands_is_a_failure():
     assert run_scenario.recording_gaps(complete, no_first_command, names, 0.1, False) is None
     assert 'no ground truth' in run_scenario.recording_gaps(
         {'robot_0': {}, 'robot_1': {}}, commands, names, 0.1, True)
+
+
+def test_a_run_ended_at_a_step_needs_that_steps_answers_and_ignores_later_steps():
+    dt_ns = 100_000_000
+    # The team went on past the end (t = 0.3) until it was stopped.
+    ground_truth = {name: {step * dt_ns: (0.0,) for step in range(6)}
+                    for name in ('robot_0', 'robot_1')}
+    names = list(ground_truth)
+    up_to_the_end = {name: {step * dt_ns: (0.0,) for step in range(4)} for name in names}
+    assert run_scenario.recording_gaps(ground_truth, up_to_the_end, names, 0.1, True,
+                                       until=0.3) is None
+    before_the_end = {name: {step * dt_ns: (0.0,) for step in range(3)} for name in names}
+    gap = run_scenario.recording_gaps(ground_truth, before_the_end, names, 0.1, True,
+                                      until=0.3)
+    assert 'command' in gap and 't = 0.3' in gap

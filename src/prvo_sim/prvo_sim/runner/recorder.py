@@ -498,7 +498,9 @@ def recording_gaps(ground_truth, commands, robot_names, dt, commands_expected,
     A complete recording has every robot's ground truth at every step t = k DT from t = 0 to
     its last (the last at or before UNTIL [s], if given), and, if COMMANDS_EXPECTED (lockstep:
     every step is answered), the command of each of PLANNED_NAMES (default: every robot;
-    scripted robots have none) answering each of those steps but the last.
+    scripted robots have none) answering each of those steps but the last. With UNTIL the
+    last is answered too: the run ended there while the team went on, and the in-process
+    engine records that answer, so a recording never depends on when it arrived.
     """
     last_step = math.inf if until is None else round(until / dt)
     for name in robot_names:
@@ -512,7 +514,7 @@ def recording_gaps(ground_truth, commands, robot_names, dt, commands_expected,
                     f'the first at t = {missing[0] * dt:g} s')
         if commands_expected and (planned_names is None or name in planned_names):
             answered = {round(stamp * 1e-9 / dt) for stamp in commands[name]}
-            unanswered = sorted(set(steps[:-1]) - answered)
+            unanswered = sorted(set(steps if until is not None else steps[:-1]) - answered)
             if unanswered:
                 return (f'the recorder missed {len(unanswered)} command(s) of {name}, the first '
                         f'answering t = {unanswered[0] * dt:g} s')

@@ -37,7 +37,9 @@ SETTLE_TIME = 1.0  # sim seconds every robot must stay at its goal before the ru
 # steps) differ by rounding, and the end of a run must not.
 TIME_EPSILON = 1e-6
 PROGRESS_PERIOD = 0.5
-RECORDING_GRACE = 2.0  # wall seconds for messages in flight when a run ends to arrive
+# Wall seconds for messages in flight when a run ends to arrive: longer than a planner may take
+# to answer a step (STEP_TIMEOUT), since the step the run ends at must have its answers.
+RECORDING_GRACE = STEP_TIMEOUT + 1.0
 GRAPH_CHECK_PERIOD = 1.0  # wall seconds between looks for intruders during a run
 # Planner waits in lockstep [s]: for same-stamp odometry, as long as the sim waits for the plan
 # less a margin to plan (with 24 planners on 2 cores a neighbour's odometry took over 1 s to be
