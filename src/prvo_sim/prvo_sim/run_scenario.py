@@ -8,9 +8,10 @@ with localhost-only discovery; they never outlive the runner. The planners start
 simulator starts once the recorder hears every planner, and steps once the recorder listens to
 it. The runner ends the run when every robot has arrived (and stayed), when the simulator
 reports `finished`, when a child dies, when a process it did not start publishes on the domain
-or at a wall-clock limit, shuts every child down (SIGINT, then SIGKILL) whatever happened, and
-writes metrics.json, trajectories.csv and trajectories.png. The implementation is in
-prvo_sim.runner; this module is its entry point.
+or at a wall-clock limit, writes metrics.json, trajectories.csv, the plot, the bag and the
+animation from what it recorded, then shuts every child down (SIGINT, then SIGKILL) whatever
+happened. The implementation is in prvo_sim.runner (docs/interfaces.md, "The runner: how a
+run ends"); this module is its entry point.
 
 Exit codes: 0 the run completed (collisions are a result, not an error), 1 a child failed, the
 run timed out or was interfered with, 2 refused (nothing was started, nothing written),
