@@ -306,6 +306,8 @@ def test_observer_sees_every_step_from_t0(probe, children, ros2_executable):
         lambda: f'{observer} has no subscription on /robot_0/ground_truth' in
         children.output(sim), 5.0, 'the log naming the missing observer topics')
     assert all(planners.steps(robot) == [0] for robot in ROBOTS)
+    # An observer listens to the clock too (a recording starts at t_0).
+    probe.record(Clock, '/clock', CLOCK_QOS)
     for robot in ROBOTS:
         planners.subscribe_ground_truth(robot)
     probe.wait_until(
