@@ -1,0 +1,68 @@
+"""
+Static obstacles as the planner sees them: wall segments and discs in the world frame.
+
+A wall is a segment ``[a, b]`` with a half-width (half its thickness); a solid polygon is its
+edges with half-width 0; an occupancy grid becomes the segments of its cells' boundary. A disc
+is a static neighbour: known centre, zero velocity, no covariance of its own.
+"""
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .beliefs import as_finite_array
+
+
+@dataclass(frozen=True)
+class StaticObstacles:
+    """
+    Segments and discs that never move, in the world frame.
+
+    Attributes
+    ----------
+    segments : numpy.ndarray
+        Shape (N, 2, 2): ``segments[i] = [[ax, ay], [bx, by]]`` [m], ends distinct.
+    half_widths : numpy.ndarray
+        Shape (N,): half of each wall's thickness [m], at least 0.
+    disc_centres : numpy.ndarray
+        Shape (M, 2): centres of disc obstacles [m].
+    disc_radii : numpy.ndarray
+        Shape (M,): their radii [m], positive.
+
+    """
+
+    segments: np.ndarray
+    half_widths: np.ndarray
+    disc_centres: np.ndarray
+    disc_radii: np.ndarray
+
+    def __post_init__(self):
+        segments = np.asarray(self.segments, dtype=float).reshape(-1, 2, 2)
+        count = len(segments)
+        discs = np.asarray(self.disc_centres, dtype=float).reshape(-1, 2)
+        fields = {
+            'segments': as_finite_array(segments, (count, 2, 2), 'segments'),
+            'half_widths': as_finite_array(self.half_widths, (count,), 'half_widths'),
+            'disc_centres': as_finite_array(discs, (len(discs), 2), 'disc_centres'),
+            'disc_radii': as_finite_array(self.disc_radii, (len(discs),), 'disc_radii'),
+        }
+        lengths = np.linalg.norm(fields['segments'][:, 1] - fields['segments'][:, 0], axis=1)
+        if (lengths <= 0.0).any():
+            index = int(np.argmax(lengths <= 0.0))
+            raise ValueError(f'segment {index} has two equal ends: '
+                             f'{fields["segments"][index].tolist()!r}')
+        if (fields['half_widths'] < 0.0).any():
+            raise ValueError(f'half_widths must be >= 0, got {fields["half_widths"].tolist()!r}')
+        if (fields['disc_radii'] <= 0.0).any():
+            raise ValueError(f'disc_radii must be > 0, got {fields["disc_radii"].tolist()!r}')
+        for name, value in fields.items():
+            object.__setattr__(self, name, value)
+
+    @classmethod
+    def empty(cls):
+        """Return the obstacles of an empty plane."""
+        return cls(np.zeros((0, 2, 2)), np.zeros(0), np.zeros((0, 2)), np.zeros(0))
+
+    def __len__(self):
+        """Return the number of shapes: segments plus discs."""
+        return len(self.segments) + len(self.disc_radii)
