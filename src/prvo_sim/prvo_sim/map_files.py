@@ -25,7 +25,8 @@ def read_image(path):
         with Image.open(path) as image:
             image.load()
             grey_alpha = image.convert('LA')
-    except UnidentifiedImageError as error:
+    except (UnidentifiedImageError, ValueError, SyntaxError, EOFError) as error:
+        # Pillow's readers report a malformed file by any of these.
         raise OSError(f'not an image Pillow reads: {error}') from None
     levels = np.asarray(grey_alpha, dtype=np.uint8)
     return levels[..., 0], levels[..., 1]

@@ -412,7 +412,7 @@ def _static_world(check, document, robots):
             point = getattr(robot, place)
             clearance = float(world.clearance(point)[0])
             if clearance < robot.radius:
-                where = ('inside an obstacle' if clearance < 0.0 else
+                where = ('inside an obstacle' if clearance <= 0.0 else
                          f'{clearance:g} m from an obstacle, closer than its radius '
                          f'{robot.radius:g} m')
                 check.fail(f'robots[{index}].{place}',

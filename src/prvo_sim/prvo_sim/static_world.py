@@ -105,7 +105,7 @@ class StaticWorld:
         Each solid polygon's vertices [m], V >= 3, edges not crossing.
     map_grid : prvo_planner.maps.GridMap or None
         The map file's grid, or None.
-    extent_points : numpy.ndarray (P, 2)
+    extent_points : array_like (P, 2)
         Points the rasterised grid must also cover (the robots' starts and goals) [m].
 
     Attributes: `walls`, `discs`, `polygons`, `map_grid` as given; `segments` (K, 2, 2) and
@@ -116,7 +116,7 @@ class StaticWorld:
     """
 
     def __init__(self, walls=(), discs=(), polygons=(), map_grid=None,
-                 extent_points=np.zeros((0, 2))):
+                 extent_points=()):
         self.walls = tuple((np.array(line, dtype=float), float(thickness))
                            for line, thickness in walls)
         self.discs = tuple((np.array(centre, dtype=float), float(radius))
@@ -304,7 +304,7 @@ class StaticWorld:
         return GridMap(cells, resolution, grid_origin)
 
     def _shape_bounds(self):
-        """Return (low (2,), high (2,)) of every wall's, disc's and polygon's points (+-inf: none)."""
+        """Return (low (2,), high (2,)) of the walls', discs', polygons' points (+-inf: none)."""
         low, high = np.full(2, np.inf), np.full(2, -np.inf)
         for line, thickness in self.walls:
             low = np.minimum(low, line.min(axis=0) - 0.5 * thickness)
