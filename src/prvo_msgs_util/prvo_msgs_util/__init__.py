@@ -48,7 +48,8 @@ from prvo_msgs_util.interrupts import (
     ignore_stop_signals,
     release_stop_signals,
 )
-from prvo_msgs_util.markers import make_belief_markers
+from prvo_msgs_util.markers import make_belief_markers, make_static_world_markers
+from prvo_msgs_util.occupancy import make_occupancy_grid, occupancy_grid_arrays
 from prvo_msgs_util.parameters import (
     PARAMETER_TYPES,
     declare_parameters,
@@ -61,6 +62,7 @@ from prvo_msgs_util.qos import (
     CONTACT_QOS,
     DIAGNOSTICS_QOS,
     GOAL_QOS,
+    MAP_QOS,
     MARKER_QOS,
     ODOM_LATEST_QOS,
     ODOM_QOS,
@@ -83,9 +85,11 @@ from prvo_msgs_util.topics import (
     FOOTPRINT,
     GOAL_POSE,
     GROUND_TRUTH,
+    MAP,
     MARKERS,
     ODOM,
     WORLD_FRAME,
+    WORLD_MARKERS,
     robot_from_topic,
     robot_topic,
     robots_with_topic,
@@ -108,6 +112,8 @@ __all__ = [
     'declare_parameters',
     'diagnostic_values', 'freeze_startup_objects', 'PARAMETER_TYPES', 'parameter_descriptor',
     'quiet_after_shutdown', 'spin_events', 'ThrottledWarnings',
+    'MAP', 'MAP_QOS', 'WORLD_MARKERS', 'make_occupancy_grid', 'occupancy_grid_arrays',
+    'make_static_world_markers',
     'make_belief_markers', 'make_diagnostic_array', 'make_diagnostic_status', 'make_odometry',
     'make_pose_stamped', 'make_twist', 'make_twist_stamped', 'odometry_to_measurement',
     'pose_stamped_to_goal', 'robot_from_topic', 'robot_topic', 'robots_with_topic',

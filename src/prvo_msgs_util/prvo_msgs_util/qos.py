@@ -34,6 +34,9 @@ CONTACT_QOS = _reliable(100, DurabilityPolicy.TRANSIENT_LOCAL)
 GOAL_QOS = _reliable(1)
 # Latched: a planner that starts or discovers a robot later still receives its announcements.
 ANNOUNCEMENT_QOS = _reliable(1, DurabilityPolicy.TRANSIENT_LOCAL)
+# As map_server: published once, latched, so that a subscriber that comes later receives it
+# (also the static world's markers).
+MAP_QOS = _reliable(1, DurabilityPolicy.TRANSIENT_LOCAL)
 
 
 def quiet_subscription_events():

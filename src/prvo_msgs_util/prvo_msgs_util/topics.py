@@ -12,6 +12,9 @@ AVOIDANCE_SHARE = 'avoidance_share'
 DIAGNOSTICS = '/diagnostics'
 CONTACTS = '/prvo_sim/contacts'
 CLOCK = '/clock'
+# The static world's occupancy grid, as map_server publishes it, and its shapes for RViz.
+MAP = '/map'
+WORLD_MARKERS = '/prvo_sim/world_markers'
 # The world frame of odometry, ground truth, goals and world-frame commands.
 WORLD_FRAME = 'map'
 
