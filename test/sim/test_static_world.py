@@ -383,3 +383,24 @@ def test_the_corridor_is_2_4_m_wide_and_12_m_long():
     # Clearances from the corridor's centre line and its middle measured by formulas.
     assert static.clearance([[0.0, 0.0]])[0] == pytest.approx(1.2)
     assert static.clearance([[0.0, 0.0], [5.9, 0.0]]).tolist() == pytest.approx([1.2, 0.1])
+
+
+def test_wall_metrics_from_recorded_positions(tmp_path):
+    from prvo_sim import metrics
+
+    world = world_of(tmp_path, VERTICAL_WALL.format(thickness=0.2), start=(-2.0, 0.0))
+    # robot a walks to the wall's surface (x = -0.1 - 0.3), leaves, comes back: two contacts;
+    # robot b stays 1 m clear.
+    a = np.array([[-2.0, 0.0], [-0.4, 0.0], [-0.4, 1.0], [-1.0, 1.0], [-0.4, 1.0]])
+    b = np.column_stack([np.full(5, 1.4), np.linspace(-1.0, 1.0, 5)])
+    positions = np.stack([a, b], axis=1)
+    result = metrics.wall_metrics(positions, [0.3, 0.3], ['a', 'b'],
+                                  world.static_world.clearance)
+    assert result['robots']['a'] == {'wall_contacts': 2,
+                                     'min_wall_clearance': pytest.approx(0.0, abs=1e-12)}
+    assert result['robots']['b'] == {'wall_contacts': 0,
+                                     'min_wall_clearance': pytest.approx(1.4 - 0.1 - 0.3)}
+    assert result['wall_contacts'] == 2
+    assert result['min_wall_clearance'] == pytest.approx(0.0, abs=1e-12)
+    empty = metrics.wall_metrics(positions, [0.3, 0.3], ['a', 'b'])
+    assert empty['wall_contacts'] == 0 and empty['min_wall_clearance'] is None
