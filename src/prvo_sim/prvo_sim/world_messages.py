@@ -121,7 +121,7 @@ def map_message(world):
     grid = world.static_world.grid
     if grid is None:
         return None
-    return make_occupancy_grid(grid.cells, grid.resolution, grid.origin, 0.0, WORLD_FRAME)
+    return make_occupancy_grid(0.0, grid.cells, grid.resolution, grid.origin, WORLD_FRAME)
 
 
 def static_world_markers(world):

@@ -1,10 +1,11 @@
 """A run's rosbag2 recording: `<out>/bag/`, metadata.yaml and one .mcap file (rosbag2's layout).
 
 The bag holds /clock, every robot's odom, ground_truth, cmd_vel and prvo_markers,
-/diagnostics, and in a world with walls, obstacles or a map, /map, each message serialized as
-it was published. Messages are logged at their sim-time stamp, as `ros2 bag record
---use-sim-time` logs them, so that both engines give the same bag and `ros2 bag play --clock`
-replays a run at its own pace. The `rosbags` library writes it.
+/diagnostics, and in a world with walls, obstacles or a map, /map and every planner's route
+`<robot>/plan`, each message serialized as it was published. Messages are logged at their
+sim-time stamp, as `ros2 bag record --use-sim-time` logs them, so that both engines give the
+same bag and `ros2 bag play --clock` replays a run at its own pace. The `rosbags` library
+writes it.
 """
 
 import math
@@ -27,6 +28,8 @@ from prvo_msgs_util import (
     MARKERS,
     ODOM,
     ODOM_QOS,
+    PLAN,
+    PLAN_QOS,
     robot_topic,
 )
 
@@ -38,11 +41,13 @@ TWIST_STAMPED_TYPE = 'geometry_msgs/msg/TwistStamped'
 MARKER_ARRAY_TYPE = 'visualization_msgs/msg/MarkerArray'
 DIAGNOSTIC_ARRAY_TYPE = 'diagnostic_msgs/msg/DiagnosticArray'
 OCCUPANCY_GRID_TYPE = 'nav_msgs/msg/OccupancyGrid'
+PATH_TYPE = 'nav_msgs/msg/Path'
 # Where the stamp (builtin_interfaces/Time: int32 sec, uint32 nanosec) of a serialized message
 # of each type starts: after the 4-byte CDR encapsulation header, the header's stamp (or the
 # clock) comes first; a MarkerArray's first marker's header follows its uint32 length.
 _STAMP_OFFSETS = {CLOCK_TYPE: 4, ODOMETRY_TYPE: 4, TWIST_STAMPED_TYPE: 4,
-                  DIAGNOSTIC_ARRAY_TYPE: 4, MARKER_ARRAY_TYPE: 8, OCCUPANCY_GRID_TYPE: 4}
+                  DIAGNOSTIC_ARRAY_TYPE: 4, MARKER_ARRAY_TYPE: 8, OCCUPANCY_GRID_TYPE: 4,
+                  PATH_TYPE: 4}
 _CDR_LITTLE_ENDIAN = 1  # the second byte of the encapsulation header: 0 big, 1 little endian
 
 
@@ -51,7 +56,7 @@ def bag_topics(robot_names, planned_names=None, with_map=False):
 
     PLANNED_NAMES (default: all) are the robots with a planner: only they publish cmd_vel and
     markers (a scripted robot is moved by the simulator). WITH_MAP: the world has static
-    shapes, which the simulator publishes on /map at start-up.
+    shapes, which the simulator publishes on /map at start-up, and the planners their routes.
     """
     planned_names = robot_names if planned_names is None else planned_names
     # In the order a step publishes them: the bag keeps it among messages of one stamp.
@@ -64,6 +69,8 @@ def bag_topics(robot_names, planned_names=None, with_map=False):
     for leaf, message_type, qos in ((CMD_VEL, TWIST_STAMPED_TYPE, CMD_VEL_QOS),
                                     (MARKERS, MARKER_ARRAY_TYPE, MARKER_QOS)):
         topics.update({robot_topic(name, leaf): (message_type, qos) for name in planned_names})
+    if with_map:
+        topics.update({robot_topic(name, PLAN): (PATH_TYPE, PLAN_QOS) for name in planned_names})
     return topics
 
 

@@ -64,7 +64,8 @@ class Recorder:
         scripted, moved by the simulator, and publish no cmd_vel or planner diagnostics. With
         RECORD_BAG it also keeps, serialized, everything else of the run's bag (see
         `bag_messages`): /clock, odometry and markers; planners build markers only then.
-        WITH_MAP (a world with static shapes) records the simulator's /map in the bag too.
+        WITH_MAP (a world with static shapes) records the simulator's /map and each planner's
+        route in the bag too.
         Raises RecorderError if the listener does not start.
         """
         from prvo_msgs_util import (
@@ -75,6 +76,7 @@ class Recorder:
             MAP,
             MARKERS,
             ODOM,
+            PLAN,
             robot_topic,
         )
 
@@ -122,9 +124,12 @@ class Recorder:
                     self._bag_topics[topic] = []
                     routes.append((topic, kind, self._bag_topics[topic].append))
             if with_map:
-                # Latched: the listener receives it whenever it subscribes.
-                self._bag_topics[MAP] = []
-                routes.append((MAP, 'map', self._bag_topics[MAP].append))
+                # Latched, as each planner's route: the listener receives them whenever it
+                # subscribes.
+                for topic, kind in [(MAP, 'map')] + [(robot_topic(name, PLAN), 'plan')
+                                                     for name in self.planned_names]:
+                    self._bag_topics[topic] = []
+                    routes.append((topic, kind, self._bag_topics[topic].append))
         if role == 'domain_check':
             # It only reads the graph.
             routes = []
