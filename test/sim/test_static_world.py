@@ -315,6 +315,8 @@ def test_a_scenario_without_shapes_has_no_grid(tmp_path):
     ('obstacles:\n  - polygon: [[-3.0, -1.0], [-1.0, -1.0], [-2.0, 1.0]]\n', 'robots[0].start',
      'inside an obstacle'),
     ('map: missing.yaml\n', 'map', 'no map file'),
+    ('walls:\n  - line: [[-100000.0, 5.0], [100000.0, 5.0]]\n    thickness: 1.0\n', 'walls',
+     'cells of 0.05 m: more than 4e+07'),
 ])
 def test_bad_shapes_are_named(tmp_path, shapes, key, reason):
     path = scenario_file(tmp_path, shapes)
@@ -340,6 +342,7 @@ MAP = 'image: map.pgm\nresolution: 0.5\norigin: [0.0, 5.0, 0.0]\n'
     (MAP.replace('map.pgm', 'nothing.pgm'), 'image', 'cannot read'),
     (MAP.replace('map.pgm', 'map.yaml'), 'image', 'cannot read'),
     (MAP.replace(', 0.0]', ', 0.5]'), 'origin[2]', 'yaw 0'),
+    (MAP.replace('[0.0, 5.0', '[.nan, 5.0'), 'origin[0]', 'expected a finite number'),
     (MAP.replace('resolution: 0.5\n', ''), 'resolution', 'missing required key'),
     (MAP + 'colour: red\n', 'colour', 'unknown key'),
 ])
