@@ -48,6 +48,7 @@ from .limits import (
     free_choice,
     relaxed_intervals,
 )
+from .obstacles import StaticObstacles
 from .moments import (
     NODES,
     bivariate_polynomials,
@@ -55,10 +56,23 @@ from .moments import (
     poly_eval,
     ray_rows,
 )
-from .probability import eta_from_k
+from .probability import eta_from_k, k_from_eta
+from .walls import (
+    WallModel,
+    cut_by_walls,
+    obstacle_probability,
+    rejected_intervals,
+    static_neighbours,
+    wall_intrusion,
+    wall_model,
+)
 
 
-def _validated_inputs(ego, neighbours, v_pref, config, previous, limits):
+def _validated_inputs(ego, neighbours, v_pref, config, previous, limits, obstacles=None):
+    if obstacles is not None and not isinstance(obstacles, StaticObstacles):
+        raise ValueError(f'obstacles must be StaticObstacles or None, got {obstacles!r}')
+    if obstacles is not None and len(obstacles) and config.model == 'mc':
+        raise ValueError("obstacles are not supported with model='mc'")
     if limits is not None and not isinstance(limits, VelocityLimits):
         raise ValueError(f'limits must be VelocityLimits or None, got {limits!r}')
     if not isinstance(ego, AgentBelief):
@@ -79,7 +93,7 @@ def _clip_speed(velocity, max_speed):
     return velocity * (max_speed / speed) if speed > max_speed else np.array(velocity)
 
 
-def plan_velocity(ego, neighbours, v_pref, config, previous=None, limits=None):
+def plan_velocity(ego, neighbours, v_pref, config, previous=None, limits=None, obstacles=None):
     """
     Choose the commanded velocity closest to ``v_pref`` that meets the chance constraints.
 
@@ -100,6 +114,8 @@ def plan_velocity(ego, neighbours, v_pref, config, previous=None, limits=None):
         The previous command, shape (2,), for ``config.inertia``; None for none.
     limits : VelocityLimits or None
         What the robot can command next (acceleration, tracking); None: any velocity.
+    obstacles : StaticObstacles or None
+        Walls and discs that never move (docs/method.md, walls); None or empty: none.
 
     Returns
     -------
@@ -112,10 +128,12 @@ def plan_velocity(ego, neighbours, v_pref, config, previous=None, limits=None):
         On invalid inputs.
 
     """
-    return plan_velocities([ego], [neighbours], [v_pref], [config], [previous], [limits])[0]
+    return plan_velocities([ego], [neighbours], [v_pref], [config], [previous], [limits],
+                           [obstacles])[0]
 
 
-def plan_velocities(egos, neighbours_per_ego, v_prefs, configs, previous=None, limits=None):
+def plan_velocities(egos, neighbours_per_ego, v_prefs, configs, previous=None, limits=None,
+                    obstacles=None):
     """
     Plan every robot of a team in few, large numpy calls.
 
@@ -138,6 +156,8 @@ def plan_velocities(egos, neighbours_per_ego, v_prefs, configs, previous=None, l
         Each robot's previous command; None: none for any robot.
     limits : None or sequence of (VelocityLimits or None)
         Each robot's limits; None: none for any robot.
+    obstacles : None or sequence of (StaticObstacles or None)
+        Each robot's static obstacles; None: none for any robot.
 
     Returns
     -------
@@ -157,7 +177,8 @@ def plan_velocities(egos, neighbours_per_ego, v_prefs, configs, previous=None, l
     per_robot = {'neighbours_per_ego': list(neighbours_per_ego), 'v_prefs': list(v_prefs),
                  'configs': list(configs),
                  'previous': [None] * count if previous is None else list(previous),
-                 'limits': [None] * count if limits is None else list(limits)}
+                 'limits': [None] * count if limits is None else list(limits),
+                 'obstacles': [None] * count if obstacles is None else list(obstacles)}
     for name, values in per_robot.items():
         if len(values) != count:
             raise ValueError(f'{name} must have one entry per ego ({count}), got {len(values)}')
@@ -167,10 +188,13 @@ def plan_velocities(egos, neighbours_per_ego, v_prefs, configs, previous=None, l
         try:
             plan = _prepared_plan(egos[index], per_robot['neighbours_per_ego'][index],
                                   per_robot['v_prefs'][index], per_robot['configs'][index],
-                                  per_robot['previous'][index], per_robot['limits'][index])
+                                  per_robot['previous'][index], per_robot['limits'][index],
+                                  per_robot['obstacles'][index])
         except ValueError as error:
             raise ValueError(f'robot {index}: {error}') from error
-        if plan.encounter.origin.shape[0] == 0:
+        if plan.encounter.origin.shape[0] == 0 and plan.walls is not None:
+            results[index] = _wall_only_plan(plan)
+        elif plan.encounter.origin.shape[0] == 0:
             velocity = (_clip_speed(plan.v_pref, plan.config.max_speed) if plan.allowed is None
                         else free_choice(plan.directions, *plan.allowed, plan.v_pref,
                                          plan.config))
@@ -206,6 +230,20 @@ class _Plan:
     deterministic: bool
     # Allowed t on each direction (lower, upper), (M,) each; None: [0, 1] everywhere.
     allowed: tuple | None = None
+    # Static obstacles (None: none). The encounter's last ``static_count`` neighbours are their
+    # static discs, with their own margins (N, C), probabilities (N,) and horizons (N,).
+    walls: WallModel | None = None
+    # The open interval (upper, lower) of t each wall rejects on each direction, (W, M) each.
+    wall_rejected: tuple | None = None
+    static_count: int = 0
+    pair_margins: np.ndarray | None = None
+    pair_etas: np.ndarray | None = None
+    pair_horizons: np.ndarray | None = None
+
+    @property
+    def robot_count(self):
+        """The number of robot neighbours (the encounter's first ones)."""
+        return self.encounter.origin.shape[0] - self.static_count
 
     @property
     def structure(self):
@@ -214,23 +252,57 @@ class _Plan:
                 self.layout.has_receding, self.deterministic, self.config.certificate)
 
 
-def _prepared_plan(ego, neighbours, v_pref, config, previous, limits=None):
+def _prepared_plan(ego, neighbours, v_pref, config, previous, limits=None, obstacles=None):
     neighbours, v_pref, previous = _validated_inputs(ego, neighbours, v_pref, config, previous,
-                                                     limits)
+                                                     limits, obstacles)
     encounter = build_encounter(ego, neighbours, config)
     directions = candidate_directions(ego, v_pref, config)
     allowed = None
     if limits is not None:
         directions = np.concatenate([directions, limits.extra_directions()])
         allowed = relaxed_intervals(limits, directions, config.max_speed)
+    static = {}
+    if obstacles is not None and len(obstacles):
+        encounter, static = _with_obstacles(encounter, ego, config, obstacles, directions)
     layout = condition_layout(encounter, config) if encounter.origin.shape[0] else None
     cov, radius, deterministic = (model_moments(encounter, config)
                                   if layout is not None and config.model != 'mc'
                                   else (None, None, False))
+    if layout is not None and static.get('static_count'):
+        static.update(_static_pair_values(encounter, layout, config, static))
     return _Plan(v_pref=v_pref, config=config, previous=previous, encounter=encounter,
                  directions=directions, preferred=directions @ v_pref / config.max_speed,
                  layout=layout, cov=cov, radius=radius, deterministic=deterministic,
-                 allowed=allowed)
+                 allowed=allowed, **{name: value for name, value in static.items()
+                                     if name != 'disc_etas'})
+
+
+def _with_obstacles(encounter, ego, config, obstacles, directions):
+    """The encounter with the obstacles' static discs appended, and the plan's wall fields."""
+    walls = wall_model(obstacles, ego, config)
+    origin, cov, lead, combined_radius, overlapping = static_neighbours(walls, ego, config)
+    encounter = replace(
+        encounter, origin=np.concatenate([encounter.origin, origin]),
+        cov=np.concatenate([encounter.cov, cov]), lead=np.concatenate([encounter.lead, lead]),
+        combined_radius=np.concatenate([encounter.combined_radius, combined_radius]),
+        overlapping=np.concatenate([encounter.overlapping, overlapping]))
+    return encounter, {'walls': walls, 'wall_rejected': rejected_intervals(walls, directions),
+                       'static_count': len(lead), 'disc_etas': walls.disc_etas}
+
+
+def _static_pair_values(encounter, layout, config, static):
+    """Per neighbour (robots, then static discs): margins (N, C), probabilities, horizons."""
+    robots = encounter.origin.shape[0] - static['static_count']
+    disc_margins = k_from_eta(static['disc_etas'])
+    columns = [disc_margins] * (1 + layout.has_receding) + [
+        np.sqrt(1.0 + 2.0 * disc_margins ** 2)] * (2 * layout.has_horizon)
+    return {'pair_margins': np.concatenate([
+                np.broadcast_to(layout.margins(encounter), (robots, len(columns))),
+                np.stack(columns, axis=1)]),
+            'pair_etas': np.concatenate([np.full(robots, encounter.eta), static['disc_etas']]),
+            'pair_horizons': np.concatenate([
+                np.full(robots, config.time_horizon),
+                np.full(static['static_count'], config.obstacle_horizon)])}
 
 
 def _monte_carlo_plan(plan):
@@ -263,6 +335,9 @@ def _monte_carlo_plan(plan):
 
 def _result(plan, velocity, candidates_feasible, achieved, bounds, certified):
     """PLAN's result; ACHIEVED, BOUNDS, CERTIFIED per neighbour (see ``_Choice``)."""
+    if plan.walls is not None:
+        return _obstacle_result(plan, velocity, candidates_feasible, achieved, bounds,
+                                certified)
     smallest = float(achieved.min())
     certificate = plan.config.certificate
     return PlanResult(velocity=_clip_speed(velocity, plan.config.max_speed),
@@ -275,6 +350,77 @@ def _result(plan, velocity, candidates_feasible, achieved, bounds, certified):
                       candidates_feasible=candidates_feasible, neighbour_bounds=bounds,
                       bound_kinds=['certified' if flag else 'cantelli' for flag in certified],
                       certificate=certificate)
+
+
+def _obstacle_result(plan, velocity, candidates_feasible, achieved, bounds, certified):
+    """``_result`` of a plan with obstacles: robots as neighbours, static discs as obstacles."""
+    robots = plan.robot_count
+    smallest = float(achieved[:robots].min(initial=math.inf))
+    certificate = plan.config.certificate
+    return PlanResult(velocity=_clip_speed(velocity, plan.config.max_speed),
+                      feasible=bool(candidates_feasible)
+                      and not plan.encounter.overlapping.any()
+                      and plan.walls.clearance > 0.0,
+                      achieved_k=smallest,
+                      eta_bound=(eta_from_k(max(smallest, 0.0)) if certificate == 'cantelli'
+                                 else float(bounds[:robots].min(initial=1.0))),
+                      num_constraints=robots,
+                      candidates_feasible=candidates_feasible, neighbour_bounds=bounds[:robots],
+                      bound_kinds=['certified' if flag else 'cantelli'
+                                   for flag in certified[:robots]],
+                      certificate=certificate, obstacle_clearance=plan.walls.clearance,
+                      obstacle_probability=obstacle_probability(plan.walls, velocity,
+                                                                bounds[robots:]))
+
+
+def _wall_only_plan(plan):
+    """Plan a robot whose only constraints are walls: their intervals, else the fallback."""
+    rays = plan.directions.shape[0]
+    lower, upper = (np.zeros(rays), np.ones(rays)) if plan.allowed is None else plan.allowed
+    reachable = lower <= upper
+    gap_ray, lower, upper = _cut_by_walls(plan, 0, np.flatnonzero(reachable),
+                                          lower[reachable], upper[reachable])
+    candidates_feasible = int(np.unique(gap_ray).size)
+    if candidates_feasible:
+        rows = RayRows(means=np.zeros((0, 1, 3)), variances=np.zeros((0, 1, 5)),
+                       margins=np.zeros((0, 1)), link_ray=np.zeros(0, dtype=int),
+                       link_enabled=np.zeros(0, dtype=bool), ray_local=np.arange(rays),
+                       ray_robot=np.zeros(rays, dtype=int), preferred=plan.preferred)
+        direction_index, t = _choose_on_gaps([plan], rows, gap_ray, lower, upper)[0]
+    else:
+        speeds, costs = (speed_grid(plan.directions, plan.preferred, plan.v_pref, plan.previous,
+                                    plan.config) if plan.allowed is None
+                         else allowed_speed_grid(plan, *plan.allowed))
+        direction_index, speed_index = _fallback_choice(plan, speeds, costs)
+        t = speeds[direction_index, speed_index]
+    velocity = plan.config.max_speed * t * plan.directions[direction_index]
+    empty = np.zeros(0)
+    return _obstacle_result(plan, velocity, candidates_feasible, empty, empty,
+                            np.zeros(0, dtype=bool))
+
+
+def _cut_by_walls(plan, first_ray, gap_ray, lower, upper):
+    """PLAN's feasible intervals (rays numbered from FIRST_RAY) minus its walls' rejections."""
+    wall_upper, wall_lower = plan.wall_rejected
+    wall_ray = np.broadcast_to(first_ray + np.arange(wall_upper.shape[1]), wall_upper.shape)
+    return cut_by_walls(gap_ray, lower, upper, wall_ray.ravel(), wall_upper.ravel(),
+                        wall_lower.ravel())
+
+
+def _wall_gaps(plans, ray_starts, gap_ray, lower, upper):
+    """The feasible intervals of every robot with walls cut by them; the others' unchanged."""
+    if all(plan.walls is None for plan in plans):
+        return gap_ray, lower, upper
+    robots = np.searchsorted(ray_starts, gap_ray, side='right') - 1
+    pieces = []
+    for robot, plan in enumerate(plans):
+        own = robots == robot
+        if plan.walls is None:
+            pieces.append((gap_ray[own], lower[own], upper[own]))
+        else:
+            pieces.append(_cut_by_walls(plan, ray_starts[robot], gap_ray[own], lower[own],
+                                        upper[own]))
+    return tuple(np.concatenate(values) for values in zip(*pieces, strict=True))
 
 
 def _solve_group(plans):
@@ -294,6 +440,11 @@ def _solve_group(plans):
 
 def _pair_horizons(plans, pair_counts):
     """Return the plans' common time horizon, or each neighbour's plan's, shape (N,)."""
+    if any(plan.pair_horizons is not None for plan in plans):
+        # Static discs are planned over the obstacle horizon.
+        return np.concatenate([
+            np.full(plan.encounter.origin.shape[0], plan.config.time_horizon)
+            if plan.pair_horizons is None else plan.pair_horizons for plan in plans])
     horizons = [plan.config.time_horizon for plan in plans]
     if all(horizon == horizons[0] for horizon in horizons):
         return horizons[0]
@@ -397,12 +548,21 @@ def _ray_search(plans):
     link_robot = np.repeat(np.arange(robots), link_counts)
     # Each link's index among its robot's, (neighbour, direction) order.
     link_local = np.arange(links) - link_starts[link_robot]
-    margins = np.stack([plan.layout.margins(plan.encounter) for plan in plans])
+    link_pair = pair_starts[link_robot] + link_local // ray_counts[link_robot]
+    if any(plan.pair_margins is not None for plan in plans):
+        # Static discs carry their own margins.
+        link_margins = np.concatenate([
+            np.broadcast_to(plan.layout.margins(plan.encounter),
+                            (plan.encounter.origin.shape[0], conditions))
+            if plan.pair_margins is None else plan.pair_margins for plan in plans])[link_pair]
+    else:
+        link_margins = np.stack([plan.layout.margins(plan.encounter)
+                                 for plan in plans])[link_robot]
     enabled = np.concatenate([plan.layout.receding_enabled for plan in plans])
     ray_robot = np.repeat(np.arange(robots), ray_counts)
     rows = RayRows(
         means=means.transpose(1, 2, 0), variances=variances.transpose(1, 2, 0),
-        margins=margins[link_robot],
+        margins=link_margins,
         link_ray=ray_starts[link_robot] + link_local % ray_counts[link_robot],
         link_enabled=np.repeat(enabled, np.repeat(ray_counts, pair_counts)),
         ray_local=np.arange(directions.shape[0]) - ray_starts[ray_robot],
@@ -411,7 +571,7 @@ def _ray_search(plans):
     return _Search(plans=plans, rows=rows, means=means, variances=variances,
                    directions=directions, pair_counts=pair_counts, pair_starts=pair_starts,
                    ray_starts=ray_starts, ray_counts=ray_counts, link_starts=link_starts,
-                   link_pair=pair_starts[link_robot] + link_local // ray_counts[link_robot],
+                   link_pair=link_pair,
                    pair_robot=np.repeat(np.arange(robots), pair_counts),
                    pair_horizons=pair_horizons)
 
@@ -422,8 +582,8 @@ def _choose(search, margins, certify):
     first = plans[0]
     rows = replace(search.rows, margins=margins)
     robots = len(plans)
-    gap_ray, lower, upper = _allowed_gaps(
-        plans, *team_ray_gaps(rows, first.layout, first.config.method, first.deterministic))
+    gap_ray, lower, upper = _wall_gaps(plans, ray_starts, *_allowed_gaps(
+        plans, *team_ray_gaps(rows, first.layout, first.config.method, first.deterministic)))
     feasible_rays = np.bincount(gap_ray, minlength=directions.shape[0]) > 0
     candidates_feasible = np.add.reduceat(feasible_rays.astype(int), ray_starts)
     chosen = _choose_on_gaps(plans, rows, gap_ray, lower, upper)
@@ -497,7 +657,7 @@ def _certified_choice(search):
     """
     plans, pair_robot, link_pair = search.plans, search.pair_robot, search.link_pair
     cantelli = search.rows.margins
-    required = np.array([plan.encounter.eta for plan in plans])[pair_robot]
+    required = _required_probabilities(plans, pair_robot)
     columns = 1 + plans[0].layout.has_receding
     margins = cantelli.copy()
     margins[:, :columns] = search_margin(required)[link_pair, None]
@@ -513,6 +673,15 @@ def _certified_choice(search):
     if not retry.any():
         return choice
     return _merged(choice, _choose(search, cantelli, True), retry, retry[pair_robot])
+
+
+def _required_probabilities(plans, pair_robot):
+    """The probability each neighbour must meet: its plan's, or a static disc's own."""
+    if any(plan.pair_etas is not None for plan in plans):
+        return np.concatenate([np.full(plan.encounter.origin.shape[0], plan.encounter.eta)
+                               if plan.pair_etas is None else plan.pair_etas
+                               for plan in plans])
+    return np.array([plan.encounter.eta for plan in plans])[pair_robot]
 
 
 def _any_per_robot(search, flags):
@@ -579,9 +748,13 @@ def _fallback_choice(plan, speeds, costs):
         velocities.reshape(-1, 2), encounter.origin, encounter.lead,
         ranking_radius(encounter, config.model), config.time_horizon, config.control_period)
     # A candidate of infinite cost is out of reach (acceleration, tracking): never chosen.
-    intrusion = np.where(np.isfinite(costs.reshape(-1)), intrusion, np.inf)
+    reachable = np.isfinite(costs.reshape(-1))
+    intrusion = np.where(reachable, intrusion, np.inf)
+    walls = (None if plan.walls is None else np.where(
+        reachable, wall_intrusion(plan.walls, velocities.reshape(-1, 2), config.control_period),
+        np.inf))
     return np.unravel_index(fallback_index(intrusion, closing, time_to_collision, left_passes,
-                                           costs.reshape(-1)), speeds.shape)
+                                           costs.reshape(-1), walls), speeds.shape)
 
 
 def _achieved(plans, means, variances, chosen_links, pair_robot, chosen_t, velocities,
