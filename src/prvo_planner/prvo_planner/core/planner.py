@@ -48,7 +48,6 @@ from .limits import (
     free_choice,
     relaxed_intervals,
 )
-from .obstacles import StaticObstacles
 from .moments import (
     NODES,
     bivariate_polynomials,
@@ -56,13 +55,13 @@ from .moments import (
     poly_eval,
     ray_rows,
 )
-from .probability import eta_from_k, k_from_eta
+from .obstacles import StaticObstacles
+from .probability import eta_from_k
 from .walls import (
     WallModel,
     cut_by_walls,
     obstacle_probability,
     rejected_intervals,
-    static_neighbours,
     wall_intrusion,
     wall_model,
 )
@@ -230,20 +229,10 @@ class _Plan:
     deterministic: bool
     # Allowed t on each direction (lower, upper), (M,) each; None: [0, 1] everywhere.
     allowed: tuple | None = None
-    # Static obstacles (None: none). The encounter's last ``static_count`` neighbours are their
-    # static discs, with their own margins (N, C), probabilities (N,) and horizons (N,).
+    # Static obstacles (None: none), and the open intervals (upper, lower) of t they reject on
+    # each direction, (K, M) each.
     walls: WallModel | None = None
-    # The open interval (upper, lower) of t each wall rejects on each direction, (W, M) each.
     wall_rejected: tuple | None = None
-    static_count: int = 0
-    pair_margins: np.ndarray | None = None
-    pair_etas: np.ndarray | None = None
-    pair_horizons: np.ndarray | None = None
-
-    @property
-    def robot_count(self):
-        """The number of robot neighbours (the encounter's first ones)."""
-        return self.encounter.origin.shape[0] - self.static_count
 
     @property
     def structure(self):
@@ -261,48 +250,17 @@ def _prepared_plan(ego, neighbours, v_pref, config, previous, limits=None, obsta
     if limits is not None:
         directions = np.concatenate([directions, limits.extra_directions()])
         allowed = relaxed_intervals(limits, directions, config.max_speed)
-    static = {}
-    if obstacles is not None and len(obstacles):
-        encounter, static = _with_obstacles(encounter, ego, config, obstacles, directions)
     layout = condition_layout(encounter, config) if encounter.origin.shape[0] else None
     cov, radius, deterministic = (model_moments(encounter, config)
                                   if layout is not None and config.model != 'mc'
                                   else (None, None, False))
-    if layout is not None and static.get('static_count'):
-        static.update(_static_pair_values(encounter, layout, config, static))
+    walls = wall_model(obstacles, ego, config) if obstacles is not None and len(obstacles) \
+        else None
     return _Plan(v_pref=v_pref, config=config, previous=previous, encounter=encounter,
                  directions=directions, preferred=directions @ v_pref / config.max_speed,
                  layout=layout, cov=cov, radius=radius, deterministic=deterministic,
-                 allowed=allowed, **{name: value for name, value in static.items()
-                                     if name != 'disc_etas'})
-
-
-def _with_obstacles(encounter, ego, config, obstacles, directions):
-    """The encounter with the obstacles' static discs appended, and the plan's wall fields."""
-    walls = wall_model(obstacles, ego, config)
-    origin, cov, lead, combined_radius, overlapping = static_neighbours(walls, ego, config)
-    encounter = replace(
-        encounter, origin=np.concatenate([encounter.origin, origin]),
-        cov=np.concatenate([encounter.cov, cov]), lead=np.concatenate([encounter.lead, lead]),
-        combined_radius=np.concatenate([encounter.combined_radius, combined_radius]),
-        overlapping=np.concatenate([encounter.overlapping, overlapping]))
-    return encounter, {'walls': walls, 'wall_rejected': rejected_intervals(walls, directions),
-                       'static_count': len(lead), 'disc_etas': walls.disc_etas}
-
-
-def _static_pair_values(encounter, layout, config, static):
-    """Per neighbour (robots, then static discs): margins (N, C), probabilities, horizons."""
-    robots = encounter.origin.shape[0] - static['static_count']
-    disc_margins = k_from_eta(static['disc_etas'])
-    columns = [disc_margins] * (1 + layout.has_receding) + [
-        np.sqrt(1.0 + 2.0 * disc_margins ** 2)] * (2 * layout.has_horizon)
-    return {'pair_margins': np.concatenate([
-                np.broadcast_to(layout.margins(encounter), (robots, len(columns))),
-                np.stack(columns, axis=1)]),
-            'pair_etas': np.concatenate([np.full(robots, encounter.eta), static['disc_etas']]),
-            'pair_horizons': np.concatenate([
-                np.full(robots, config.time_horizon),
-                np.full(static['static_count'], config.obstacle_horizon)])}
+                 allowed=allowed, walls=walls,
+                 wall_rejected=None if walls is None else rejected_intervals(walls, directions))
 
 
 def _monte_carlo_plan(plan):
@@ -335,46 +293,27 @@ def _monte_carlo_plan(plan):
 
 def _result(plan, velocity, candidates_feasible, achieved, bounds, certified):
     """PLAN's result; ACHIEVED, BOUNDS, CERTIFIED per neighbour (see ``_Choice``)."""
-    if plan.walls is not None:
-        return _obstacle_result(plan, velocity, candidates_feasible, achieved, bounds,
-                                certified)
-    smallest = float(achieved.min())
+    smallest = float(achieved.min(initial=math.inf))
     certificate = plan.config.certificate
-    return PlanResult(velocity=_clip_speed(velocity, plan.config.max_speed),
+    velocity = _clip_speed(velocity, plan.config.max_speed)
+    obstacles = ({} if plan.walls is None else {
+        'obstacle_clearance': plan.walls.clearance,
+        'obstacle_probability': obstacle_probability(plan.walls, velocity)})
+    return PlanResult(velocity=velocity,
                       feasible=bool(candidates_feasible)
-                      and not plan.encounter.overlapping.any(),
+                      and not plan.encounter.overlapping.any()
+                      and obstacles.get('obstacle_clearance', math.inf) > 0.0,
                       achieved_k=smallest,
                       eta_bound=(eta_from_k(max(smallest, 0.0)) if certificate == 'cantelli'
                                  else float(bounds.min())),
                       num_constraints=plan.encounter.origin.shape[0],
                       candidates_feasible=candidates_feasible, neighbour_bounds=bounds,
                       bound_kinds=['certified' if flag else 'cantelli' for flag in certified],
-                      certificate=certificate)
-
-
-def _obstacle_result(plan, velocity, candidates_feasible, achieved, bounds, certified):
-    """``_result`` of a plan with obstacles: robots as neighbours, static discs as obstacles."""
-    robots = plan.robot_count
-    smallest = float(achieved[:robots].min(initial=math.inf))
-    certificate = plan.config.certificate
-    return PlanResult(velocity=_clip_speed(velocity, plan.config.max_speed),
-                      feasible=bool(candidates_feasible)
-                      and not plan.encounter.overlapping.any()
-                      and plan.walls.clearance > 0.0,
-                      achieved_k=smallest,
-                      eta_bound=(eta_from_k(max(smallest, 0.0)) if certificate == 'cantelli'
-                                 else float(bounds[:robots].min(initial=1.0))),
-                      num_constraints=robots,
-                      candidates_feasible=candidates_feasible, neighbour_bounds=bounds[:robots],
-                      bound_kinds=['certified' if flag else 'cantelli'
-                                   for flag in certified[:robots]],
-                      certificate=certificate, obstacle_clearance=plan.walls.clearance,
-                      obstacle_probability=obstacle_probability(plan.walls, velocity,
-                                                                bounds[robots:]))
+                      certificate=certificate, **obstacles)
 
 
 def _wall_only_plan(plan):
-    """Plan a robot whose only constraints are walls: their intervals, else the fallback."""
+    """Plan a robot whose only constraints are static obstacles (else the fallback)."""
     rays = plan.directions.shape[0]
     lower, upper = (np.zeros(rays), np.ones(rays)) if plan.allowed is None else plan.allowed
     reachable = lower <= upper
@@ -393,10 +332,9 @@ def _wall_only_plan(plan):
                          else allowed_speed_grid(plan, *plan.allowed))
         direction_index, speed_index = _fallback_choice(plan, speeds, costs)
         t = speeds[direction_index, speed_index]
-    velocity = plan.config.max_speed * t * plan.directions[direction_index]
     empty = np.zeros(0)
-    return _obstacle_result(plan, velocity, candidates_feasible, empty, empty,
-                            np.zeros(0, dtype=bool))
+    return _result(plan, plan.config.max_speed * t * plan.directions[direction_index],
+                   candidates_feasible, empty, empty, np.zeros(0, dtype=bool))
 
 
 def _cut_by_walls(plan, first_ray, gap_ray, lower, upper):
@@ -408,7 +346,7 @@ def _cut_by_walls(plan, first_ray, gap_ray, lower, upper):
 
 
 def _wall_gaps(plans, ray_starts, gap_ray, lower, upper):
-    """The feasible intervals of every robot with walls cut by them; the others' unchanged."""
+    """Cut the feasible intervals of every robot with walls by them; keep the others'."""
     if all(plan.walls is None for plan in plans):
         return gap_ray, lower, upper
     robots = np.searchsorted(ray_starts, gap_ray, side='right') - 1
@@ -440,11 +378,6 @@ def _solve_group(plans):
 
 def _pair_horizons(plans, pair_counts):
     """Return the plans' common time horizon, or each neighbour's plan's, shape (N,)."""
-    if any(plan.pair_horizons is not None for plan in plans):
-        # Static discs are planned over the obstacle horizon.
-        return np.concatenate([
-            np.full(plan.encounter.origin.shape[0], plan.config.time_horizon)
-            if plan.pair_horizons is None else plan.pair_horizons for plan in plans])
     horizons = [plan.config.time_horizon for plan in plans]
     if all(horizon == horizons[0] for horizon in horizons):
         return horizons[0]
@@ -548,21 +481,12 @@ def _ray_search(plans):
     link_robot = np.repeat(np.arange(robots), link_counts)
     # Each link's index among its robot's, (neighbour, direction) order.
     link_local = np.arange(links) - link_starts[link_robot]
-    link_pair = pair_starts[link_robot] + link_local // ray_counts[link_robot]
-    if any(plan.pair_margins is not None for plan in plans):
-        # Static discs carry their own margins.
-        link_margins = np.concatenate([
-            np.broadcast_to(plan.layout.margins(plan.encounter),
-                            (plan.encounter.origin.shape[0], conditions))
-            if plan.pair_margins is None else plan.pair_margins for plan in plans])[link_pair]
-    else:
-        link_margins = np.stack([plan.layout.margins(plan.encounter)
-                                 for plan in plans])[link_robot]
+    margins = np.stack([plan.layout.margins(plan.encounter) for plan in plans])
     enabled = np.concatenate([plan.layout.receding_enabled for plan in plans])
     ray_robot = np.repeat(np.arange(robots), ray_counts)
     rows = RayRows(
         means=means.transpose(1, 2, 0), variances=variances.transpose(1, 2, 0),
-        margins=link_margins,
+        margins=margins[link_robot],
         link_ray=ray_starts[link_robot] + link_local % ray_counts[link_robot],
         link_enabled=np.repeat(enabled, np.repeat(ray_counts, pair_counts)),
         ray_local=np.arange(directions.shape[0]) - ray_starts[ray_robot],
@@ -571,7 +495,7 @@ def _ray_search(plans):
     return _Search(plans=plans, rows=rows, means=means, variances=variances,
                    directions=directions, pair_counts=pair_counts, pair_starts=pair_starts,
                    ray_starts=ray_starts, ray_counts=ray_counts, link_starts=link_starts,
-                   link_pair=link_pair,
+                   link_pair=pair_starts[link_robot] + link_local // ray_counts[link_robot],
                    pair_robot=np.repeat(np.arange(robots), pair_counts),
                    pair_horizons=pair_horizons)
 
@@ -657,7 +581,7 @@ def _certified_choice(search):
     """
     plans, pair_robot, link_pair = search.plans, search.pair_robot, search.link_pair
     cantelli = search.rows.margins
-    required = _required_probabilities(plans, pair_robot)
+    required = np.array([plan.encounter.eta for plan in plans])[pair_robot]
     columns = 1 + plans[0].layout.has_receding
     margins = cantelli.copy()
     margins[:, :columns] = search_margin(required)[link_pair, None]
@@ -673,15 +597,6 @@ def _certified_choice(search):
     if not retry.any():
         return choice
     return _merged(choice, _choose(search, cantelli, True), retry, retry[pair_robot])
-
-
-def _required_probabilities(plans, pair_robot):
-    """The probability each neighbour must meet: its plan's, or a static disc's own."""
-    if any(plan.pair_etas is not None for plan in plans):
-        return np.concatenate([np.full(plan.encounter.origin.shape[0], plan.encounter.eta)
-                               if plan.pair_etas is None else plan.pair_etas
-                               for plan in plans])
-    return np.array([plan.encounter.eta for plan in plans])[pair_robot]
 
 
 def _any_per_robot(search, flags):

@@ -4,8 +4,8 @@ Chance constraints against static obstacles: wall segments and discs (docs/metho
 Against a static obstacle only the ego's uncertainty remains: its position ``p ~ N(mu, S_p)``
 and its execution error ``eps ~ N(0, S_a)``. Over the obstacle horizon ``tau`` the ego moves
 along ``p(t) = p + t (v + eps)`` for the command ``v``, and touches a wall ``[a, b]`` of
-half-width ``w`` exactly when its centre enters the capsule of radius
-``R = R_i + w + margin`` around the segment.
+half-width ``w`` exactly when its centre enters the capsule of radius ``R = R_i + w + margin``
+around the segment (a disc of radius ``r``: the disc of radius ``R_i + r + margin``).
 
 A linear condition ``y(t) = n.p(t) - c >= 0`` at ``t = 0`` and ``t = tau`` keeps the straight
 path out of the half-plane ``n.x < c`` for the whole horizon. Both values are Gaussian:
@@ -13,7 +13,9 @@ path out of the half-plane ``n.x < c`` for the whole horizon. Both values are Ga
 ``y(tau) ~ N(m0 + tau n.v, s0^2 + tau^2 n' S_a n)``. With ``delta0 = Phi(-m0 / s0)`` and a risk
 ``delta > delta0``, the union bound gives ``P(y(0) >= 0 and y(tau) >= 0) >= 1 - delta`` when
 ``m0 + tau n.v >= z sqrt(s0^2 + tau^2 n' S_a n)``, ``z = Phi^-1(1 - delta + delta0)``: on a
-ray ``v = t v_max e`` one linear inequality in ``t``.
+ray ``v = t v_max e`` one linear inequality in ``t``. Several conditions certify a piece when
+any one of them holds (each with the piece's whole risk); their normals depend on the beliefs
+only, never on the command.
 
 Per wall (``delta = 1 - eta``) a velocity is accepted if either
 
@@ -22,26 +24,31 @@ Per wall (``delta = 1 - eta``) a velocity is accepted if either
 * the decomposition holds: the capsule lies in the two end discs and the rectangle
   ``0 < xi < L, |zeta| < R`` (wall coordinates ``xi`` along ``b - a`` from ``a``, ``zeta``
   across); the rectangle is avoided when one of ``zeta >= R``, ``zeta <= -R``, ``xi <= 0``,
-  ``xi >= L`` holds at both ends of the horizon, each a linear condition as above; the end
-  discs are static neighbours (share of the avoidance 0, no velocity, no covariance of their
-  own), planned with the neighbours' conditions over the obstacle horizon.
+  ``xi >= L`` holds at both ends of the horizon; an end disc (a static obstacle: no velocity,
+  no covariance of its own) when one of its tangent half-planes holds, the normals a fan of
+  ``FAN`` directions within ``arccos(R / d)`` of the direction from its centre to ``mu`` (``d``
+  the distance), which are the tangents that can hold ``mu``.
 
 The risk of the decomposition is split by a rule fixed in advance: an end disc the ego cannot
-reach except with probability at most ``delta / 100`` (the a-priori bound below) is charged
+reach except with probability at most ``REACH_SHARE delta`` (its a-priori bound) is charged
 that bound; the rest of ``delta`` is split equally between the rectangle and the end discs
-within reach. The a-priori bound: every point of the path is within
+within reach. The a-priori bound of a shape: every point of the path is within
 ``|p - mu| + tau (v_max + |eps|)`` of ``mu``, and a 2D Gaussian of largest variance
 ``lambda`` exceeds a norm ``r`` with probability at most ``exp(-r^2 / (2 lambda))``; splitting
-``r = |mu - centre| - R - tau v_max`` in proportion to the two deviations gives
-``2 exp(-r^2 / (2 (sigma_p + tau sigma_a)^2))``.
+``r = dist(mu, shape) - R - tau v_max`` in proportion to the two deviations gives
+``2 exp(-r^2 / (2 (sigma_p + tau sigma_a)^2))``. A wall or disc out of reach in this sense
+constrains nothing and is reported with its a-priori bound. A disc obstacle is certified by
+its fan of tangents at risk ``delta``.
 
-Close to a wall (the mean within the capsule, or ``delta0 >= delta`` on the support line)
-nothing certifies the horizon: only velocities that move away from the wall with probability
-``eta``, ``P(n.(v + eps) >= 0) >= eta``, are accepted.
+Close to a shape (the mean within its grown radius, or ``delta0 >= delta`` on the support line,
+the fan's middle normal for a disc) nothing certifies the horizon: only velocities that move
+away with probability ``eta``, ``P(n.(v + eps) >= 0) >= eta``, are accepted.
 
-On every ray each wall accepts ``[0, upper] U [lower, 1]`` in ``t`` (a union of half-lines is
-one), so it rejects at most one open interval ``(upper, lower)``; the rays' intervals are
-intersected with the neighbours' feasible intervals in one sorted sweep.
+On a ray each condition accepts a half-line of ``t``, so each piece (any of its conditions)
+accepts ``[0, upper] U [lower, 1]`` and rejects at most one open interval ``(upper, lower)``.
+A wall rejects where the support line and one of its pieces both do: at most three open
+intervals per ray. All of them are cut from the neighbours' feasible intervals in one sorted
+sweep.
 """
 
 from dataclasses import dataclass
@@ -54,87 +61,14 @@ from .probability import confidence_ellipse_scale
 
 # An end disc whose a-priori bound is at most this share of a wall's risk is out of reach.
 REACH_SHARE = 0.01
-# Linear conditions per wall: the support line, then the rectangle's four sides.
-_CONDITIONS = 5
-
-
-@dataclass(frozen=True)
-class WallModel:
-    """
-    One plan's static obstacles as linear conditions and static neighbours.
-
-    Attributes
-    ----------
-    mean_position : numpy.ndarray
-        The ego's mean position ``mu``, shape (2,).
-    segments : numpy.ndarray
-        Shape (N, 2, 2), the walls.
-    radius : numpy.ndarray
-        Capsule radius ``R`` per wall, shape (N,).
-    distance : numpy.ndarray
-        Distance of ``mu`` from each segment, shape (N,).
-    normals : numpy.ndarray
-        Shape (N, 5, 2): the support line's ``n``, then the rectangle's four sides'.
-    mean0, std0, std_tau : numpy.ndarray
-        ``m0``, ``s0`` and ``sqrt(s0^2 + tau^2 n' S_a n)`` per condition, shape (N, 5).
-    risks : numpy.ndarray
-        The risk each condition is planned with, shape (N, 5).
-    close : numpy.ndarray
-        Per wall, whether only moving away is accepted, shape (N,).
-    away_threshold : numpy.ndarray
-        ``Phi^-1(eta) sqrt(n' S_a n)`` of the support line's ``n``, shape (N,).
-    end_bounds : numpy.ndarray
-        A-priori bound of each wall end, shape (N, 2); ``nan`` for an end within reach.
-    end_disc : numpy.ndarray
-        Index into the static neighbours of each end within reach, else -1, shape (N, 2).
-    disc_centres, disc_radii, disc_etas : numpy.ndarray
-        The static neighbours: end discs within reach (radius the wall's half-width), then the
-        disc obstacles within reach; shapes (D, 2), (D,), (D,) (``eta`` each is planned with).
-    disc_bounds : numpy.ndarray
-        A-priori bound of every disc obstacle (``nan`` within reach: a neighbour), shape (Q,).
-    disc_obstacle : numpy.ndarray
-        Index into the static neighbours of every disc obstacle within reach, else -1, (Q,).
-    obstacle_centres, obstacle_radius : numpy.ndarray
-        Every disc obstacle's centre (Q, 2) and ``R_i + r + margin`` (Q,).
-    horizon, max_speed, eta : float
-        ``tau``, ``v_max`` and the probability per obstacle.
-    deterministic : bool
-        No uncertainty is planned with (the means alone decide).
-
-    """
-
-    mean_position: np.ndarray
-    segments: np.ndarray
-    radius: np.ndarray
-    distance: np.ndarray
-    normals: np.ndarray
-    mean0: np.ndarray
-    std0: np.ndarray
-    std_tau: np.ndarray
-    risks: np.ndarray
-    close: np.ndarray
-    away_threshold: np.ndarray
-    end_bounds: np.ndarray
-    end_disc: np.ndarray
-    disc_centres: np.ndarray
-    disc_radii: np.ndarray
-    disc_etas: np.ndarray
-    disc_bounds: np.ndarray
-    disc_obstacle: np.ndarray
-    obstacle_centres: np.ndarray
-    obstacle_radius: np.ndarray
-    horizon: float
-    max_speed: float
-    eta: float
-    deterministic: bool
-
-    @property
-    def clearance(self):
-        """Distance of ``mu`` from the nearest capsule's surface [m] (``inf``: none)."""
-        walls = self.distance - self.radius
-        discs = (np.hypot(*(self.obstacle_centres - self.mean_position).T)
-                 - self.obstacle_radius)
-        return float(np.min(np.concatenate([walls, discs]), initial=math.inf))
+# Tangent normals per disc: fan angles (k / FAN_HALF) arccos(R / d), k = -FAN_HALF..FAN_HALF.
+FAN_HALF = 2
+FAN = 2 * FAN_HALF + 1
+# The support line, the rectangle's four sides, each end disc's fan.
+_PER_WALL = 5 + 2 * FAN
+_RECTANGLE = slice(1, 5)
+_START_FAN = slice(5, 5 + FAN)
+_END_FAN = slice(5 + FAN, 5 + 2 * FAN)
 
 
 def closest_points(point, segments):
@@ -166,23 +100,174 @@ def closest_points(point, segments):
 
 def _below_zero(mean, std):
     """``P(N(mean, std^2) < 0)``, elementwise; a known value (std 0) gives 0 or 1."""
-    with np.errstate(divide='ignore', invalid='ignore'):
-        ratio = np.where(std > 0.0, mean / np.where(std > 0.0, std, 1.0),
-                         np.where(mean >= 0.0, np.inf, -np.inf))
+    ratio = np.divide(mean, std, out=np.where(mean >= 0.0, np.inf, -np.inf), where=std > 0.0)
     return ndtr(-ratio)
 
 
 def _quadratic_form(normals, cov):
-    """``n' S n`` for normals (..., 2)."""
-    return np.einsum('...i,ij,...j->...', normals, cov, normals)
+    """``n' S n`` for normals (..., 2) and a 2x2 covariance S."""
+    x, y = normals[..., 0], normals[..., 1]
+    return cov[0, 0] * x * x + 2.0 * cov[0, 1] * x * y + cov[1, 1] * y * y
 
 
-def _reach_bounds(centres, radius, mean, spread, horizon, max_speed):
-    """A-priori bound on the path entering discs (centres (K, 2), radius (K,)) within tau."""
-    gap = np.hypot(*(centres - mean).T) - radius - horizon * max_speed
-    with np.errstate(divide='ignore', invalid='ignore'):
-        exponent = np.where(spread > 0.0, -0.5 * (gap / max(spread, 1e-300)) ** 2, -np.inf)
-    return np.where(gap > 0.0, np.minimum(2.0 * np.exp(exponent), 1.0), 1.0)
+def _largest_std(cov):
+    """Square root of the largest eigenvalue of a 2x2 covariance."""
+    half_trace = 0.5 * (cov[0, 0] + cov[1, 1])
+    return math.sqrt(max(half_trace + math.hypot(0.5 * (cov[0, 0] - cov[1, 1]), cov[0, 1]),
+                         0.0))
+
+
+def _reach_bounds(distance, radius, spread, horizon, max_speed):
+    """A-priori bound on the path entering a shape at DISTANCE (of grown RADIUS) within tau."""
+    gap = distance - radius - horizon * max_speed
+    if spread == 0.0:
+        return np.where(gap > 0.0, 0.0, 1.0)
+    return np.where(gap > 0.0, np.minimum(2.0 * np.exp(-0.5 * (gap / spread) ** 2), 1.0), 1.0)
+
+
+_FAN_STEPS = np.arange(-FAN_HALF, FAN_HALF + 1) / FAN_HALF
+
+
+def _fan(centres, radius, mean):
+    """Tangent normals (K, FAN, 2) and offsets (K, FAN) of discs, and their distances (K,)."""
+    offset = mean - centres
+    distance = np.hypot(offset[:, 0], offset[:, 1])
+    heading = np.arctan2(offset[:, 1], offset[:, 0])
+    cosine = np.divide(radius, distance, out=np.ones_like(distance), where=distance > radius)
+    angles = heading[:, None] + np.arccos(cosine)[:, None] * _FAN_STEPS
+    normals = np.stack([np.cos(angles), np.sin(angles)], axis=-1)
+    offsets = (normals[..., 0] * centres[:, :1] + normals[..., 1] * centres[:, 1:]
+               + radius[:, None])
+    return normals, offsets, distance
+
+
+@dataclass(frozen=True)
+class LinearConditions:
+    """
+    Linear conditions ``n.p(t) >= c`` at ``t = 0`` and ``t = tau``, shapes (K, 2) / (K,).
+
+    Attributes
+    ----------
+    normals : numpy.ndarray
+        ``n``, shape (K, 2).
+    mean0, std0, std_tau : numpy.ndarray
+        ``m0``, ``s0`` and ``sqrt(s0^2 + tau^2 n' S_a n)``, shape (K,).
+    start_risk : numpy.ndarray
+        ``delta0 = P(y(0) < 0)``, shape (K,).
+    risks : numpy.ndarray
+        The risk each is planned with, shape (K,); 0: not usable.
+
+    """
+
+    normals: np.ndarray
+    mean0: np.ndarray
+    std0: np.ndarray
+    std_tau: np.ndarray
+    start_risk: np.ndarray
+    risks: np.ndarray
+
+    @classmethod
+    def of(cls, normals, offsets, risks, mean, position_cov, actuation_cov, horizon):
+        """Return the conditions of NORMALS and OFFSETS for the ego's belief."""
+        var0 = np.maximum(_quadratic_form(normals, position_cov), 0.0)
+        mean0 = normals @ mean - offsets
+        std0 = np.sqrt(var0)
+        return cls(normals=normals, mean0=mean0, std0=std0,
+                   std_tau=np.sqrt(var0 + horizon ** 2 * np.maximum(
+                       _quadratic_form(normals, actuation_cov), 0.0)),
+                   start_risk=_below_zero(mean0, std0), risks=risks)
+
+    def accepted(self, directions, horizon, max_speed):
+        """
+        Each condition's accepted ``t`` on each ray: ``[0, upper] U [lower, 1]``, (K, M).
+
+        ``m0 + tau v_max (n.e) t >= z s_tau`` is ``slope t >= bound``.
+        """
+        usable = self.start_risk < self.risks
+        quantile = ndtri(np.where(usable, 1.0 - self.risks + self.start_risk, 0.5))
+        bound = np.where(usable, quantile * self.std_tau - self.mean0, np.inf)
+        return half_lines((horizon * max_speed) * (self.normals @ directions.T),
+                          bound[:, None])
+
+    def failures(self, velocity, horizon):
+        """Union bound on each condition failing at VELOCITY, ``delta0 + P(y(tau) < 0)``."""
+        end = _below_zero(self.mean0 + horizon * (self.normals @ velocity), self.std_tau)
+        return np.minimum(self.start_risk + end, 1.0)
+
+
+def half_lines(slope, bound):
+    """
+    Where ``slope t >= bound`` holds, as ``[0, upper] U [lower, 1]``: (upper, lower).
+
+    ``upper`` is ``-inf`` (``lower`` ``inf``) where that part is empty.
+    """
+    cut = np.divide(bound, slope, out=np.zeros(slope.shape), where=slope != 0.0)
+    upper = np.where(slope < 0.0, cut, np.where((slope == 0.0) & (bound <= 0.0), np.inf,
+                                                -np.inf))
+    return upper, np.where(slope > 0.0, cut, np.inf)
+
+
+@dataclass(frozen=True)
+class WallModel:
+    """
+    One plan's static obstacles as linear conditions (docs/method.md, walls).
+
+    Walls and discs out of reach keep only their a-priori bounds; the others are *near*.
+
+    Attributes
+    ----------
+    mean_position : numpy.ndarray
+        The ego's mean position ``mu``, shape (2,).
+    clearance : float
+        Distance of ``mu`` from the nearest grown shape's surface [m] (``inf``: none).
+    far_bounds : numpy.ndarray
+        A-priori bounds of the walls and discs out of reach, shape (F,).
+    segments, radius, distance : numpy.ndarray
+        The near walls (n, 2, 2), their grown radius ``R`` (n,) and distance from ``mu`` (n,).
+    centres, disc_radius : numpy.ndarray
+        The near disc obstacles (q, 2) and their grown radius (q,).
+    conditions : LinearConditions
+        Per near wall ``5 + 2 FAN`` conditions (the support line, the rectangle's sides, the
+        start's and the end's fans: risk 0 for an end out of reach), wall after wall, then per
+        near disc its fan of tangents: ``n (5 + 2 FAN) + q FAN`` in all.
+    end_bounds : numpy.ndarray
+        A-priori bound charged for each end out of reach (0 within reach), shape (n, 2).
+    close : numpy.ndarray
+        Per near wall then near disc, whether only moving away is accepted, shape (n + q,).
+    away_normals, away_thresholds : numpy.ndarray
+        Per near wall then near disc, the support line's (the fan's middle) normal (n + q, 2) and
+        ``Phi^-1(eta) sqrt(n' S_a n)`` (n + q,).
+    horizon, max_speed : float
+        ``tau`` and ``v_max``.
+
+    """
+
+    mean_position: np.ndarray
+    clearance: float
+    far_bounds: np.ndarray
+    segments: np.ndarray
+    radius: np.ndarray
+    distance: np.ndarray
+    centres: np.ndarray
+    disc_radius: np.ndarray
+    conditions: LinearConditions
+    end_bounds: np.ndarray
+    close: np.ndarray
+    away_normals: np.ndarray
+    away_thresholds: np.ndarray
+    horizon: float
+    max_speed: float
+
+
+def _planning_covariances(ego, config):
+    """Return the position and execution covariances the model plans with, and R's growth."""
+    position_cov = ego.covariance[:2, :2]
+    if config.model == 'prvo':
+        return position_cov, config.actuation_cov, 0.0
+    growth = 0.0
+    if config.model == 'inflate':
+        growth = confidence_ellipse_scale(config.effective_k) * _largest_std(position_cov)
+    return np.zeros((2, 2)), np.zeros((2, 2)), growth
 
 
 def wall_model(obstacles, ego, config):
@@ -197,7 +282,8 @@ def wall_model(obstacles, ego, config):
         The planning robot (its position mean and covariance, its planning radius).
     config : PlannerConfig
         ``obstacle_horizon``, ``max_speed``, ``actuation_cov``, ``safety_margin``, ``model``
-        and the probability ``effective_eta`` per obstacle.
+        (``rvo`` and ``inflate`` plan on the means, ``inflate`` with the radius grown by the
+        ``eta`` confidence ellipse) and the probability ``effective_eta`` per obstacle.
 
     Returns
     -------
@@ -207,145 +293,124 @@ def wall_model(obstacles, ego, config):
     mean = ego.position
     eta = config.effective_eta
     delta = 1.0 - eta
-    horizon = config.obstacle_horizon
-    position_cov, actuation_cov = ego.covariance[:2, :2], config.actuation_cov
-    growth = 0.0
-    if config.model in ('rvo', 'inflate'):
-        if config.model == 'inflate':
-            growth = confidence_ellipse_scale(config.effective_k) * math.sqrt(
-                max(float(np.linalg.eigvalsh(position_cov)[-1]), 0.0))
-        position_cov, actuation_cov = np.zeros((2, 2)), np.zeros((2, 2))
-    deterministic = not (position_cov.any() or actuation_cov.any())
-    spread = (math.sqrt(max(float(np.linalg.eigvalsh(position_cov)[-1]), 0.0))
-              + horizon * math.sqrt(max(float(np.linalg.eigvalsh(actuation_cov)[-1]), 0.0)))
+    horizon, max_speed = config.obstacle_horizon, config.max_speed
+    position_cov, actuation_cov, growth = _planning_covariances(ego, config)
+    spread = _largest_std(position_cov) + horizon * _largest_std(actuation_cov)
     segments = obstacles.segments
-    count = len(segments)
-    radius = ego.radius + obstacles.half_widths + config.safety_margin + growth
+    radius = ego.radius + obstacles.half_widths + config.safety_margin
     closest, distance = closest_points(mean, segments)
+    disc_radius = ego.radius + obstacles.disc_radii + config.safety_margin
+    disc_offset = mean - obstacles.disc_centres
+    disc_distance = np.hypot(disc_offset[:, 0], disc_offset[:, 1])
+    clearance = float(min(np.min(distance - radius, initial=math.inf),
+                          np.min(disc_distance - disc_radius, initial=math.inf)))
+    radius, disc_radius = radius + growth, disc_radius + growth
+    wall_bounds = _reach_bounds(distance, radius, spread, horizon, max_speed)
+    disc_bounds = _reach_bounds(disc_distance, disc_radius, spread, horizon, max_speed)
+    near, near_discs = wall_bounds > REACH_SHARE * delta, disc_bounds > REACH_SHARE * delta
+    segments, radius, closest, distance = (segments[near], radius[near], closest[near],
+                                           distance[near])
+    centres, disc_radius = obstacles.disc_centres[near_discs], disc_radius[near_discs]
+    count, discs = len(segments), len(centres)
     along = segments[:, 1] - segments[:, 0]
-    length = np.hypot(along[:, 0], along[:, 1])
-    unit = along / length[:, None]
+    unit = along / np.hypot(along[:, 0], along[:, 1])[:, None]
     across = np.stack([-unit[:, 1], unit[:, 0]], axis=1)
-    offset = mean - closest
-    with np.errstate(divide='ignore', invalid='ignore'):
-        support = np.where((distance > 0.0)[:, None], offset / distance[:, None], across)
+    support = np.divide(mean - closest, distance[:, None], out=across.copy(),
+                        where=(distance > 0.0)[:, None])
+    fans, fan_offsets, fan_distance = _fan(
+        np.concatenate([segments[:, 0], segments[:, 1], centres]),
+        np.concatenate([radius, radius, disc_radius]), mean)
     start_side = np.sum(support * segments[:, 0], axis=1)
     end_side = np.sum(support * segments[:, 1], axis=1)
-    normals = np.stack([support, across, -across, -unit, unit], axis=1)
-    offsets = np.stack([
-        np.maximum(start_side, end_side) + radius,
-        np.sum(across * segments[:, 0], axis=1) + radius,
-        -np.sum(across * segments[:, 0], axis=1) + radius,
-        -np.sum(unit * segments[:, 0], axis=1),
-        np.sum(unit * segments[:, 1], axis=1)], axis=1)
-    mean0 = normals @ mean - offsets
-    var0 = _quadratic_form(normals, position_cov)
-    std0 = np.sqrt(np.maximum(var0, 0.0))
-    std_tau = np.sqrt(np.maximum(var0 + horizon ** 2 * _quadratic_form(normals,
-                                                                     actuation_cov), 0.0))
-    start_risk = _below_zero(mean0[:, 0], std0[:, 0])
-    close = (distance <= radius) | (start_risk >= delta)
-    # The decomposition's risk split: ends out of reach keep their a-priori bound.
-    ends = segments.reshape(-1, 2)
-    end_bounds = _reach_bounds(ends, np.repeat(radius, 2), mean, spread, horizon,
-                               config.max_speed).reshape(count, 2)
-    in_reach = (end_bounds > REACH_SHARE * delta) & ~close[:, None]
-    end_bounds = np.where(in_reach, np.nan, end_bounds)
-    share = (delta - np.nansum(end_bounds, axis=1)) / (1.0 + in_reach.sum(axis=1))
-    risks = np.concatenate([np.full((count, 1), delta), np.repeat(share[:, None], 4, axis=1)],
+    across_side = np.sum(across * segments[:, 0], axis=1)
+    normals = np.concatenate([support[:, None], across[:, None], -across[:, None],
+                              -unit[:, None], unit[:, None], fans[:count], fans[count:2 * count]],
+                             axis=1)
+    offsets = np.concatenate([
+        np.stack([np.maximum(start_side, end_side) + radius,
+                  across_side + radius, radius - across_side,
+                  -np.sum(unit * segments[:, 0], axis=1), np.sum(unit * segments[:, 1], axis=1)],
+                 axis=1), fan_offsets[:count], fan_offsets[count:2 * count]], axis=1)
+    # The decomposition's risk split: ends out of reach are charged their a-priori bound.
+    end_bounds = _reach_bounds(fan_distance[:2 * count].reshape(2, count).T, radius[:, None],
+                               spread, horizon, max_speed)
+    in_reach = end_bounds > REACH_SHARE * delta
+    end_bounds = np.where(in_reach, 0.0, end_bounds)
+    share = (delta - end_bounds.sum(axis=1)) / (1.0 + in_reach.sum(axis=1))
+    risks = np.concatenate([np.full((count, 1), delta), np.repeat(share[:, None], 4, axis=1),
+                            np.repeat(np.where(in_reach, share[:, None], 0.0), FAN, axis=1)],
                            axis=1)
-    # End discs within reach, shared ends once (the strictest probability).
-    end_keys = np.concatenate([ends, np.repeat(obstacles.half_widths, 2)[:, None]],
-                              axis=1)[in_reach.ravel()]
-    end_etas = np.repeat(1.0 - share, 2)[in_reach.ravel()]
-    unique, inverse = np.unique(end_keys, axis=0, return_inverse=True)
-    inverse = inverse.reshape(-1)
-    unique_etas = np.full(len(unique), -np.inf)
-    np.maximum.at(unique_etas, inverse, end_etas)
-    end_disc = np.full(2 * count, -1)
-    end_disc[in_reach.ravel()] = inverse
-    obstacle_radius = ego.radius + obstacles.disc_radii + config.safety_margin + growth
-    disc_bounds = _reach_bounds(obstacles.disc_centres, obstacle_radius, mean, spread, horizon,
-                                config.max_speed)
-    disc_in_reach = disc_bounds > REACH_SHARE * delta
-    disc_obstacle = np.full(len(disc_bounds), -1)
-    disc_obstacle[disc_in_reach] = len(unique) + np.arange(int(disc_in_reach.sum()))
-    support_away = _quadratic_form(support, actuation_cov)
+    conditions = LinearConditions.of(
+        np.concatenate([normals.reshape(-1, 2), fans[2 * count:].reshape(-1, 2)]),
+        np.concatenate([offsets.ravel(), fan_offsets[2 * count:].ravel()]),
+        np.concatenate([risks.ravel(), np.full(discs * FAN, delta)]), mean, position_cov,
+        actuation_cov, horizon)
+    start_risk = conditions.start_risk
+    away_normals = np.concatenate([support, fans[2 * count:, FAN_HALF]])
     return WallModel(
-        mean_position=mean, segments=segments, radius=radius, distance=distance, normals=normals, mean0=mean0,
-        std0=std0, std_tau=std_tau, risks=risks, close=close,
-        away_threshold=ndtri(eta) * np.sqrt(np.maximum(support_away, 0.0)),
-        end_bounds=end_bounds, end_disc=end_disc.reshape(count, 2),
-        disc_centres=np.concatenate([unique[:, :2], obstacles.disc_centres[disc_in_reach]]),
-        disc_radii=np.concatenate([unique[:, 2], obstacles.disc_radii[disc_in_reach]]),
-        disc_etas=np.concatenate([unique_etas, np.full(int(disc_in_reach.sum()), eta)]),
-        disc_bounds=np.where(disc_in_reach, np.nan, disc_bounds), disc_obstacle=disc_obstacle,
-        obstacle_centres=obstacles.disc_centres, obstacle_radius=obstacle_radius,
-        horizon=horizon, max_speed=config.max_speed, eta=eta, deterministic=deterministic)
-
-
-def static_neighbours(model, ego, config):
-    """
-    The static neighbours of MODEL as the neighbours' relative Gaussians (``Encounter`` rows).
-
-    A static disc of centre ``c`` and radius ``r`` has no velocity and no covariance of its own
-    and takes no share of the avoidance (``rho = 1``): ``r = p_i - c``, ``w = v_x``, so the
-    mean at zero command is ``(mu - c, 0)``, the covariance ``diag(S_p, S_a)``, the factor of
-    the command 1 and the radius ``R_i + r + margin``.
-
-    Returns
-    -------
-    origin, cov, lead, combined_radius, overlapping : numpy.ndarray
-        Shapes (D, 4), (D, 4, 4), (D,), (D,), (D,).
-
-    """
-    count = len(model.disc_radii)
-    origin = np.zeros((count, 4))
-    origin[:, :2] = ego.position - model.disc_centres
-    cov = np.zeros((count, 4, 4))
-    cov[:, :2, :2] = ego.covariance[:2, :2]
-    cov[:, 2:, 2:] = config.actuation_cov
-    combined_radius = ego.radius + model.disc_radii + config.safety_margin
-    distance = np.hypot(origin[:, 0], origin[:, 1])
-    return origin, cov, np.ones(count), combined_radius, distance < combined_radius
+        mean_position=mean, clearance=clearance,
+        far_bounds=np.concatenate([wall_bounds[~near], disc_bounds[~near_discs]]),
+        segments=segments, radius=radius, distance=distance, centres=centres,
+        disc_radius=disc_radius, conditions=conditions, end_bounds=end_bounds,
+        close=np.concatenate([
+            (distance <= radius) | (start_risk[:count * _PER_WALL:_PER_WALL] >= delta),
+            (fan_distance[2 * count:] <= disc_radius)
+            | (start_risk[count * _PER_WALL + FAN_HALF::FAN] >= delta)]),
+        away_normals=away_normals,
+        away_thresholds=ndtri(eta) * np.sqrt(np.maximum(
+            _quadratic_form(away_normals, actuation_cov), 0.0)),
+        horizon=horizon, max_speed=max_speed)
 
 
 def rejected_intervals(model, directions):
     """
-    The ``t`` each wall rejects on each ray: the open interval ``(upper, lower)``.
+    Return the open intervals of ``t`` the obstacles reject on each ray.
 
     Parameters
     ----------
     model : WallModel
-        The walls.
+        The obstacles.
     directions : numpy.ndarray
         Unit ray directions, shape (M, 2).
 
     Returns
     -------
     upper, lower : numpy.ndarray
-        Shape (N, M): the wall accepts ``[0, upper] U [lower, 1]`` (``upper`` may be below 0,
-        ``lower`` above 1).
+        Shape (K, M): rejected ``(upper, lower)`` (empty where ``upper >= lower``).
 
     """
-    # a t >= b per (wall, condition, ray).
-    slope = model.horizon * model.max_speed * (model.normals @ directions.T)
-    start_risk = _below_zero(model.mean0, model.std0)
-    usable = start_risk < model.risks
-    with np.errstate(invalid='ignore'):
-        quantile = ndtri(np.where(usable, 1.0 - model.risks + start_risk, 0.5))
-    bound = np.where(usable, quantile * model.std_tau - model.mean0, np.inf)[..., None]
-    # Moving away, for walls too close to certify: v_max (n.e) t >= z_eta sqrt(n' S_a n).
-    away_slope = model.max_speed * (model.normals[:, 0] @ directions.T)
-    slope[:, 0] = np.where(model.close[:, None], away_slope, slope[:, 0])
-    bound[:, 0] = np.where(model.close, model.away_threshold, bound[:, 0, 0])[:, None]
-    bound[:, 1:] = np.where(model.close[:, None, None], np.inf, bound[:, 1:])
-    with np.errstate(divide='ignore', invalid='ignore'):
-        cut = bound / slope
-    upper = np.where(slope < 0.0, cut, np.where((slope == 0.0) & (bound <= 0.0), np.inf,
-                                                -np.inf))
-    lower = np.where(slope > 0.0, cut, np.inf)
-    return upper.max(axis=1), lower.min(axis=1)
+    rays = directions.shape[0]
+    count = len(model.segments)
+    upper, lower = model.conditions.accepted(directions, model.horizon, model.max_speed)
+    split = count * _PER_WALL
+    wall_upper = upper[:split].reshape(count, _PER_WALL, rays)
+    wall_lower = lower[:split].reshape(count, _PER_WALL, rays)
+    pieces_upper = np.stack([wall_upper[:, _RECTANGLE].max(axis=1),
+                             wall_upper[:, _START_FAN].max(axis=1),
+                             wall_upper[:, _END_FAN].max(axis=1)], axis=1)
+    pieces_lower = np.stack([wall_lower[:, _RECTANGLE].min(axis=1),
+                             wall_lower[:, _START_FAN].min(axis=1),
+                             wall_lower[:, _END_FAN].min(axis=1)], axis=1)
+    # An end out of reach rejects nothing; the decomposition rejects where any piece does.
+    pieces_upper[:, 1:][model.end_bounds > 0.0] = np.inf
+    # A wall rejects where the support line and the decomposition both do.
+    wall_upper = np.maximum(wall_upper[:, :1], pieces_upper)
+    wall_lower = np.minimum(wall_lower[:, :1], pieces_lower)
+    disc_upper = upper[split:].reshape(-1, FAN, rays).max(axis=1)
+    disc_lower = lower[split:].reshape(-1, FAN, rays).min(axis=1)
+    if model.close.any():
+        # Close: moving away, v_max (n.e) t >= Phi^-1(eta) sqrt(n' S_a n), and nothing else.
+        away_upper, away_lower = half_lines(
+            model.max_speed * (model.away_normals @ directions.T),
+            model.away_thresholds[:, None])
+        close = model.close[:count]
+        wall_upper[close] = away_upper[:count][close][:, None]
+        wall_lower[close] = away_lower[:count][close][:, None]
+        close = model.close[count:]
+        disc_upper[close] = away_upper[count:][close]
+        disc_lower[close] = away_lower[count:][close]
+    return (np.concatenate([wall_upper.reshape(-1, rays), disc_upper]),
+            np.concatenate([wall_lower.reshape(-1, rays), disc_lower]))
 
 
 def cut_by_walls(gap_ray, lower, upper, wall_ray, wall_upper, wall_lower):
@@ -406,7 +471,8 @@ def wall_intrusion(model, velocities, period):
     Per obstacle ``min(d0, R) - d1`` (0 if nowhere), with ``d0`` the distance of ``mu`` and
     ``d1`` the smallest distance of the path ``mu + t v``, ``t in [0, period]``, from the
     segment (or disc centre): the overlap the command creates, or adds to an existing one.
-    The largest over the obstacles; 0 for ``v = 0``.
+    The largest over the near obstacles (the others are further than ``tau v_max``, which a
+    period cannot cover); 0 for ``v = 0``.
 
     Parameters
     ----------
@@ -419,9 +485,8 @@ def wall_intrusion(model, velocities, period):
 
     """
     start = model.mean_position
-    finish = start + period * velocities
-    path_start = np.broadcast_to(start, finish.shape)[:, None, :]
-    path_end = finish[:, None, :]
+    path_start = np.broadcast_to(start, velocities.shape)[:, None, :]
+    path_end = (start + period * velocities)[:, None, :]
     wall_a, wall_b = model.segments[None, :, 0], model.segments[None, :, 1]
     distance = np.minimum.reduce([
         _segment_distances(path_start, wall_a, wall_b),
@@ -435,33 +500,30 @@ def wall_intrusion(model, velocities, period):
                    * _cross(path_along, wall_b - path_start) < 0.0))
     distance = np.where(crossing, 0.0, distance)
     walls = np.maximum(np.minimum(model.distance, model.radius) - distance, 0.0)
-    centres = model.obstacle_centres[None, :, :]
-    disc_start = np.hypot(*(model.obstacle_centres - start).T)
-    discs = np.maximum(np.minimum(disc_start, model.obstacle_radius)
-                       - _segment_distances(centres, path_start, path_end), 0.0)
+    disc_start = np.hypot(*(model.centres - start).T)
+    discs = np.maximum(np.minimum(disc_start, model.disc_radius)
+                       - _segment_distances(model.centres[None], path_start, path_end), 0.0)
     return np.max(np.concatenate([walls, discs], axis=1), axis=1, initial=0.0)
 
 
-def obstacle_probability(model, velocity, disc_bounds):
+def obstacle_probability(model, velocity):
     """
-    The probability certified against the obstacles at VELOCITY: the smallest over them.
+    Return the probability certified against the obstacles at VELOCITY: the smallest over them.
 
-    Per wall the larger of the support line's and the decomposition's union bounds,
-    ``1 - delta0 - P(y(tau) < 0)`` for the support line and ``1 - (the rectangle's best side)
-    - (each end disc's)``, with an end disc's share its static neighbour's bound (DISC_BOUNDS,
-    per static neighbour) or its a-priori bound; per disc obstacle its neighbour's or its
-    a-priori bound. Clipped to [0, 1]; 1 without obstacles.
+    Per near wall the larger of the support line's and the decomposition's union bounds:
+    ``1 - delta0 - P(y(tau) < 0)`` of the support line, and one minus the sum over the pieces
+    of each piece's best condition's (an end out of reach: its a-priori bound); per near disc
+    its best tangent's; per shape out of reach one minus its a-priori bound. Clipped to
+    [0, 1]; 1 without obstacles.
 
     """
-    start_risk = _below_zero(model.mean0, model.std0)
-    end_risk = _below_zero(model.mean0 + model.horizon * (model.normals @ velocity),
-                           model.std_tau)
-    failure = np.minimum(start_risk + end_risk, 1.0)
-    neighbour_risk = 1.0 - np.append(disc_bounds, 1.0)
-    ends = np.where(model.end_disc >= 0, neighbour_risk[model.end_disc],
-                    np.where(np.isnan(model.end_bounds), 1.0, model.end_bounds))
-    decomposition = failure[:, 1:].min(axis=1, initial=1.0) + ends.sum(axis=1)
-    walls = 1.0 - np.minimum(failure[:, 0], decomposition)
-    discs = np.where(model.disc_obstacle >= 0, 1.0 - neighbour_risk[model.disc_obstacle],
-                     1.0 - model.disc_bounds)
-    return float(np.clip(np.min(np.concatenate([walls, discs]), initial=1.0), 0.0, 1.0))
+    failure = model.conditions.failures(velocity, model.horizon)
+    count = len(model.segments)
+    walls = failure[:count * _PER_WALL].reshape(count, _PER_WALL)
+    ends = np.stack([walls[:, _START_FAN].min(axis=1), walls[:, _END_FAN].min(axis=1)], axis=1)
+    ends = np.where(model.end_bounds > 0.0, model.end_bounds, ends)
+    decomposition = walls[:, _RECTANGLE].min(axis=1) + ends.sum(axis=1)
+    risks = np.concatenate([np.minimum(walls[:, 0], decomposition),
+                            failure[count * _PER_WALL:].reshape(-1, FAN).min(axis=1, initial=1.0),
+                            model.far_bounds])
+    return float(np.clip(1.0 - np.max(risks, initial=0.0), 0.0, 1.0))
