@@ -71,7 +71,7 @@ _START_FAN = slice(5, 5 + FAN)
 _END_FAN = slice(5 + FAN, 5 + 2 * FAN)
 
 
-def closest_points(point, segments):
+def closest_points(point, segments, frames):
     """
     Closest point of each segment to POINT, and the distance.
 
@@ -81,6 +81,8 @@ def closest_points(point, segments):
         Shape (2,).
     segments : numpy.ndarray
         Shape (N, 2, 2).
+    frames : numpy.ndarray
+        ``StaticObstacles.frames`` of the segments, shape (N, 6).
 
     Returns
     -------
@@ -90,12 +92,10 @@ def closest_points(point, segments):
         Shape (N,).
 
     """
-    start, along = segments[:, 0], segments[:, 1] - segments[:, 0]
-    fraction = np.clip(np.sum((point - start) * along, axis=1)
-                       / np.sum(along * along, axis=1), 0.0, 1.0)
-    closest = start + fraction[:, None] * along
-    offset = point - closest
-    return closest, np.hypot(offset[:, 0], offset[:, 1])
+    along = np.clip(frames[:, 0] * point[0] + frames[:, 1] * point[1], frames[:, 4],
+                    frames[:, 5])
+    closest = segments[:, 0] + (along - frames[:, 4])[:, None] * frames[:, :2]
+    return closest, np.hypot(point[0] - closest[:, 0], point[1] - closest[:, 1])
 
 
 def _below_zero(mean, std):
@@ -296,66 +296,74 @@ def wall_model(obstacles, ego, config):
     horizon, max_speed = config.obstacle_horizon, config.max_speed
     position_cov, actuation_cov, growth = _planning_covariances(ego, config)
     spread = _largest_std(position_cov) + horizon * _largest_std(actuation_cov)
-    segments = obstacles.segments
-    radius = ego.radius + obstacles.half_widths + config.safety_margin
-    closest, distance = closest_points(mean, segments)
-    disc_radius = ego.radius + obstacles.disc_radii + config.safety_margin
-    disc_offset = mean - obstacles.disc_centres
-    disc_distance = np.hypot(disc_offset[:, 0], disc_offset[:, 1])
-    clearance = float(min(np.min(distance - radius, initial=math.inf),
-                          np.min(disc_distance - disc_radius, initial=math.inf)))
-    radius, disc_radius = radius + growth, disc_radius + growth
-    wall_bounds = _reach_bounds(distance, radius, spread, horizon, max_speed)
-    disc_bounds = _reach_bounds(disc_distance, disc_radius, spread, horizon, max_speed)
-    near, near_discs = wall_bounds > REACH_SHARE * delta, disc_bounds > REACH_SHARE * delta
-    segments, radius, closest, distance = (segments[near], radius[near], closest[near],
-                                           distance[near])
-    centres, disc_radius = obstacles.disc_centres[near_discs], disc_radius[near_discs]
+    walls = len(obstacles.segments)
+    closest, distance = closest_points(mean, obstacles.segments, obstacles.frames)
+    # Walls, then discs: grown radius and distance of the mean.
+    radius = ego.radius + config.safety_margin + np.concatenate([obstacles.half_widths,
+                                                                 obstacles.disc_radii])
+    distance = np.concatenate([distance, np.hypot(mean[0] - obstacles.disc_centres[:, 0],
+                                                  mean[1] - obstacles.disc_centres[:, 1])])
+    clearance = float(np.min(distance - radius))
+    radius = radius + growth
+    bounds = _reach_bounds(distance, radius, spread, horizon, max_speed)
+    near = bounds > REACH_SHARE * delta
+    near_walls, near_discs = near[:walls], near[walls:]
+    segments, frames = obstacles.segments[near_walls], obstacles.frames[near_walls]
+    closest, centres = closest[near_walls], obstacles.disc_centres[near_discs]
+    wall_radius, disc_radius = radius[:walls][near_walls], radius[walls:][near_discs]
+    wall_distance = distance[:walls][near_walls]
     count, discs = len(segments), len(centres)
-    along = segments[:, 1] - segments[:, 0]
-    unit = along / np.hypot(along[:, 0], along[:, 1])[:, None]
-    across = np.stack([-unit[:, 1], unit[:, 0]], axis=1)
-    support = np.divide(mean - closest, distance[:, None], out=across.copy(),
-                        where=(distance > 0.0)[:, None])
+    across = frames[:, 2:4]
+    support = np.divide(mean - closest, wall_distance[:, None], out=across.copy(),
+                        where=(wall_distance > 0.0)[:, None])
     fans, fan_offsets, fan_distance = _fan(
         np.concatenate([segments[:, 0], segments[:, 1], centres]),
-        np.concatenate([radius, radius, disc_radius]), mean)
-    start_side = np.sum(support * segments[:, 0], axis=1)
-    end_side = np.sum(support * segments[:, 1], axis=1)
+        np.concatenate([wall_radius, wall_radius, disc_radius]), mean)
+    normals = np.empty((count, _PER_WALL, 2))
+    offsets = np.empty((count, _PER_WALL))
+    normals[:, 0] = support
+    normals[:, 1] = across
+    normals[:, 2] = -across
+    normals[:, 3] = -frames[:, :2]
+    normals[:, 4] = frames[:, :2]
+    normals[:, _START_FAN] = fans[:count]
+    normals[:, _END_FAN] = fans[count:2 * count]
     across_side = np.sum(across * segments[:, 0], axis=1)
-    normals = np.concatenate([support[:, None], across[:, None], -across[:, None],
-                              -unit[:, None], unit[:, None], fans[:count], fans[count:2 * count]],
-                             axis=1)
-    offsets = np.concatenate([
-        np.stack([np.maximum(start_side, end_side) + radius,
-                  across_side + radius, radius - across_side,
-                  -np.sum(unit * segments[:, 0], axis=1), np.sum(unit * segments[:, 1], axis=1)],
-                 axis=1), fan_offsets[:count], fan_offsets[count:2 * count]], axis=1)
+    offsets[:, 0] = np.maximum(np.sum(support * segments[:, 0], axis=1),
+                               np.sum(support * segments[:, 1], axis=1)) + wall_radius
+    offsets[:, 1] = across_side + wall_radius
+    offsets[:, 2] = wall_radius - across_side
+    offsets[:, 3] = -frames[:, 4]
+    offsets[:, 4] = frames[:, 5]
+    offsets[:, _START_FAN] = fan_offsets[:count]
+    offsets[:, _END_FAN] = fan_offsets[count:2 * count]
     # The decomposition's risk split: ends out of reach are charged their a-priori bound.
-    end_bounds = _reach_bounds(fan_distance[:2 * count].reshape(2, count).T, radius[:, None],
-                               spread, horizon, max_speed)
+    end_bounds = _reach_bounds(fan_distance[:2 * count].reshape(2, count).T,
+                               wall_radius[:, None], spread, horizon, max_speed)
     in_reach = end_bounds > REACH_SHARE * delta
-    end_bounds = np.where(in_reach, 0.0, end_bounds)
+    end_bounds[in_reach] = 0.0
     share = (delta - end_bounds.sum(axis=1)) / (1.0 + in_reach.sum(axis=1))
-    risks = np.concatenate([np.full((count, 1), delta), np.repeat(share[:, None], 4, axis=1),
-                            np.repeat(np.where(in_reach, share[:, None], 0.0), FAN, axis=1)],
-                           axis=1)
-    conditions = LinearConditions.of(
-        np.concatenate([normals.reshape(-1, 2), fans[2 * count:].reshape(-1, 2)]),
-        np.concatenate([offsets.ravel(), fan_offsets[2 * count:].ravel()]),
-        np.concatenate([risks.ravel(), np.full(discs * FAN, delta)]), mean, position_cov,
-        actuation_cov, horizon)
+    risks = np.empty((count, _PER_WALL))
+    risks[:, 0] = delta
+    risks[:, _RECTANGLE] = share[:, None]
+    risks[:, _START_FAN] = np.where(in_reach[:, :1], share[:, None], 0.0)
+    risks[:, _END_FAN] = np.where(in_reach[:, 1:], share[:, None], 0.0)
+    if discs:
+        normals = np.concatenate([normals.reshape(-1, 2), fans[2 * count:].reshape(-1, 2)])
+        offsets = np.concatenate([offsets.ravel(), fan_offsets[2 * count:].ravel()])
+        risks = np.concatenate([risks.ravel(), np.full(discs * FAN, delta)])
+    conditions = LinearConditions.of(normals.reshape(-1, 2), offsets.ravel(), risks.ravel(),
+                                     mean, position_cov, actuation_cov, horizon)
     start_risk = conditions.start_risk
-    away_normals = np.concatenate([support, fans[2 * count:, FAN_HALF]])
+    close = np.concatenate([wall_distance, fan_distance[2 * count:]]) <= np.concatenate(
+        [wall_radius, disc_radius])
+    close[:count] |= start_risk[:count * _PER_WALL:_PER_WALL] >= delta
+    close[count:] |= start_risk[count * _PER_WALL + FAN_HALF::FAN] >= delta
+    away_normals = np.concatenate([support, fans[2 * count:, FAN_HALF]]) if discs else support
     return WallModel(
-        mean_position=mean, clearance=clearance,
-        far_bounds=np.concatenate([wall_bounds[~near], disc_bounds[~near_discs]]),
-        segments=segments, radius=radius, distance=distance, centres=centres,
-        disc_radius=disc_radius, conditions=conditions, end_bounds=end_bounds,
-        close=np.concatenate([
-            (distance <= radius) | (start_risk[:count * _PER_WALL:_PER_WALL] >= delta),
-            (fan_distance[2 * count:] <= disc_radius)
-            | (start_risk[count * _PER_WALL + FAN_HALF::FAN] >= delta)]),
+        mean_position=mean, clearance=clearance, far_bounds=bounds[~near],
+        segments=segments, radius=wall_radius, distance=wall_distance, centres=centres,
+        disc_radius=disc_radius, conditions=conditions, end_bounds=end_bounds, close=close,
         away_normals=away_normals,
         away_thresholds=ndtri(eta) * np.sqrt(np.maximum(
             _quadratic_form(away_normals, actuation_cov), 0.0)),
