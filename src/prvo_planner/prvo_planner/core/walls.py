@@ -493,10 +493,20 @@ def wall_intrusion(model, velocities, period):
 
     """
     start = model.mean_position
+    # Only a shape within one period's travel of its grown radius can be entered.
+    travel = period * np.max(np.hypot(velocities[:, 0], velocities[:, 1]), initial=0.0)
+    reachable = model.distance < model.radius + travel
+    segments, distance, radius = (model.segments[reachable], model.distance[reachable],
+                                  model.radius[reachable])
+    centres, disc_radius = model.centres, model.disc_radius
+    disc_start = np.hypot(centres[:, 0] - start[0], centres[:, 1] - start[1])
+    reachable = disc_start < disc_radius + travel
+    centres, disc_radius, disc_start = (centres[reachable], disc_radius[reachable],
+                                        disc_start[reachable])
     path_start = np.broadcast_to(start, velocities.shape)[:, None, :]
     path_end = (start + period * velocities)[:, None, :]
-    wall_a, wall_b = model.segments[None, :, 0], model.segments[None, :, 1]
-    distance = np.minimum.reduce([
+    wall_a, wall_b = segments[None, :, 0], segments[None, :, 1]
+    separation = np.minimum.reduce([
         _segment_distances(path_start, wall_a, wall_b),
         _segment_distances(path_end, wall_a, wall_b),
         _segment_distances(wall_a, path_start, path_end),
@@ -506,11 +516,10 @@ def wall_intrusion(model, velocities, period):
                  < 0.0)
                 & (_cross(path_along, wall_a - path_start)
                    * _cross(path_along, wall_b - path_start) < 0.0))
-    distance = np.where(crossing, 0.0, distance)
-    walls = np.maximum(np.minimum(model.distance, model.radius) - distance, 0.0)
-    disc_start = np.hypot(*(model.centres - start).T)
-    discs = np.maximum(np.minimum(disc_start, model.disc_radius)
-                       - _segment_distances(model.centres[None], path_start, path_end), 0.0)
+    separation = np.where(crossing, 0.0, separation)
+    walls = np.maximum(np.minimum(distance, radius) - separation, 0.0)
+    discs = np.maximum(np.minimum(disc_start, disc_radius)
+                       - _segment_distances(centres[None], path_start, path_end), 0.0)
     return np.max(np.concatenate([walls, discs], axis=1), axis=1, initial=0.0)
 
 
