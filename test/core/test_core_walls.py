@@ -38,7 +38,7 @@ def belief(position, velocity, position_std, velocity_std=0.05):
 
 
 def swept_paths(rng, ego, velocity, actuation_cov, steps=101):
-    """Sampled paths p + t (v + eps), t in [0, HORIZON]: shape (SAMPLES, steps, 2)."""
+    """Sample paths p + t (v + eps), t in [0, HORIZON]: shape (SAMPLES, steps, 2)."""
     start = rng.multivariate_normal(ego.position, ego.covariance[:2, :2], SAMPLES)
     noise = rng.multivariate_normal(np.zeros(2), actuation_cov, SAMPLES)
     times = np.linspace(0.0, HORIZON, steps)
@@ -55,7 +55,7 @@ def avoided(paths, shape, radius):
 
 
 def encounter(seed):
-    """A seeded encounter: ego belief, config, StaticObstacles and its shapes with radii."""
+    """Return a seeded encounter: ego belief, config, StaticObstacles, shapes and radii."""
     rng = np.random.default_rng(seed)
     kind = ('wall', 'end', 'door', 'polygon', 'pillar')[seed % 5]
     distance = rng.uniform(0.9, 2.2)
@@ -271,3 +271,37 @@ def test_bad_inputs_give_one_line_errors(call, message):
         call()
     assert message in str(error.value)
     assert '\n' not in str(error.value)
+
+
+@pytest.mark.parametrize('options', [
+    {'certificate': 'certified'}, {'model': 'inflate'}, {'model': 'rvo'}, {'method': 'taylor'},
+    {'risk': 'joint'}, {'inertia': 0.5, 'passing_bias': 0.1, 'progress_weight': 0.5}])
+def test_every_mode_keeps_the_walls(options):
+    """Among neighbours, in every planner mode, a feasible plan keeps its obstacle bound."""
+    rng = np.random.default_rng(11)
+    door = obstacles([[[1.5, -6.0], [1.5, -0.7]], [[1.5, 0.7], [1.5, 6.0]]], [0.05, 0.05])
+    config = PlannerConfig(actuation_cov=0.05 ** 2 * np.eye(2), seed=4,
+                           obstacle_horizon=HORIZON, **options)
+    for _ in range(5):
+        ego = belief([0.0, rng.uniform(-0.3, 0.3)], [0.5, 0.0], 0.05)
+        neighbours = [belief([rng.uniform(2.0, 4.0), rng.uniform(-2.0, 2.0)], [-0.5, 0.0], 0.05)
+                      for _ in range(3)]
+        result = plan_velocity(ego, neighbours, [1.0, 0.0], config, obstacles=door,
+                               previous=np.array([0.5, 0.0]))
+        if result.feasible:
+            assert result.obstacle_probability >= config.effective_eta - 1e-9
+        path = ego.position + np.linspace(0.0, HORIZON, 41)[:, None] * result.velocity
+        for start, end in door.segments:
+            assert point_segment_distance(path, start, end).min() >= EGO_RADIUS + 0.05 - 1e-9
+
+
+def test_acceleration_limits_and_walls_together():
+    from prvo_planner.core import VelocityLimits
+    wall = obstacles([[[1.0, -5.0], [1.0, 5.0]]])
+    ego = belief([0.0, 0.0], [0.8, 0.0], 0.05)
+    config = PlannerConfig(actuation_cov=0.05 ** 2 * np.eye(2), obstacle_horizon=HORIZON)
+    limits = VelocityLimits(current=np.array([0.8, 0.0]), max_change=0.2)
+    result = plan_velocity(ego, [], [1.0, 0.0], config, limits=limits, obstacles=wall)
+    assert np.linalg.norm(result.velocity - [0.8, 0.0]) <= 0.2 + 1e-9
+    # Braking as hard as allowed: nothing reachable is certified, and nothing moves deeper.
+    assert result.velocity[0] <= 0.8 - 0.2 + 1e-6

@@ -64,6 +64,7 @@ from .walls import (
     rejected_intervals,
     wall_intrusion,
     wall_model,
+    wall_time_to_contact,
 )
 
 
@@ -665,9 +666,10 @@ def _fallback_choice(plan, speeds, costs):
     # A candidate of infinite cost is out of reach (acceleration, tracking): never chosen.
     reachable = np.isfinite(costs.reshape(-1))
     intrusion = np.where(reachable, intrusion, np.inf)
-    walls = (None if plan.walls is None else np.where(
-        reachable, wall_intrusion(plan.walls, velocities.reshape(-1, 2), config.control_period),
-        np.inf))
+    walls = (None if plan.walls is None else (
+        np.where(reachable, wall_intrusion(plan.walls, velocities.reshape(-1, 2),
+                                           config.control_period), np.inf),
+        wall_time_to_contact(plan.walls, velocities.reshape(-1, 2))))
     return np.unravel_index(fallback_index(intrusion, closing, time_to_collision, left_passes,
                                            costs.reshape(-1), walls), speeds.shape)
 

@@ -523,6 +523,23 @@ def wall_intrusion(model, velocities, period):
     return np.max(np.concatenate([walls, discs], axis=1), axis=1, initial=0.0)
 
 
+def wall_time_to_contact(model, velocities):
+    """
+    How long each command takes to reach the nearest support line, capped at tau, shape (K,).
+
+    Per near wall (and disc) ``max(d - R, 0) / (-n.v)`` while approaching (``n.v < 0``, ``n``
+    the support line's normal, the disc's middle tangent's), else never; the smallest over
+    them, at most ``tau``.
+    """
+    clearance = np.maximum(np.concatenate([model.distance - model.radius,
+                                           np.hypot(*(model.centres - model.mean_position).T)
+                                           - model.disc_radius]), 0.0)
+    approach = -(velocities @ model.away_normals.T)
+    times = np.divide(clearance, approach, out=np.full(approach.shape, np.inf),
+                      where=approach > 0.0)
+    return np.minimum(np.min(times, axis=1, initial=np.inf), model.horizon)
+
+
 def obstacle_probability(model, velocity):
     """
     Return the probability certified against the obstacles at VELOCITY: the smallest over them.
