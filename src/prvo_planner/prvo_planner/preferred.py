@@ -19,7 +19,6 @@ import math
 
 import numpy as np
 
-from prvo_msgs_util import body_to_world
 from prvo_planner.path_following import carrot
 
 GOAL = 'goal'
@@ -154,8 +153,10 @@ class UpstreamCommand:
 
         A unicycle (UNICYCLE) moves along its heading only: linear.x.
         """
-        linear = (self.linear[0], 0.0) if unicycle else self.linear
-        return np.asarray(body_to_world(linear, yaw), dtype=float)
+        x, y = (self.linear[0], 0.0) if unicycle else self.linear
+        # The arithmetic of prvo_msgs_util.body_to_world (the agent imports no ROS).
+        cos, sin = math.cos(yaw), math.sin(yaw)
+        return np.array([cos * x - sin * y, sin * x + cos * y])
 
 
 class FilterGate:

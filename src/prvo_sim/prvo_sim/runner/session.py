@@ -23,9 +23,11 @@ from prvo_sim.runner.processes import (
     package_command,
 )
 
-METHODS = ('prvo', 'rvo', 'inflate', 'prvo-no-ego')
-# The planner's `model` parameter for each method; prvo-no-ego is PRVO planned with S_a = 0.
-MODEL_OF_METHOD = {'prvo': 'prvo', 'rvo': 'rvo', 'inflate': 'inflate', 'prvo-no-ego': 'prvo'}
+METHODS = ('prvo', 'rvo', 'inflate', 'prvo-no-ego', 'none')
+# The planner's `model` parameter for each method; prvo-no-ego is PRVO planned with S_a = 0,
+# none avoids nobody (the reference that shows what avoidance adds).
+MODEL_OF_METHOD = {'prvo': 'prvo', 'rvo': 'rvo', 'inflate': 'inflate', 'prvo-no-ego': 'prvo',
+                   'none': 'none'}
 ENGINES = ('ros', 'inprocess')
 DEFAULT_ETA = 0.8
 SIM_NODE = 'prvo_sim'
@@ -46,6 +48,11 @@ GRAPH_CHECK_PERIOD = 1.0  # wall seconds between looks for intruders during a ru
 # taken, and a plan made without it parted the run from the in-process one); and for every
 # listed neighbour's first message.
 LOCKSTEP_SYNC = {'sync_timeout': STEP_TIMEOUT - 0.1, 'neighbor_timeout': 5.0}
+# A robot driven by the Nav2 stand-in: its planner filters the stand-in's TwistStamped (the
+# simulator's cmd_vel type), never falls silent within a run (the simulator waits for every
+# answer) and counts its own state as stale only when the run has surely stalled.
+FILTER_PARAMETERS = {'preferred_source': 'velocity', 'enable_stamped_cmd_vel': True,
+                     'stop_pub_timeout': 1.0e9, 'state_timeout': 60.0}
 # Parameters the runner sets itself; a scenario's planner block cannot override them.
 RUNNER_PARAMETERS = ('use_sim_time', 'goal', 'radius', 'max_speed', 'actuation_std',
                      'goal_tolerance', 'model', 'eta', 'kinematics', 'max_angular_speed',
@@ -103,6 +110,8 @@ def runner_planner_values(robot, scenario, method, eta, mode='lockstep'):
     for limit in ('max_acceleration', 'max_angular_acceleration'):
         if math.isfinite(getattr(robot, limit)):
             values[limit] = float(getattr(robot, limit))
+    if robot.upstream is not None:
+        values.update(FILTER_PARAMETERS)
     if mode == 'lockstep':
         # The simulator waits for every answer, so a planner can wait for every neighbour's
         # odometry of the same stamp however loaded the machine: that makes runs reproducible.
