@@ -556,6 +556,30 @@ class PlannerAgent:
         """
         self._upstream, self._upstream_received_at = command, now
 
+    def upstream_answer(self, now):
+        """Return how the waiting upstream command is to be answered at NOW.
+
+        'stale': by zero (`stale_answer`), the own state is stale; 'repeat': by the last answer
+        again (the same stamped command for the same own state: its sender re-sent it, as a
+        lockstep simulator re-sends a step not answered); 'plan': by `plan()`, the robot is ready;
+        'wait': for the own state the command's stamp is later than, or for the neighbours
+        (the caller plans at the latest when its wait runs out: `repeat_last_stamp`). A
+        command that finds no newer own state is answered from the last one.
+        """
+        upstream = self._upstream
+        if self.own_state_stale(now):
+            return 'stale'
+        if self._pending_stamp is None:
+            last = self._own_track.stamp
+            if upstream.stamp is not None and upstream.stamp > last:
+                return 'wait'
+            if (upstream.stamp is not None and upstream == self._upstream_answered
+                    and self._command_stamp == last):
+                self._upstream = None
+                return 'repeat'
+            self.repeat_last_stamp()
+        return 'plan' if self.ready(now) else 'wait'
+
     @property
     def upstream_waiting(self):
         """Whether an upstream command waits for its answer."""
@@ -568,8 +592,8 @@ class PlannerAgent:
 
     def repeat_last_stamp(self):
         """Plan the next time for the last own stamp again (no newer measurement came)."""
-        if self._pending_stamp is None and self._command_stamp is not None:
-            self._pending_stamp = self._command_stamp
+        if self._pending_stamp is None and self._own_track is not None:
+            self._pending_stamp = self._own_track.stamp
 
     def stale_answer(self):
         """Return the zero `Command` answering the waiting upstream command: no own state.

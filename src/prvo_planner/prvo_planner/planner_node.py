@@ -51,6 +51,7 @@ from prvo_msgs_util import (
     robots_with_topic,
     serialized_odometry_to_measurement,
     spin_events,
+    stamp_to_seconds,
     subscribe_announcements,
     twist_components,
     world_to_body,
@@ -323,16 +324,20 @@ class PlannerNode(Node):
             return
         now = time.monotonic()
         agent = self._agent
-        agent.receive_upstream(UpstreamCommand(linear, angular, msg), now)
-        if agent.own_state_stale(now):
+        agent.receive_upstream(UpstreamCommand(
+            linear, angular, msg,
+            stamp_to_seconds(msg.header.stamp) if self._stamped else None), now)
+        answer = agent.upstream_answer(now)
+        if answer == 'stale':
             self._warnings.warn('stale', f'no state on {self._own_odom_topic} within '
                                 f"state_timeout {self._values['state_timeout']:g} s: stopping")
-            command = agent.stale_answer()
-            if command is not None:
+            if agent.stale_answer() is not None:
                 self._commands.publish(
                     filtered_twist(msg, (0.0, 0.0), 0.0), self._announce())
-            return
-        if agent.ready(now):
+        elif answer == 'repeat':
+            if self._last_command is not None and not self._commands.holding:
+                self._cmd_vel_publisher.publish(self._last_command)
+        elif answer == 'plan':
             self._plan()
         elif self._sync_timer.is_canceled():
             self._sync_timer.reset()

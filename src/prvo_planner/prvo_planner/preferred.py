@@ -127,13 +127,15 @@ def path_preferred_velocity(position, follower, lookahead, max_speed, approach_t
 class UpstreamCommand:
     """One upstream velocity command, as a controller sends it: body frame, SI units.
 
-    `linear` (x, y) [m/s] and `angular` (z) [rad/s]; `message` is the message it came in,
-    passed on unchanged when nothing constrains it (None outside ROS).
+    `linear` (x, y) [m/s] and `angular` (z) [rad/s]; `stamp` [s] its header's stamp (None
+    unstamped); `message` is the message it came in, passed on unchanged when nothing
+    constrains it (None outside ROS).
     """
 
     linear: tuple
     angular: float
-    message: object = None
+    message: object = dataclasses.field(default=None, compare=False)
+    stamp: float = None
 
     def __post_init__(self):
         linear = tuple(float(value) for value in self.linear)

@@ -32,6 +32,7 @@ ENGINES = ('ros', 'inprocess')
 DEFAULT_ETA = 0.8
 SIM_NODE = 'prvo_sim'
 PLANNER_NODE = 'planner'
+STAND_IN_NODE = 'nav2_stand_in'
 STEP_TIMEOUT = 2.0  # wall seconds the sim waits for a late planner before reusing its command
 STARTUP_LIMIT = 60.0  # wall seconds for each start-up stage before the run counts as failed
 SETTLE_TIME = 1.0  # sim seconds every robot must stay at its goal before the run ends
@@ -188,10 +189,44 @@ class RunSpec:
             return shlex.split(self._planner_command)
         return package_command('prvo_planner', 'planner', 'prvo_planner.planner_node')
 
+    @property
+    def stand_in_command(self):
+        """The Nav2 stand-in's argv prefix (the ROS engine's)."""
+        return package_command('prvo_sim', 'nav2_stand_in', 'prvo_sim.upstream_node')
+
     def own_nodes(self):
         """Return the fully qualified names of the nodes the run's children create."""
         return {f'/{SIM_NODE}', *(f'/{robot.name}/{PLANNER_NODE}'
-                                   for robot in planned_robots(self.scenario))}
+                                   for robot in planned_robots(self.scenario)),
+                *(f'/{robot.name}/{STAND_IN_NODE}' for robot in self.scenario.robots
+                  if robot.upstream is not None)}
+
+
+def stand_in_parameters(robot, scenario, mode):
+    """Return the `-p` parameters of ROBOT's Nav2 stand-in, ROS-formatted.
+
+    As the in-process engine's (`prvo_sim.engine.upstream_of`); in lockstep it answers each
+    odometry message with its stamp.
+    """
+    return {'use_sim_time': 'true',
+            'waypoints': ros_parameter(robot.upstream.waypoints.ravel()),
+            'speed': ros_parameter(robot.upstream.speed), 'kinematics': robot.kinematics,
+            'goal_tolerance': ros_parameter(scenario.goal_tolerance / 2.0),
+            'max_angular_speed': ros_parameter(robot.max_angular_speed),
+            'answer_odometry': ros_parameter(mode == 'lockstep'),
+            'enable_stamped_cmd_vel': 'true'}
+
+
+def start_stand_ins(children, spec):
+    """Start the Nav2 stand-in of every robot driven upstream."""
+    for robot in spec.scenario.robots:
+        if robot.upstream is None:
+            continue
+        argv = [*spec.stand_in_command, '--ros-args', '-r', f'__ns:=/{robot.name}',
+                '-r', f'__node:={STAND_IN_NODE}']
+        for key, value in stand_in_parameters(robot, spec.scenario, spec.mode).items():
+            argv += ['-p', f'{key}:={value}']
+        children.start(f'stand_in_{robot.name}', argv)
 
 
 def start_planners(children, spec):
@@ -375,6 +410,8 @@ def run_once(spec, domain_id, monitor=None):
         # The first file of the run: a run that never got here leaves the folder alone.
         log_dir.mkdir(parents=True, exist_ok=True)
         watch = _Watch(recorder, children, spec)
+        # Before the planners: a stand-in is then up before the simulator's first step.
+        start_stand_ins(children, spec)
         start_planners(children, spec)
         failure = wait_for_planners(recorder, watch)
         if failure is None:
