@@ -148,3 +148,41 @@ def test_empty_path_cancels():
     np.testing.assert_array_equal(agent.plan().velocity, [0.0, 0.0])
     with pytest.raises(ValueError, match='finite'):
         PathFollower([[0.0, 0.0], [np.nan, 1.0]])
+
+
+@pytest.fixture
+def path_node(ros_domain):
+    """Yield (PlannerNode in /robot_0 following paths, published carrots)."""
+    import rclpy
+
+    from prvo_planner.planner_node import PlannerNode
+
+    rclpy.init(domain_id=ros_domain, args=[
+        '--ros-args', '-r', '__ns:=/robot_0', '-p', 'preferred_source:=path',
+        '-p', 'neighbors:=[""]', '-p', 'lookahead_dist:=1.0'])
+    node = PlannerNode()
+    carrots = []
+    node._lookahead_publisher.publish = carrots.append
+    node._cmd_vel_publisher.publish = lambda message: None
+    yield node, carrots
+    node.destroy_node()
+    rclpy.try_shutdown()
+
+
+def test_node_follows_a_path_message_and_publishes_the_carrot(path_node):
+    from prvo_msgs_util import make_path, serialize_odometry
+
+    node, carrots = path_node
+    assert node.count_subscribers('/robot_0/goal_pose') == 0
+    node._on_path(make_path(0.0, L_ROUTE))
+    np.testing.assert_array_equal(node._agent.goal, L_ROUTE[-1])
+    node._on_own_odometry(serialize_odometry(0.1, [3.5, 0.0], [0.0, 0.0], 1e-4 * np.eye(2),
+                                             1e-4 * np.eye(2)))
+    assert len(carrots) == 1 and carrots[0].header.frame_id == 'map'
+    np.testing.assert_allclose([carrots[0].point.x, carrots[0].point.y],
+                               [4.0, np.sqrt(0.75)], atol=1e-9)
+    # A path in another frame is refused; an empty one cancels.
+    node._on_path(make_path(0.0, L_ROUTE, frame_id='odom'))
+    np.testing.assert_array_equal(node._agent.goal, L_ROUTE[-1])
+    node._on_path(make_path(0.0, np.zeros((0, 2))))
+    assert node._agent.goal is None

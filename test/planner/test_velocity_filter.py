@@ -206,3 +206,23 @@ def test_node_passes_random_twists_bit_for_bit(filter_node):
         node._on_upstream(message)
     assert [serialize_message(message) for message in published] == sent
     assert all(isinstance(message, TwistStamped if stamped else Twist) for message in published)
+
+
+def test_node_names_the_topic_of_a_type_mismatch(filter_node, probe):
+    import time
+
+    from geometry_msgs.msg import Twist, TwistStamped
+
+    node, _, stamped = filter_node
+    warnings = []
+    node._warnings.warn = lambda key, text: warnings.append(text)
+    node._check_topic_types()
+    assert not warnings
+    # An upstream of the other type on the input topic (another process): it never connects.
+    probe.node.create_publisher(Twist if stamped else TwistStamped, '/robot_0/cmd_vel_smoothed',
+                                1)
+    deadline = time.monotonic() + 30.0
+    while not warnings and time.monotonic() < deadline:
+        time.sleep(0.1)
+        node._check_topic_types()
+    assert warnings and warnings[0].startswith('/robot_0/cmd_vel_smoothed carries')
