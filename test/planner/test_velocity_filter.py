@@ -226,3 +226,22 @@ def test_node_names_the_topic_of_a_type_mismatch(filter_node, probe):
         time.sleep(0.1)
         node._check_topic_types()
     assert warnings and warnings[0].startswith('/robot_0/cmd_vel_smoothed carries')
+
+
+def test_a_re_sent_step_is_answered_by_the_last_answer():
+    agent = _filter_agent()
+    agent.receive_own(_Measurement(0.0, np.zeros(2), np.zeros(2), COVARIANCE), 0.0)
+    agent.receive_upstream(UpstreamCommand((0.4, 0.0), 0.0, stamp=0.0), 0.0)
+    assert agent.upstream_answer(0.0) == 'plan'
+    agent.plan()
+    # The same step again (the odometry re-sent, its answer re-sent): no second plan.
+    agent.receive_upstream(UpstreamCommand((0.4, 0.0), 0.0, stamp=0.0), 0.1)
+    assert agent.upstream_answer(0.1) == 'repeat' and not agent.upstream_waiting
+    # A later stamp waits for the own state of it; unstamped commands are planned at once.
+    agent.receive_upstream(UpstreamCommand((0.4, 0.0), 0.0, stamp=0.1), 0.1)
+    assert agent.upstream_answer(0.1) == 'wait'
+    agent.receive_own(_Measurement(0.1, np.zeros(2), np.zeros(2), COVARIANCE), 0.1)
+    assert agent.upstream_answer(0.1) == 'plan'
+    agent.plan()
+    agent.receive_upstream(UpstreamCommand((0.3, 0.0), 0.0), 0.12)
+    assert agent.upstream_answer(0.12) == 'plan' and agent.pending_stamp == 0.1

@@ -560,8 +560,9 @@ class PlannerAgent:
         """Return how the waiting upstream command is to be answered at NOW.
 
         'stale': by zero (`stale_answer`), the own state is stale; 'repeat': by the last answer
-        again (the same stamped command for the same own state: its sender re-sent it, as a
-        lockstep simulator re-sends a step not answered); 'plan': by `plan()`, the robot is ready;
+        again (a stamped command no later than the last one answered, for the same own state:
+        its sender re-sent a step, as a lockstep simulator re-sends a step not answered, and one
+        step has one answer); 'plan': by `plan()`, the robot is ready;
         'wait': for the own state the command's stamp is later than, or for the neighbours
         (the caller plans at the latest when its wait runs out: `repeat_last_stamp`). A
         command that finds no newer own state is answered from the last one.
@@ -573,7 +574,9 @@ class PlannerAgent:
             last = self._own_track.stamp
             if upstream.stamp is not None and upstream.stamp > last:
                 return 'wait'
-            if (upstream.stamp is not None and upstream == self._upstream_answered
+            answered = self._upstream_answered
+            if (upstream.stamp is not None and answered is not None
+                    and answered.stamp is not None and upstream.stamp <= answered.stamp
                     and self._command_stamp == last):
                 self._upstream = None
                 return 'repeat'
