@@ -48,7 +48,6 @@ from prvo_msgs_util.diagnostics import (
 )
 from prvo_msgs_util.grid_maps import (
     make_occupancy_grid,
-    make_path,
     occupancy_grid_to_parts,
 )
 from prvo_msgs_util.interrupts import (
@@ -116,7 +115,7 @@ __all__ = [
     'DIAGNOSTICS_QOS', 'GOAL_POSE', 'GOAL_QOS', 'GROUND_TRUTH', 'MARKERS', 'MARKER_QOS',
     'MAX_FOOTPRINT_RADIUS', 'MAX_SPEED_COMPONENT', 'MAX_VARIANCE', 'MAX_WORLD_COORDINATE',
     'MIN_FOOTPRINT_RADIUS', 'MAP', 'MAP_QOS', 'PLAN', 'PLAN_QOS', 'make_occupancy_grid',
-    'make_path', 'occupancy_grid_to_parts',
+    'occupancy_grid_to_parts',
     'MessageFault', 'ODOM', 'ODOM_LATEST_QOS', 'ODOM_QOS', 'OdometryMeasurement',
     'QosWatch', 'quiet_publisher_events', 'quiet_subscription_events',
     'SigintRecorder', 'STOP_SIGNALS', 'hold_stop_signals', 'ignore_stop_signals',
