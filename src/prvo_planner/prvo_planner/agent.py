@@ -7,6 +7,9 @@ neighbours' measurements of the stamp it plans for, applies the goal logic and p
 its stamped announcements (`AnnouncedValues`, `NeighbourAnnouncement`). It never reads a clock:
 every call that needs the time of day takes `now`, monotonic seconds of the caller's choosing.
 The planner node wraps it in ROS endpoints; an in-process engine can feed it step by step.
+
+Given an occupancy grid (`set_map`), the agent plans against the obstacles of the grid near it
+and heads for a carrot on the shortest route to its goal instead of straight at the goal.
 """
 
 import dataclasses
@@ -16,6 +19,9 @@ import numpy as np
 
 from prvo_planner.core import AgentBelief, VelocityLimits, plan_velocity
 from prvo_planner.core.beliefs import validated_share
+from prvo_planner.maps import ObstacleIndex, grid_obstacles, occupied_cells
+from prvo_planner.path_following import carrot, closest_on_path
+from prvo_planner.route import RouteMap, path_length
 from prvo_planner.tracking import TrackingModel, tracking_command
 from prvo_planner.tracks import TrackTable, fuse
 
@@ -123,6 +129,32 @@ def preferred_velocity(position, goal, max_speed, approach_time, goal_tolerance,
     return offset * (speed / distance), False
 
 
+def route_preferred_velocity(position, goal, route, segment, lookahead, max_speed,
+                             approach_time, goal_tolerance, max_acceleration=math.inf):
+    """Return (v_pref (2,), arrived, segment, remaining): toward the carrot on a route.
+
+    ROUTE (K, 2) ends at GOAL; SEGMENT is the robot's progress along it (see
+    `path_following.carrot`). The direction is the carrot's, LOOKAHEAD [m] ahead on the route;
+    the speed slows over the last stretch as `preferred_velocity` does, by the REMAINING length
+    [m] of the way: from the robot to its closest point on the route, then along the route.
+    """
+    if float(np.hypot(*(goal - position))) <= goal_tolerance:
+        return np.zeros(2), True, segment, 0.0
+    target, segment = carrot(route, position, lookahead, segment)
+    segment, closest = closest_on_path(route, position, segment)
+    remaining = float(np.hypot(*(closest - position)))
+    if segment + 1 < len(route):
+        remaining += float(np.hypot(*(route[segment + 1] - closest))) + path_length(
+            route[segment + 1:])
+    offset = target - position
+    distance = float(np.hypot(*offset))
+    if distance == 0.0:
+        return np.zeros(2), False, segment, remaining
+    speed = min(max_speed, remaining / approach_time,
+                math.sqrt(2.0 * max_acceleration * remaining))
+    return offset * (speed / distance), False, segment, remaining
+
+
 def goal_horizon(distance_to_goal, max_speed, approach_time, time_horizon):
     """Return the time horizon of one plan [s]: no longer than the way to the goal takes.
 
@@ -155,7 +187,9 @@ class AgentSettings:
     `unknown_neighbor_radius` is assumed for a neighbour that announced no footprint;
     `neighbor_timeout` is in the seconds of the `now` arguments. `kinematics` is 'holonomic' or
     'unicycle' (which tracks its plans within `tracking_error` and plans, and announces itself,
-    with its radius grown by it); the acceleration limits are inf when unlimited.
+    with its radius grown by it); the acceleration limits are inf when unlimited. With a map,
+    obstacles within `obstacle_distance` [m] count, unknown cells are obstacles when
+    `unknown_is_occupied`, and the carrot is `lookahead_distance` [m] ahead on the route.
     """
 
     radius: float = 0.3
@@ -170,6 +204,9 @@ class AgentSettings:
     max_angular_acceleration: float = math.inf
     tracking_error: float = 0.1
     tracking_horizon: float = 0.5
+    obstacle_distance: float = 3.0
+    unknown_is_occupied: bool = True
+    lookahead_distance: float = 1.0
 
     @classmethod
     def from_parameters(cls, values):
@@ -191,6 +228,12 @@ class AgentSettings:
         return TrackingModel(max_speed, self.max_angular_speed, self.max_acceleration,
                              self.max_angular_acceleration, self.tracking_horizon,
                              self.tracking_error)
+
+
+# Command.route_status: no map (or no goal), a way to the goal found, no way reaches the goal.
+ROUTE_NONE = 'none'
+ROUTE_FOUND = 'ok'
+ROUTE_UNREACHABLE = 'unreachable'
 
 
 @dataclasses.dataclass(frozen=True)
@@ -227,6 +270,9 @@ class Command:
     what was not announced) are in the same order. `drive` is a unicycle's (forward speed, turn
     rate) that tracks `velocity`, None for a holonomic robot. `arrival` marks the first plan at
     the goal since the robot set off for it. `tally` is the agent's `PlanTally` with this plan.
+    `route` (K, 2) is the way to the goal the plan followed (None without a map or a way) and
+    `route_status` ROUTE_NONE (no map or no goal), ROUTE_FOUND or ROUTE_UNREACHABLE (the robot
+    holds its place).
     """
 
     stamp: float
@@ -241,6 +287,8 @@ class Command:
     drive: tuple = None
     arrival: bool = False
     tally: PlanTally = PlanTally()
+    route: np.ndarray = None
+    route_status: str = ROUTE_NONE
 
     def announcement_values(self):
         """Return {'neighbour.<robot>.radius': m, 'neighbour.<robot>.avoidance_share': a}."""
@@ -257,7 +305,9 @@ class PlanRequest:
 
     `problem` is the argument tuple of `prvo_planner.core.plan_velocity` (ego, neighbours,
     v_pref, config, previous, limits), or None when the robot stands still (no goal, or at its
-    goal while nobody comes). `arrival` as in `Command`.
+    goal while nobody comes). `obstacles` are the `StaticObstacles` of its map near it, passed
+    as `plan_velocity(*problem, obstacles=obstacles)`, None without a map. `arrival`, `route`
+    and `route_status` as in `Command`.
     """
 
     stamp: float
@@ -267,6 +317,9 @@ class PlanRequest:
     announcements: tuple
     problem: tuple
     arrival: bool = False
+    obstacles: object = None
+    route: np.ndarray = None
+    route_status: str = ROUTE_NONE
 
 
 class PlannerAgent:
@@ -333,6 +386,14 @@ class PlannerAgent:
         # a team's processes start at different speeds, and a run begins with all of them.
         self._first_own_at = None
         self.tally = PlanTally()
+        # The map (set_map) and what the agent made of it; the route to the goal in force.
+        self._grid = None
+        self._map_built_for = None
+        self._obstacle_index = None
+        self._route_map = None
+        self._route_tree = None
+        self._route = None
+        self._route_segment = 0
 
     @property
     def pending_stamp(self):
@@ -354,6 +415,7 @@ class PlannerAgent:
         A GOAL other than the current one is taken as by `set_goal`; None keeps no goal.
         """
         self.config, self.settings = config, settings
+        self._build_map()
         if goal is None:
             self.goal = None
         elif self.goal is None or not np.array_equal(self.goal, goal):
@@ -497,7 +559,10 @@ class PlannerAgent:
         Raises RuntimeError when no own measurement is pending.
         """
         request = self.plan_request()
-        result = None if request.problem is None else plan_velocity(*request.problem)
+        result = None
+        if request.problem is not None:
+            result = (plan_velocity(*request.problem) if request.obstacles is None
+                      else plan_velocity(*request.problem, obstacles=request.obstacles))
         return self.complete(request, result)
 
     def plan_request(self):
@@ -513,9 +578,8 @@ class PlannerAgent:
         stamp, self._pending_stamp = self._pending_stamp, None
         own = self._own_track.belief_at(stamp)
         max_speed = self.config.max_speed
-        v_pref, self.arrived = preferred_velocity(
-            own.mean[:2], self.goal, max_speed, self.settings.approach_time,
-            self.settings.goal_tolerance, self.settings.max_acceleration)
+        v_pref, self.arrived, distance_to_goal, route, route_status = self._preferred_velocity(
+            own.mean[:2])
         arrival = self._arrival(own.mean[:2])
         names = tuple(self._neighbour_names())
         tracks = [self._neighbour_tracks.track(robot) for robot in names]
@@ -530,9 +594,9 @@ class PlannerAgent:
             # At its goal the robot keeps planning, with v_pref = 0: it stands while nobody
             # comes and takes its share of the avoidance when someone does, over the whole
             # horizon (its neighbours count on that share).
-            horizon = self.config.time_horizon if self.arrived else goal_horizon(
-                float(np.hypot(*(self.goal - own.mean[:2]))), max_speed,
-                self.settings.approach_time, self.config.time_horizon)
+            horizon = self.config.time_horizon if distance_to_goal is None else goal_horizon(
+                distance_to_goal, max_speed, self.settings.approach_time,
+                self.config.time_horizon)
             problem = (
                 AgentBelief(own.mean[:2], own.mean[2:], own.covariance,
                             self.settings.planning_radius),
@@ -542,11 +606,96 @@ class PlannerAgent:
                     self.config, time_horizon=horizon,
                     control_period=self._control_period or self.config.control_period),
                 self._previous_velocity, self._limits(stamp))
-            if self.arrived and nobody_comes(problem):
+            if (self.arrived or route_status == ROUTE_UNREACHABLE) and nobody_comes(problem):
                 problem = None
+        obstacles = None if self._obstacle_index is None else self._obstacle_index.near(
+            own.mean[:2], self.settings.obstacle_distance)
         return PlanRequest(stamp=stamp, own=own, neighbours=neighbour_beliefs,
                            neighbour_names=names, announcements=announcements,
-                           problem=problem, arrival=arrival)
+                           problem=problem, arrival=arrival, obstacles=obstacles, route=route,
+                           route_status=route_status)
+
+    def _preferred_velocity(self, position):
+        """Return (v_pref, arrived, distance to the goal, route, route status) at POSITION.
+
+        The distance [m] is the way left, for the horizon: None when the robot stands (arrived,
+        or no way reaches the goal). Without a map the robot heads straight for its goal.
+        """
+        settings = self.settings
+        if self._route_map is None or self.goal is None:
+            v_pref, arrived = preferred_velocity(
+                position, self.goal, self.config.max_speed, settings.approach_time,
+                settings.goal_tolerance, settings.max_acceleration)
+            distance = (None if arrived or self.goal is None
+                        else float(np.hypot(*(self.goal - position))))
+            return v_pref, arrived, distance, None, ROUTE_NONE
+        route = self._route_at(position)
+        if route is None:
+            # No way reaches the goal: hold the place (and keep avoiding whoever comes).
+            return np.zeros(2), False, None, None, ROUTE_UNREACHABLE
+        v_pref, arrived, self._route_segment, remaining = route_preferred_velocity(
+            position, self.goal, route, self._route_segment, settings.lookahead_distance,
+            self.config.max_speed, settings.approach_time, settings.goal_tolerance,
+            settings.max_acceleration)
+        return v_pref, arrived, None if arrived else remaining, route, ROUTE_FOUND
+
+    # Map and route -----------------------------------------------------------------------------
+
+    @property
+    def grid_map(self):
+        """The `GridMap` the agent plans with, None without one."""
+        return self._grid
+
+    def set_map(self, grid):
+        """Plan with the occupancy grid GRID (a `maps.GridMap`) from now on; None: no map.
+
+        The way to the goal is searched again on the new map.
+        """
+        self._grid = grid
+        self._map_built_for = None
+        self._build_map()
+
+    def goal_blocked(self, goal):
+        """Whether GOAL (2,) lies in an obstacle of the map, or off it (False without a map)."""
+        return self._route_map is not None and self._route_map.blocked(goal)
+
+    def _build_map(self):
+        """Make the obstacles and the route graph of the map for the settings in force."""
+        settings = self.settings
+        # The route's cells keep the clearance the planner keeps from a wall of no thickness.
+        built_for = (settings.unknown_is_occupied, settings.obstacle_distance,
+                     settings.planning_radius + self.config.safety_margin)
+        if self._grid is None:
+            self._obstacle_index = self._route_map = None
+        elif built_for != self._map_built_for:
+            occupied = occupied_cells(self._grid, settings.unknown_is_occupied)
+            self._obstacle_index = ObstacleIndex(
+                grid_obstacles(self._grid, settings.unknown_is_occupied),
+                settings.obstacle_distance)
+            self._route_map = RouteMap(occupied, self._grid.resolution, self._grid.origin,
+                                       built_for[2])
+        else:
+            return
+        self._map_built_for = None if self._grid is None else built_for
+        self._route_tree = self._route = None
+
+    def _route_at(self, position):
+        """Return the route in force from POSITION to the goal, None if no way reaches it.
+
+        The shortest paths to a goal are searched once per goal and map; the route is taken
+        anew from them when the robot strayed farther than the lookahead from it.
+        """
+        if self._route_tree is None or not np.array_equal(self._route_tree.goal, self.goal):
+            self._route_tree = self._route_map.tree_to(self.goal)
+            self._route = None
+        if self._route is not None:
+            _, closest = closest_on_path(self._route, position, self._route_segment)
+            if float(np.hypot(*(closest - position))) > self.settings.lookahead_distance:
+                self._route = None
+        if self._route is None:
+            self._route = self._route_tree.route_from(position)
+            self._route_segment = 0
+        return self._route
 
     def _arrival(self, position):
         """Return whether arriving now is this goal's first arrival; track the departures."""
@@ -584,7 +733,8 @@ class PlannerAgent:
                        arrived=self.arrived, own=request.own, neighbours=request.neighbours,
                        neighbour_names=request.neighbour_names,
                        announcements=request.announcements, drive=drive,
-                       arrival=request.arrival, tally=self.tally)
+                       arrival=request.arrival, tally=self.tally, route=request.route,
+                       route_status=request.route_status)
 
     def _period(self, request):
         """Return the time [s] the command for REQUEST will be in force (0 before any)."""

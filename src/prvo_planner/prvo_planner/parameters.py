@@ -203,6 +203,19 @@ _SPECS = (
                   (0.0, 10.0), rule=_positive),
     ParameterSpec('tracking_horizon', FLOAT, 0.5, 'A unicycle turns toward its plan at the '
                   'heading error / tracking_horizon [s].', (1.0e-3, 100.0)),
+    # The map: nav_msgs/OccupancyGrid, cells of occupancy >= 65 % (map_server's default
+    # occupied_thresh) are obstacles.
+    ParameterSpec('map_topic', STRING, '/map', 'Occupancy grid (nav_msgs/OccupancyGrid, frame '
+                  'map, reliable, transient local) to plan against and route through; none '
+                  'published = an empty plane.', read_only=True, rule=_not_empty),
+    ParameterSpec('obstacle_distance', FLOAT, 3.0, 'Map obstacles farther than this [m] are not '
+                  'considered, > 0.', (0.0, 1.0e4), rule=_positive),
+    ParameterSpec('unknown_is_occupied', BOOL, True, 'Unknown map cells (-1) are obstacles '
+                  '(true) or free (false).'),
+    ParameterSpec('lookahead_distance', FLOAT, 1.0, 'With a map, the robot heads for the point '
+                  'this far [m] ahead on its route to the goal and looks for a new route when '
+                  'it strays farther from it, in (0, 100].', (0.0, 100.0),
+                  rule=_positive_up_to_100),
 )
 
 # Every planner parameter by name, in declaration order.

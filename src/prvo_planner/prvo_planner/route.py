@@ -1,0 +1,207 @@
+"""
+The way to a goal on an occupancy grid: the shortest path through cells a robot fits in, no ROS.
+
+A cell is admissible when its centre keeps at least a clearance (the robot's radius) from every
+occupied cell, the map's outside counting as occupied. Paths run between admissible cells'
+centres on the 8-connected grid: a straight step costs one cell edge, a diagonal step
+sqrt(2) of it and only where both cells beside it are admissible too (no corner is cut). Start
+and goal are snapped to the nearest admissible cell centre. The shortest paths to one goal are
+found once, from every cell (``RouteMap.tree_to``): a robot that strays takes its new way from
+that tree without searching again.
+"""
+
+import math
+
+import numpy as np
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import dijkstra
+
+
+def _edge_distances_squared(offsets):
+    """Return the squared distances (in cells) from a cell centre to cells OFFSETS away.
+
+    The distance from a centre to the square of the cell ``d`` cells away along one axis is
+    ``max(|d| - 1/2, 0)``; the squared distance to a cell is the sum of both axes' squares.
+    """
+    return np.maximum(np.abs(offsets) - 0.5, 0.0) ** 2
+
+
+def admissible_cells(occupied, resolution, clearance):
+    """
+    Return the cells whose centres keep at least CLEARANCE from every occupied cell.
+
+    Exact: the squared distance from a centre to the nearest occupied cell's square is the
+    smallest sum of the per-axis terms of ``_edge_distances_squared`` over occupied cells, a
+    separable minimum taken one axis after the other over the offsets that can come closer
+    than the clearance.
+
+    Parameters
+    ----------
+    occupied : numpy.ndarray
+        Shape (height, width), bool.
+    resolution : float
+        Cell edge [m].
+    clearance : float
+        Distance [m] to keep, >= 0.
+
+    Returns
+    -------
+    numpy.ndarray
+        Shape (height, width), bool: free cells that keep the clearance (the outside of the
+        map counts as occupied).
+
+    """
+    occupied = np.asarray(occupied, dtype=bool)
+    height, width = occupied.shape
+    reach = clearance / resolution
+    # Cells farther than this many cells along an axis are at least the clearance away.
+    window = int(math.floor(reach + 0.5))
+    padded = np.pad(occupied, window, constant_values=True)
+    along_rows = np.full((height + 2 * window, width), np.inf)
+    for offset in range(-window, window + 1):
+        cost = float(_edge_distances_squared(offset))
+        along_rows = np.minimum(along_rows, np.where(
+            padded[:, window + offset:window + offset + width], cost, np.inf))
+    nearest = np.full((height, width), np.inf)
+    for offset in range(-window, window + 1):
+        cost = float(_edge_distances_squared(offset))
+        nearest = np.minimum(nearest, along_rows[window + offset:window + offset + height] + cost)
+    return ~occupied & (nearest >= reach * reach)
+
+
+class RouteMap:
+    """
+    The admissible cells of a grid and the 8-connected graph between them.
+
+    Parameters
+    ----------
+    occupied : numpy.ndarray
+        Shape (height, width), bool: ``occupied[row, column]``, row 0 at the smallest y.
+    resolution : float
+        Cell edge [m].
+    origin : array_like
+        Shape (2,): world position of cell (0, 0)'s lower-left corner [m].
+    clearance : float
+        Distance [m] a path's cell centres keep from every occupied cell, >= 0.
+
+    """
+
+    def __init__(self, occupied, resolution, origin, clearance):
+        self.resolution = float(resolution)
+        self.origin = np.asarray(origin, dtype=float)
+        self.occupied = np.asarray(occupied, dtype=bool)
+        self.admissible = admissible_cells(occupied, self.resolution, clearance)
+        height, width = self.admissible.shape
+        self._width = width
+        rows, columns = np.nonzero(self.admissible)
+        # Centres of the admissible cells, in flat order, for snapping.
+        self._admissible_index = rows * width + columns
+        self._admissible_centres = self.centres(self._admissible_index)
+        ok = np.pad(self.admissible, 1, constant_values=False)
+        sources, targets, weights = [], [], []
+        index = np.arange(height * width).reshape(height, width)
+        straight, diagonal = self.resolution, self.resolution * math.sqrt(2.0)
+        # (row step, column step): right, up, up-right, up-left; the graph is undirected.
+        for step_row, step_column, weight in ((0, 1, straight), (1, 0, straight),
+                                              (1, 1, diagonal), (1, -1, diagonal)):
+            there = ok[1 + step_row:1 + step_row + height, 1 + step_column:1 + step_column + width]
+            linked = self.admissible & there
+            if step_row and step_column:
+                # Both cells beside a diagonal step must be admissible.
+                linked &= ok[1 + step_row:1 + step_row + height, 1:1 + width]
+                linked &= ok[1:1 + height, 1 + step_column:1 + step_column + width]
+            sources.append(index[linked])
+            targets.append(index[linked] + step_row * width + step_column)
+            weights.append(np.full(int(linked.sum()), weight))
+        size = height * width
+        self._graph = coo_matrix(
+            (np.concatenate(weights), (np.concatenate(sources), np.concatenate(targets))),
+            shape=(size, size)).tocsr()
+
+    def centres(self, cells):
+        """Return the world positions (K, 2) [m] of the centres of flat cell indices CELLS (K,)."""
+        cells = np.asarray(cells)
+        rows, columns = np.divmod(cells, self._width)
+        return self.origin + self.resolution * (np.stack([columns, rows], axis=-1) + 0.5)
+
+    def cell_of(self, position):
+        """Return the (row, column) of the cell holding POSITION (2,), None if off the map."""
+        column, row = np.floor((np.asarray(position, dtype=float) - self.origin)
+                               / self.resolution)
+        height, width = self.occupied.shape
+        if not (0 <= row < height and 0 <= column < width):
+            return None
+        return int(row), int(column)
+
+    def blocked(self, position):
+        """Whether POSITION (2,) lies in an occupied cell or off the map."""
+        cell = self.cell_of(position)
+        return cell is None or bool(self.occupied[cell])
+
+    def snapped(self, position):
+        """Return the flat index of the admissible cell whose centre is nearest POSITION (2,).
+
+        None when no cell is admissible; ties go to the lowest index.
+        """
+        if len(self._admissible_index) == 0:
+            return None
+        offsets = self._admissible_centres - np.asarray(position, dtype=float)
+        return int(self._admissible_index[np.argmin(np.einsum('ij,ij->i', offsets, offsets))])
+
+    def tree_to(self, goal):
+        """Return the `RouteTree` of the shortest paths from every cell to GOAL (2,) [m].
+
+        A goal in an obstacle or off the map has no way to it.
+        """
+        cell = None if self.blocked(goal) else self.snapped(goal)
+        if cell is None:
+            return RouteTree(self, np.asarray(goal, dtype=float), None, None, None)
+        distances, predecessors = dijkstra(self._graph, directed=False, indices=cell,
+                                           return_predecessors=True)
+        return RouteTree(self, np.asarray(goal, dtype=float), cell, distances, predecessors)
+
+
+class RouteTree:
+    """The shortest paths from every cell of a `RouteMap` to one goal (`RouteMap.tree_to`)."""
+
+    def __init__(self, route_map, goal, goal_cell, distances, predecessors):
+        self.route_map = route_map
+        self.goal = goal
+        self.goal_cell = goal_cell
+        self._distances = distances
+        self._predecessors = predecessors
+
+    def route_from(self, position):
+        """
+        Return the shortest path from POSITION to the goal, or None if no path reaches it.
+
+        Returns
+        -------
+        numpy.ndarray or None
+            Shape (K, 2) [m]: the centres of the snapped start cell, of the cells where the
+            path turns, and of the snapped goal cell, then the goal itself if it is not that
+            centre.
+
+        """
+        route_map = self.route_map
+        start = route_map.snapped(position)
+        if start is None or self.goal_cell is None or not np.isfinite(self._distances[start]):
+            return None
+        cells = [start]
+        while cells[-1] != self.goal_cell:
+            cells.append(int(self._predecessors[cells[-1]]))
+        points = route_map.centres(cells)
+        if len(points) > 2:
+            steps = np.diff(points, axis=0)
+            # A waypoint where the direction stays the same is not needed.
+            turns = np.abs(steps[1:, 0] * steps[:-1, 1] - steps[1:, 1] * steps[:-1, 0]) > (
+                1e-9 * route_map.resolution ** 2)
+            points = np.concatenate([points[:1], points[1:-1][turns], points[-1:]])
+        if not np.array_equal(points[-1], self.goal):
+            points = np.concatenate([points, self.goal[None]])
+        return points
+
+
+def path_length(path):
+    """Return the length [m] of the polyline PATH (K, 2)."""
+    return float(np.linalg.norm(np.diff(np.asarray(path, dtype=float), axis=0), axis=1).sum())
