@@ -130,17 +130,26 @@ def preferred_velocity(position, goal, max_speed, approach_time, goal_tolerance,
 
 
 def route_preferred_velocity(position, goal, route, segment, lookahead, max_speed,
-                             approach_time, goal_tolerance, max_acceleration=math.inf):
+                             approach_time, goal_tolerance, max_acceleration=math.inf,
+                             in_sight=None, shortest_lookahead=0.0):
     """Return (v_pref (2,), arrived, segment, remaining): toward the carrot on a route.
 
     ROUTE (K, 2) ends at GOAL; SEGMENT is the robot's progress along it (see
-    `path_following.carrot`). The direction is the carrot's, LOOKAHEAD [m] ahead on the route;
-    the speed slows over the last stretch as `preferred_velocity` does, by the REMAINING length
-    [m] of the way: from the robot to its closest point on the route, then along the route.
+    `path_following.carrot`). The direction is the carrot's, LOOKAHEAD [m] ahead on the route,
+    or half as far, and so on, until IN_SIGHT(position, carrot) (if given) holds or the
+    lookahead is SHORTEST_LOOKAHEAD: a carrot beyond a corner would pull the robot into the
+    corner. The speed slows over the last
+    stretch as `preferred_velocity` does, by the REMAINING length [m] of the way: from the
+    robot to its closest point on the route, then along the route.
     """
     if float(np.hypot(*(goal - position))) <= goal_tolerance:
         return np.zeros(2), True, segment, 0.0
-    target, segment = carrot(route, position, lookahead, segment)
+    target, reached = carrot(route, position, lookahead, segment)
+    if in_sight is not None:
+        while lookahead > shortest_lookahead and not in_sight(position, target):
+            lookahead *= 0.5
+            target, reached = carrot(route, position, lookahead, segment)
+    segment = reached
     segment, closest = closest_on_path(route, position, segment)
     remaining = float(np.hypot(*(closest - position)))
     if segment + 1 < len(route):
@@ -636,7 +645,7 @@ class PlannerAgent:
         v_pref, arrived, self._route_segment, remaining = route_preferred_velocity(
             position, self.goal, route, self._route_segment, settings.lookahead_distance,
             self.config.max_speed, settings.approach_time, settings.goal_tolerance,
-            settings.max_acceleration)
+            settings.max_acceleration, self._route_map.in_sight, self._route_map.resolution)
         return v_pref, arrived, None if arrived else remaining, route, ROUTE_FOUND
 
     # Map and route -----------------------------------------------------------------------------

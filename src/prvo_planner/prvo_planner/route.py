@@ -138,6 +138,23 @@ class RouteMap:
         cell = self.cell_of(position)
         return cell is None or bool(self.occupied[cell])
 
+    def in_sight(self, start, end):
+        """Whether the straight way from START to END (2,) [m] runs through admissible cells.
+
+        Checked at points half a cell apart; the cell of START itself is not: a robot pushed
+        closer to an obstacle than its clearance may still head back along its way.
+        """
+        start, end = np.asarray(start, dtype=float), np.asarray(end, dtype=float)
+        count = int(math.ceil(2.0 * float(np.hypot(*(end - start))) / self.resolution)) + 1
+        points = start + np.linspace(0.0, 1.0, count)[:, None] * (end - start)
+        columns, rows = np.floor((points - self.origin) / self.resolution).astype(int).T
+        height, width = self.admissible.shape
+        inside = (rows >= 0) & (rows < height) & (columns >= 0) & (columns < width)
+        if not inside.all():
+            return False
+        own = (rows == rows[0]) & (columns == columns[0])
+        return bool(self.admissible[rows[~own], columns[~own]].all())
+
     def snapped(self, position):
         """Return the flat index of the admissible cell whose centre is nearest POSITION (2,).
 
