@@ -12,6 +12,9 @@ AVOIDANCE_SHARE = 'avoidance_share'
 DIAGNOSTICS = '/diagnostics'
 CONTACTS = '/prvo_sim/contacts'
 CLOCK = '/clock'
+# The static world as an occupancy grid (map_server's topic), and each robot's way to its goal.
+MAP = '/map'
+PLAN = 'plan'
 # The world frame of odometry, ground truth, goals and world-frame commands.
 WORLD_FRAME = 'map'
 

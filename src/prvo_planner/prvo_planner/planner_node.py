@@ -14,7 +14,7 @@ import sys
 import time
 
 from geometry_msgs.msg import PoseStamped, Twist, TwistStamped
-from nav_msgs.msg import Odometry
+from nav_msgs.msg import OccupancyGrid, Odometry, Path
 from rcl_interfaces.msg import SetParametersResult
 import rclpy
 from rclpy.clock import Clock, ClockType
@@ -28,8 +28,11 @@ from prvo_msgs_util import (
     CMD_VEL_QOS,
     GOAL_POSE,
     GOAL_QOS,
+    MAP_QOS,
     ODOM,
     ODOM_LATEST_QOS,
+    PLAN,
+    PLAN_QOS,
     Announcer,
     CommandsAfterAnnouncements,
     MessageFault,
@@ -39,6 +42,8 @@ from prvo_msgs_util import (
     freeze_startup_objects,
     hold_stop_signals,
     ignore_stop_signals,
+    make_path,
+    occupancy_grid_to_parts,
     parameter_descriptor,
     pose_stamped_to_goal,
     quiet_after_shutdown,
@@ -51,7 +56,8 @@ from prvo_msgs_util import (
     spin_events,
     subscribe_announcements,
 )
-from prvo_planner.agent import AgentSettings, PlannerAgent
+from prvo_planner.agent import ROUTE_UNREACHABLE, AgentSettings, PlannerAgent
+from prvo_planner.maps import GridMap
 from prvo_planner.parameters import (
     PARAMETERS,
     ParameterError,
@@ -120,10 +126,11 @@ class PlannerNode(Node):
         goal = self.create_subscription(
             PoseStamped, GOAL_POSE, self._on_goal_pose, GOAL_QOS,
             event_callbacks=quiet_subscription_events())
+        map_endpoints = self._map_endpoints()
         self._qos_watch.watch(
             self._cmd_vel_publisher, self._reporter.diagnostics_publisher,
             self._reporter.marker_publisher, self._announcer.footprint_publisher,
-            self._announcer.share_publisher, own_odometry, goal)
+            self._announcer.share_publisher, own_odometry, goal, *map_endpoints)
 
         # Wall-clock timers: under use_sim_time sim time waits for us and would never fire them.
         self._sync_timer = self.create_timer(
@@ -239,6 +246,11 @@ class PlannerNode(Node):
             self._warnings.warn(
                 'goal', f'ignoring goal on {robot_topic(self._robot, GOAL_POSE)}: {fault}')
             return
+        if self._agent.goal_blocked(goal):
+            self._warnings.warn(
+                'goal', f'ignoring goal on {robot_topic(self._robot, GOAL_POSE)}: '
+                f'{goal.tolist()} lies in an obstacle of the map, or off it')
+            return
         # Through the parameter: `goal` shows the goal in force, and other changes keep it. The
         # parameter's rules hold: pose_stamped_to_goal checked the same coordinate bound.
         self.set_parameters([Parameter('goal', Parameter.Type.DOUBLE_ARRAY, goal.tolist())])
@@ -254,6 +266,47 @@ class PlannerNode(Node):
     def _on_bad_announcement(self, topic, error):
         # The agent keeps the neighbour's last valid announcement, else its default.
         self._warnings.warn((topic, 'announcement'), f'ignoring announcement on {topic}: {error}')
+
+    # Map and route ----------------------------------------------------------------------------
+
+    def _map_endpoints(self):
+        """Subscribe the map (QoS as map_server's), advertise the route; return both."""
+        self._map_topic = self._values['map_topic']
+        # The route published last (None: an empty path), to publish a route once per change.
+        self._published_route = None
+        self._plan_publisher = self.create_publisher(
+            Path, PLAN, PLAN_QOS, event_callbacks=quiet_publisher_events())
+        subscription = self.create_subscription(
+            OccupancyGrid, self._map_topic, self._on_map, MAP_QOS,
+            event_callbacks=quiet_subscription_events())
+        return subscription, self._plan_publisher
+
+    @quiet_after_shutdown
+    def _on_map(self, msg):
+        try:
+            grid = GridMap(*occupancy_grid_to_parts(msg, expected_frame=self._values['frame_id']))
+        except (MessageFault, ValueError) as fault:
+            # Values sit in parentheses at the end: the text before them names the fault.
+            self._warnings.warn((self._map_topic, str(fault).split('(')[0]),
+                                f'ignoring map on {self._map_topic} (keeping the map in force): '
+                                f'{fault}')
+            return
+        self._agent.set_map(grid)
+        height, width = grid.shape
+        self.get_logger().info(
+            f'map {width} x {height} cells of {grid.resolution:g} m from {self._map_topic}')
+
+    def _publish_route(self, command):
+        """Publish COMMAND's route on <robot>/plan where it changed; warn while none is found."""
+        if command.route_status == ROUTE_UNREACHABLE:
+            self._warnings.warn('route', f'no way on the map reaches the goal '
+                                f'{self._agent.goal.tolist()}: holding the place')
+        if command.route is self._published_route:
+            return
+        self._published_route = command.route
+        self._plan_publisher.publish(make_path(
+            command.stamp, () if command.route is None else command.route,
+            self._values['frame_id']))
 
     # Neighbours -------------------------------------------------------------------------------
 
@@ -301,6 +354,7 @@ class PlannerNode(Node):
         message = command_message(self._robot, command, self._stamped)
         self._commands.publish(message, self._announce())
         self._last_command, self._last_command_stamp = message, command.stamp
+        self._publish_route(command)
         result = command.result
         if result is not None and not result.feasible:
             self._warnings.warn(

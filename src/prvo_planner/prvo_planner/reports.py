@@ -47,7 +47,8 @@ def plan_status(robot, command, plan_time_ms, model, planning_radius):
     the eta bound holds for it. The tally's keys count every plan since the planner started:
     `min_achieved_eta` and `tally_stamp` are 'none' before the first. `certificate` is the
     plan's mode and `min_certified_probability` the lowest of its neighbours' bounds that are
-    certified ('none' without one).
+    certified ('none' without one). `route` is the way to the goal: 'none' without a map, 'ok'
+    or 'unreachable' (the robot holds its place).
     """
     result = command.result
     feasible = True if result is None else bool(result.feasible)
@@ -63,6 +64,7 @@ def plan_status(robot, command, plan_time_ms, model, planning_radius):
         {'achieved_k': achieved_k, 'eta_bound': eta_bound, 'feasible': feasible,
          'neighbours_tracked': len(command.neighbours), 'plan_time_ms': plan_time_ms,
          'arrived': command.arrived, 'model': model, 'planning_radius': planning_radius,
+         'route': command.route_status,
          'certificate': 'cantelli' if result is None else result.certificate,
          'min_certified_probability': _or_none(min(certified, default=None)),
          'plans': tally.plans, 'infeasible_plans': tally.infeasible,
