@@ -117,12 +117,12 @@ def test_a_goal_behind_a_wall_is_reached_by_the_way_around(planned_obstacles):
     assert positions[:, 0].max() > 6.0
     assert planned_obstacles
     for position, obstacles in planned_obstacles:
-        assert obstacles is not None
-        for segment in obstacles.segments:
+        for segment in () if obstacles is None else obstacles.segments:
             assert distance_to_segment(position, *segment) <= SETTINGS.obstacle_distance
     # Beside the wall the wall's faces count.
     beside = [obstacles for position, obstacles in planned_obstacles if 1.8 < position[1] < 4.2]
-    assert beside and all(len(obstacles) > 0 for obstacles in beside)
+    assert beside and all(obstacles is not None and len(obstacles) > 0 for obstacles in beside)
+
 
 
 def test_without_a_map_the_robot_heads_straight_and_plans_without_obstacles(planned_obstacles):
@@ -133,6 +133,15 @@ def test_without_a_map_the_robot_heads_straight_and_plans_without_obstacles(plan
     assert planned_obstacles[-1][1] is None
     np.testing.assert_allclose(command.velocity / np.linalg.norm(command.velocity), [0.0, 1.0],
                                atol=0.05)
+
+
+def test_far_from_every_obstacle_the_plan_is_that_of_an_empty_plane(planned_obstacles):
+    for position in ([5.0, 5.0], [1.0, 5.0]):
+        agent = PlannerAgent('self', CONFIG, SETTINGS, np.array([6.0, 4.0]))
+        agent.set_map(GridMap(np.zeros((100, 100), dtype=np.int8), RESOLUTION, [0.0, 0.0]))
+        stand(agent, position, 1)
+    assert planned_obstacles[0][1] is None
+    assert len(planned_obstacles[1][1].segments) == 1
 
 
 def test_a_goal_no_way_reaches_is_reported_and_the_robot_holds(planned_obstacles):

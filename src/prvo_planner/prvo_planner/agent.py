@@ -198,7 +198,8 @@ class AgentSettings:
     'unicycle' (which tracks its plans within `tracking_error` and plans, and announces itself,
     with its radius grown by it); the acceleration limits are inf when unlimited. With a map,
     obstacles within `obstacle_distance` [m] count, unknown cells are obstacles when
-    `unknown_is_occupied`, and the carrot is `lookahead_distance` [m] ahead on the route.
+    `unknown_is_occupied`, and the carrot is `lookahead_distance` [m] ahead on the route;
+    `wait_for_map`: the first plan waits for a map as for listed neighbours.
     """
 
     radius: float = 0.3
@@ -216,6 +217,7 @@ class AgentSettings:
     obstacle_distance: float = 3.0
     unknown_is_occupied: bool = True
     lookahead_distance: float = 1.0
+    wait_for_map: bool = False
 
     @classmethod
     def from_parameters(cls, values):
@@ -315,7 +317,8 @@ class PlanRequest:
     `problem` is the argument tuple of `prvo_planner.core.plan_velocity` (ego, neighbours,
     v_pref, config, previous, limits), or None when the robot stands still (no goal, or at its
     goal while nobody comes). `obstacles` are the `StaticObstacles` of its map near it, passed
-    as `plan_velocity(*problem, obstacles=obstacles)`, None without a map. `arrival`, `route`
+    as `plan_velocity(*problem, obstacles=obstacles)`, None without a map or with nothing
+    near. `arrival`, `route`
     and `route_status` as in `Command`.
     """
 
@@ -548,10 +551,15 @@ class PlannerAgent:
         """Whether a listed neighbour has not been heard in full yet and may still turn up.
 
         In full: its odometry, its footprint and its share. Announcements travel apart from
-        odometry; without this, a team's first plans would depend on which came first.
+        odometry; without this, a team's first plans would depend on which came first. With
+        `wait_for_map`, the map is waited for likewise.
         """
-        if (self.listed_neighbours is None or self._first_own_at is None
+        if (self._first_own_at is None
                 or now - self._first_own_at > self.settings.neighbor_timeout):
+            return False
+        if self.settings.wait_for_map and self._grid is None:
+            return True
+        if self.listed_neighbours is None:
             return False
         return any(robot not in self._neighbour_tracks or robot not in self._announced_radius
                    or robot not in self._announced_share for robot in self.listed_neighbours)
@@ -619,6 +627,9 @@ class PlannerAgent:
                 problem = None
         obstacles = None if self._obstacle_index is None else self._obstacle_index.near(
             own.mean[:2], self.settings.obstacle_distance)
+        if obstacles is not None and len(obstacles) == 0:
+            # Nothing near: the plan of an empty plane.
+            obstacles = None
         return PlanRequest(stamp=stamp, own=own, neighbours=neighbour_beliefs,
                            neighbour_names=names, announcements=announcements,
                            problem=problem, arrival=arrival, obstacles=obstacles, route=route,

@@ -216,6 +216,9 @@ _SPECS = (
                   'this far [m] ahead on its route to the goal and looks for a new route when '
                   'it strays farther from it, in (0, 100].', (0.0, 100.0),
                   rule=_positive_up_to_100),
+    ParameterSpec('wait_for_map', BOOL, False, 'Plan only once a map has arrived (for at most '
+                  'neighbor_timeout after the first own odometry), as for listed neighbours: a '
+                  'run whose world has a map plans its first step on it.'),
 )
 
 # Every planner parameter by name, in declaration order.

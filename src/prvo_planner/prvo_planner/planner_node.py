@@ -295,6 +295,9 @@ class PlannerNode(Node):
         height, width = grid.shape
         self.get_logger().info(
             f'map {width} x {height} cells of {grid.resolution:g} m from {self._map_topic}')
+        if self._agent.ready(time.monotonic()):
+            # A plan waiting for the map (wait_for_map) goes ahead now.
+            self._plan()
 
     def _publish_route(self, command):
         """Publish COMMAND's route on <robot>/plan where it changed; warn while none is found."""
