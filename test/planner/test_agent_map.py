@@ -176,3 +176,15 @@ def test_the_route_is_taken_anew_for_a_new_goal_or_when_the_robot_strays(planned
     new_goal = stand(agent, [2.0, 0.4], 1, t0=3.0)
     np.testing.assert_array_equal(new_goal.route[-1], [7.0, 1.0])
     assert path_length(new_goal.route) < 1.1 * np.linalg.norm(new_goal.route[0] - [7.0, 1.0])
+
+
+def test_unknown_cells_block_the_way_unless_the_settings_say_otherwise(planned_obstacles):
+    grid = walled_room()
+    unknown = np.array(grid.cells)
+    unknown[29:31, 60:] = -1
+    agent = PlannerAgent('self', CONFIG, SETTINGS, np.array([2.0, 4.5]))
+    agent.set_map(GridMap(unknown, RESOLUTION, grid.origin))
+    assert stand(agent, [2.0, 1.5], 1).route_status == ROUTE_UNREACHABLE
+    agent.reconfigure(CONFIG, dataclasses.replace(SETTINGS, unknown_is_occupied=False),
+                      agent.goal)
+    assert stand(agent, [2.0, 1.5], 1, t0=0.1).route_status == ROUTE_FOUND

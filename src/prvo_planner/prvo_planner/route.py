@@ -114,8 +114,12 @@ class RouteMap:
             targets.append(index[linked] + step_row * width + step_column)
             weights.append(np.full(int(linked.sum()), weight))
         size = height * width
+        sources, targets = np.concatenate(sources), np.concatenate(targets)
+        weights = np.concatenate(weights)
+        # Both directions stored once: an undirected search would symmetrise on every call.
         self._graph = coo_matrix(
-            (np.concatenate(weights), (np.concatenate(sources), np.concatenate(targets))),
+            (np.concatenate([weights, weights]),
+             (np.concatenate([sources, targets]), np.concatenate([targets, sources]))),
             shape=(size, size)).tocsr()
 
     def centres(self, cells):
@@ -173,7 +177,7 @@ class RouteMap:
         cell = None if self.blocked(goal) else self.snapped(goal)
         if cell is None:
             return RouteTree(self, np.asarray(goal, dtype=float), None, None, None)
-        distances, predecessors = dijkstra(self._graph, directed=False, indices=cell,
+        distances, predecessors = dijkstra(self._graph, directed=True, indices=cell,
                                            return_predecessors=True)
         return RouteTree(self, np.asarray(goal, dtype=float), cell, distances, predecessors)
 
