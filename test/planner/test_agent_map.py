@@ -166,6 +166,8 @@ def test_the_route_is_taken_anew_for_a_new_goal_or_when_the_robot_strays(planned
     agent = PlannerAgent('self', CONFIG, SETTINGS, np.array([2.0, 4.5]))
     agent.set_map(walled_room())
     _, first = drive(agent, [2.0, 1.5], 1)
+    # The same map again (a map server publishing it anew) changes nothing.
+    agent.set_map(walled_room())
     _, same = drive(agent, [2.3, 1.5], 1, t0=0.1)
     assert same.route is first.route
     strayed = stand(agent, [2.0, 0.4], 20, t0=0.2)

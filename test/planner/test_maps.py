@@ -133,3 +133,12 @@ def test_an_index_of_nothing_and_a_query_far_away_find_nothing():
     assert len(index.near([0.5, 1.0], 0.6)) == 1
     with pytest.raises(ValueError, match='bucket_size'):
         ObstacleIndex(StaticObstacles.empty(), 0.0)
+
+
+def test_an_index_asked_for_tiny_buckets_stays_small_and_exact():
+    grid = GridMap(np.zeros((2000, 2000), dtype=np.int8), 0.05, [0.0, 0.0])
+    obstacles = grid_obstacles(grid)
+    index = ObstacleIndex(obstacles, 1e-3)
+    assert index.bucket_size > 1e-3
+    np.testing.assert_array_equal(index.near([0.5, 50.0], 0.6).segments, [[[0.0, 0.0],
+                                                                          [0.0, 100.0]]])

@@ -669,8 +669,13 @@ class PlannerAgent:
     def set_map(self, grid):
         """Plan with the occupancy grid GRID (a `maps.GridMap`) from now on; None: no map.
 
-        The way to the goal is searched again on the new map.
+        The way to the goal is searched again on a map that differs from the one in force.
         """
+        if grid is not None and self._grid is not None and (
+                grid.resolution == self._grid.resolution
+                and np.array_equal(grid.origin, self._grid.origin)
+                and np.array_equal(grid.cells, self._grid.cells)):
+            return
         self._grid = grid
         self._map_built_for = None
         self._build_map()

@@ -192,6 +192,10 @@ def _point_segment_distances(point, starts, ends):
     return np.linalg.norm(starts + fractions[:, None] * steps - point, axis=1)
 
 
+# The most buckets an ObstacleIndex makes.
+MAX_BUCKETS = 1 << 18
+
+
 class ObstacleIndex:
     """
     Static obstacles in uniform square buckets, to find those near a position quickly.
@@ -205,7 +209,8 @@ class ObstacleIndex:
     obstacles : StaticObstacles
         Every obstacle.
     bucket_size : float
-        Edge of a bucket [m], positive: about the usual query distance.
+        Edge of a bucket [m], positive: about the usual query distance. Larger where the
+        obstacles' extent would need more than ``MAX_BUCKETS`` buckets.
 
     """
 
@@ -215,7 +220,6 @@ class ObstacleIndex:
             raise ValueError(f'bucket_size must be a positive number of metres, got '
                              f'{bucket_size!r}')
         self.obstacles = obstacles
-        self.bucket_size = bucket_size
         segments = obstacles.segments
         reach = obstacles.half_widths
         lows = np.concatenate([segments.min(axis=1) - reach[:, None],
@@ -223,6 +227,10 @@ class ObstacleIndex:
         highs = np.concatenate([segments.max(axis=1) + reach[:, None],
                                 obstacles.disc_centres + obstacles.disc_radii[:, None]])
         self._corner = lows.min(axis=0) if len(lows) else np.zeros(2)
+        extent = (highs.max(axis=0) - self._corner) if len(lows) else np.zeros(2)
+        # Few enough buckets for any distance asked for: memory stays bounded.
+        self.bucket_size = max(bucket_size, float(np.sqrt(np.prod(extent + bucket_size)
+                                                          / MAX_BUCKETS)))
         first = self._bucket_of(lows)
         last = self._bucket_of(highs)
         self._buckets_shape = (last.max(axis=0) + 1) if len(lows) else np.ones(2, dtype=int)
