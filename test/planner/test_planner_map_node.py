@@ -35,9 +35,14 @@ GOAL = (2.0, 4.5)
 
 
 def walled_room():
-    """Return the cells of an 8 m x 6 m room (0.1 m) split at y = 3 m, open only at x > 6 m."""
+    """Return an 8 m x 6 m room (0.1 m cells) split at y = 3 m, open only at x > 6 m.
+
+    A closed box, walls 0.1 m thick, stands in the upper half from (6.4, 4.4) to (7.7, 5.7) m.
+    """
     cells = np.zeros((60, 80), dtype=np.int8)
     cells[29:31, :60] = 100
+    cells[[44, 56], 64:77] = 100
+    cells[44:57, [64, 76]] = 100
     return cells
 
 
@@ -146,4 +151,16 @@ def test_a_latched_map_before_the_planner_gives_a_route_and_bad_maps_are_named(
     goal_pose.publish(make_pose_stamped(0.0, (3.0, 3.0)))
     probe.wait_until(lambda: alive(lambda: observer.logged('lies in an obstacle of the map')),
                      10.0, 'the refusal of a goal in the wall')
+    # A goal in the closed box is taken, but no way reaches it: named, the robot holds.
+    goal_pose.publish(make_pose_stamped(0.0, (7.0, 5.0)))
+    probe.wait_until(lambda: alive(lambda: observer.logged('new goal [7.0, 5.0]')), 10.0,
+                     'the goal in the box taken')
+    held = command()
+    assert np.linalg.norm(held) < 1e-6
+    probe.wait_until(lambda: alive(lambda: observer.logged(
+        'no way on the map reaches the goal [7.0, 5.0]: holding the place')), 10.0,
+        'the warning of an unreachable goal')
+    probe.wait_until(lambda: observer.routes[-1] == 'unreachable', 10.0,
+                     'diagnostics of an unreachable goal')
+    probe.wait_until(lambda: len(observer.paths[-1].poses) == 0, 10.0, 'an empty route')
     assert children.interrupt(planner) == 0
