@@ -202,3 +202,20 @@ def test_the_carrot_is_where_the_path_leaves_the_lookahead_circle(seed):
         lookahead = rng.uniform(0.2, 2.0)
         point, _ = carrot(path, position, lookahead)
         np.testing.assert_allclose(point, own_carrot(path, position, lookahead), atol=1e-6)
+
+
+@pytest.mark.parametrize('seed', range(4))
+def test_snapping_finds_the_nearest_admissible_centre(seed):
+    rng = np.random.default_rng(500 + seed)
+    occupied = rng.random((30, 40)) < 0.35
+    route_map = RouteMap(occupied, RESOLUTION, ORIGIN, 0.1)
+    cells = np.argwhere(route_map.admissible)
+    centres = ORIGIN + RESOLUTION * (cells[:, ::-1] + 0.5)
+    for position in ORIGIN + rng.uniform(-0.5, 4.5, size=(200, 2)):
+        distances = np.linalg.norm(centres - position, axis=1)
+        snapped = route_map.snapped(position)
+        row, column = divmod(snapped, 40)
+        assert route_map.admissible[row, column]
+        chosen = np.linalg.norm(ORIGIN + RESOLUTION * np.array([column + 0.5, row + 0.5])
+                                - position)
+        assert chosen == pytest.approx(distances.min(), abs=1e-12)

@@ -138,9 +138,9 @@ def route_preferred_velocity(position, goal, route, segment, lookahead, max_spee
     `path_following.carrot`). The direction is the carrot's, LOOKAHEAD [m] ahead on the route,
     or half as far, and so on, until IN_SIGHT(position, carrot) (if given) holds or the
     lookahead is SHORTEST_LOOKAHEAD: a carrot beyond a corner would pull the robot into the
-    corner. The speed slows over the last
-    stretch as `preferred_velocity` does, by the REMAINING length [m] of the way: from the
-    robot to its closest point on the route, then along the route.
+    corner. The speed slows over the last stretch as `preferred_velocity` does, by the
+    REMAINING length [m] of the way: from the robot to its closest point on the route, then
+    along the route.
     """
     if float(np.hypot(*(goal - position))) <= goal_tolerance:
         return np.zeros(2), True, segment, 0.0
@@ -318,8 +318,7 @@ class PlanRequest:
     v_pref, config, previous, limits), or None when the robot stands still (no goal, or at its
     goal while nobody comes). `obstacles` are the `StaticObstacles` of its map near it, passed
     as `plan_velocity(*problem, obstacles=obstacles)`, None without a map or with nothing
-    near. `arrival`, `route`
-    and `route_status` as in `Command`.
+    near. `arrival`, `route` and `route_status` as in `Command`.
     """
 
     stamp: float

@@ -162,11 +162,32 @@ class RouteMap:
     def snapped(self, position):
         """Return the flat index of the admissible cell whose centre is nearest POSITION (2,).
 
-        None when no cell is admissible; ties go to the lowest index.
+        None when no cell is admissible; ties go to the lowest index. Searched in growing
+        windows of cells around POSITION first: a cell farther than k cells along an axis from
+        POSITION's cell has its centre more than k + 1/2 cells away.
         """
         if len(self._admissible_index) == 0:
             return None
-        offsets = self._admissible_centres - np.asarray(position, dtype=float)
+        position = np.asarray(position, dtype=float)
+        cell = self.cell_of(position)
+        if cell is not None:
+            height, width = self.admissible.shape
+            row, column = cell
+            reach = 1
+            while reach < max(height, width):
+                rows = slice(max(row - reach, 0), min(row + reach + 1, height))
+                columns = slice(max(column - reach, 0), min(column + reach + 1, width))
+                found_rows, found_columns = np.nonzero(self.admissible[rows, columns])
+                if len(found_rows):
+                    # Row-major order within the window is the flat order of the map.
+                    found = (found_rows + rows.start) * width + found_columns + columns.start
+                    offsets = self.centres(found) - position
+                    distances = np.einsum('ij,ij->i', offsets, offsets)
+                    best = int(np.argmin(distances))
+                    if distances[best] < ((reach + 0.5) * self.resolution) ** 2:
+                        return int(found[best])
+                reach *= 4
+        offsets = self._admissible_centres - position
         return int(self._admissible_index[np.argmin(np.einsum('ij,ij->i', offsets, offsets))])
 
     def tree_to(self, goal):
