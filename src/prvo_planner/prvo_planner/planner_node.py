@@ -6,7 +6,9 @@ Run one per robot, in the robot's namespace:
 
 The node is a thin shell around `prvo_planner.agent.PlannerAgent`: it declares parameters,
 converts messages through prvo_msgs_util, feeds the agent, waits at most `sync_timeout` for
-neighbours and publishes the agent's commands and its announcements (footprint, share).
+neighbours and publishes the agent's commands and its announcements (footprint, share). With
+an occupancy grid on `map_topic` (latched, as map_server publishes it) it plans against the
+grid's obstacles and publishes its route to the goal on `<robot>/plan`.
 """
 
 import dataclasses
