@@ -190,3 +190,18 @@ def test_unknown_cells_block_the_way_unless_the_settings_say_otherwise(planned_o
     agent.reconfigure(CONFIG, dataclasses.replace(SETTINGS, unknown_is_occupied=False),
                       agent.goal)
     assert stand(agent, [2.0, 1.5], 1, t0=0.1).route_status == ROUTE_FOUND
+
+
+def test_a_robot_in_a_u_shaped_trap_leaves_it_by_its_opening(planned_obstacles):
+    cells = np.zeros((80, 80), dtype=np.int8)
+    cells[20:62, 50:52] = 100      # the U's bottom, between the robot and its goal
+    cells[20:22, 20:52] = 100      # its arms, open to the left
+    cells[60:62, 20:52] = 100
+    grid = GridMap(cells, RESOLUTION, [0.0, 0.0])
+    goal = np.array([7.0, 4.0])
+    agent = PlannerAgent('self', CONFIG, SETTINGS, goal)
+    agent.set_map(grid)
+    positions, command = drive(agent, [4.0, 4.0], 600)
+    assert command.arrived and np.linalg.norm(positions[-1] - goal) <= SETTINGS.goal_tolerance
+    assert not any(in_obstacle(grid, position) for position in positions)
+    assert positions[:, 0].min() < 2.0
