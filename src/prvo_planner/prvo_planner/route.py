@@ -94,9 +94,8 @@ class RouteMap:
         height, width = self.admissible.shape
         self._width = width
         rows, columns = np.nonzero(self.admissible)
-        # Centres of the admissible cells, in flat order, for snapping.
+        # The admissible cells in flat order, for snapping.
         self._admissible_index = rows * width + columns
-        self._admissible_centres = self.centres(self._admissible_index)
         ok = np.pad(self.admissible, 1, constant_values=False)
         sources, targets, weights = [], [], []
         index = np.arange(height * width).reshape(height, width)
@@ -187,7 +186,7 @@ class RouteMap:
                     if distances[best] < ((reach + 0.5) * self.resolution) ** 2:
                         return int(found[best])
                 reach *= 4
-        offsets = self._admissible_centres - position
+        offsets = self.centres(self._admissible_index) - position
         return int(self._admissible_index[np.argmin(np.einsum('ij,ij->i', offsets, offsets))])
 
     def tree_to(self, goal):
