@@ -205,3 +205,19 @@ def test_a_robot_in_a_u_shaped_trap_leaves_it_by_its_opening(planned_obstacles):
     assert command.arrived and np.linalg.norm(positions[-1] - goal) <= SETTINGS.goal_tolerance
     assert not any(in_obstacle(grid, position) for position in positions)
     assert positions[:, 0].min() < 2.0
+
+
+def test_with_wait_for_map_the_first_plan_waits_for_the_map_as_long_as_for_neighbours():
+    settings = dataclasses.replace(SETTINGS, wait_for_map=True, neighbor_timeout=2.0)
+    agent = PlannerAgent('self', CONFIG, settings, np.array([2.0, 4.5]))
+    agent.receive_own(Measurement(0.0, np.array([2.0, 1.5]), np.zeros(2), 1e-4 * np.eye(4)),
+                      10.0)
+    assert agent.awaiting_listed(10.5) and not agent.ready(10.5)
+    # Not for ever: after neighbor_timeout the robot plans without.
+    assert not agent.awaiting_listed(12.5) and agent.ready(12.5)
+    agent.set_map(walled_room())
+    assert not agent.awaiting_listed(10.5) and agent.ready(10.5)
+    without = PlannerAgent('self', CONFIG, SETTINGS, np.array([2.0, 4.5]))
+    without.receive_own(Measurement(0.0, np.array([2.0, 1.5]), np.zeros(2), 1e-4 * np.eye(4)),
+                        10.0)
+    assert without.ready(10.0)
