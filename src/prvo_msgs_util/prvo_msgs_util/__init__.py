@@ -53,7 +53,7 @@ from prvo_msgs_util.interrupts import (
     ignore_stop_signals,
     release_stop_signals,
 )
-from prvo_msgs_util.markers import make_belief_markers
+from prvo_msgs_util.markers import make_belief_markers, make_static_world_markers
 from prvo_msgs_util.parameters import (
     PARAMETER_TYPES,
     declare_parameters,
@@ -95,6 +95,7 @@ from prvo_msgs_util.topics import (
     ODOM,
     PLAN,
     WORLD_FRAME,
+    WORLD_MARKERS,
     robot_from_topic,
     robot_topic,
     robots_with_topic,
@@ -118,6 +119,7 @@ __all__ = [
     'declare_parameters',
     'diagnostic_values', 'freeze_startup_objects', 'PARAMETER_TYPES', 'parameter_descriptor',
     'quiet_after_shutdown', 'spin_events', 'ThrottledWarnings',
+    'WORLD_MARKERS', 'make_static_world_markers',
     'make_belief_markers', 'make_diagnostic_array', 'make_diagnostic_status', 'make_odometry',
     'make_pose_stamped', 'make_twist', 'make_twist_stamped', 'odometry_to_measurement',
     'pose_stamped_to_goal', 'robot_from_topic', 'robot_topic', 'robots_with_topic',
