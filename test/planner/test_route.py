@@ -1,6 +1,7 @@
 """The way to the goal on a grid: clearance kept, shortest, around a U-shaped wall, or none."""
 
 import heapq
+import itertools
 import math
 
 import numpy as np
@@ -74,6 +75,29 @@ def cell_of(point):
     return int(row), int(column)
 
 
+def seen_along_admissible(admissible, start, end):
+    """Whether points every 1/8 cell from START to END all lie in admissible cells."""
+    count = int(np.ceil(8.0 * np.linalg.norm(end - start) / RESOLUTION)) + 1
+    for fraction in np.linspace(0.0, 1.0, count):
+        point = start + fraction * (end - start)
+        # A point on a cell edge belongs to the cells of both sides: one admissible suffices.
+        cells = {cell_of(point + offset) for offset in
+                 itertools.product((-1e-7, 1e-7), repeat=2)}
+        if not any(admissible[cell] for cell in cells if min(cell) >= 0 and
+                   cell[0] < admissible.shape[0] and cell[1] < admissible.shape[1]):
+            return False
+    return True
+
+
+def test_a_taut_route_across_a_free_room_is_the_straight_way():
+    route_map = RouteMap(np.zeros((40, 60), dtype=bool), RESOLUTION, ORIGIN, 0.3)
+    start, goal = ORIGIN + [0.55, 0.45], ORIGIN + [5.25, 3.35]
+    route = route_map.tree_to(goal).route_from(start)
+    np.testing.assert_allclose(route, [start, goal])
+    grid = route_map.tree_to(goal).route_from(start, taut=False)
+    assert path_length(grid) > path_length(route) + 0.3
+
+
 def route_cells(route):
     """Every cell a route of cell centres passes through at its 8-connected steps."""
     cells = []
@@ -99,9 +123,10 @@ def test_routes_are_shortest_and_keep_the_clearance(seed):
     for _ in range(6):
         start, goal = (cells[index] for index in rng.choice(len(cells), 2, replace=False))
         expected = brute_shortest(admissible, start, goal)
-        route = route_map.tree_to(centre(goal)).route_from(centre(start))
+        tree = route_map.tree_to(centre(goal))
+        route = tree.route_from(centre(start), taut=False)
         if expected is None:
-            assert route is None
+            assert route is None and tree.route_from(centre(start)) is None
             continue
         assert route is not None
         np.testing.assert_allclose(route[0], centre(start))
@@ -109,6 +134,11 @@ def test_routes_are_shortest_and_keep_the_clearance(seed):
         assert path_length(route) == pytest.approx(expected, abs=1e-9)
         passed = route_cells(route)
         assert all(admissible[cell] for cell in passed)
+        taut = tree.route_from(centre(start))
+        np.testing.assert_allclose(taut[[0, -1]], route[[0, -1]])
+        assert path_length(taut) <= expected + 1e-9
+        assert all(seen_along_admissible(admissible, a, b)
+                   for a, b in zip(taut[:-1], taut[1:], strict=True))
 
 
 def test_start_and_goal_snap_to_the_nearest_admissible_cell_and_the_goal_ends_the_route():
@@ -117,7 +147,7 @@ def test_start_and_goal_snap_to_the_nearest_admissible_cell_and_the_goal_ends_th
     # 0.2 m from the outside: the two outer rings of cells are not admissible.
     start = ORIGIN + [0.01, 0.01]
     goal = ORIGIN + [0.62, 0.48]
-    route = route_map.tree_to(goal).route_from(start)
+    route = route_map.tree_to(goal).route_from(start, taut=False)
     np.testing.assert_allclose(route[0], ORIGIN + [0.25, 0.25])
     np.testing.assert_allclose(route[-2], ORIGIN + [0.65, 0.45])
     np.testing.assert_array_equal(route[-1], goal)
@@ -137,7 +167,7 @@ def test_a_u_shaped_wall_is_left_by_its_opening():
     route_map = RouteMap(occupied, RESOLUTION, ORIGIN, 0.3)
     start = ORIGIN + [3.5, 3.0]
     goal = ORIGIN + [5.0, 3.0]
-    route = route_map.tree_to(goal).route_from(start)
+    route = route_map.tree_to(goal).route_from(start, taut=False)
     assert route is not None
     # Out of the U on the left (x < 2.0 m of the room), around an arm, to the goal.
     assert (route[:, 0] - ORIGIN[0]).min() < 2.0
