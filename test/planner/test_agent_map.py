@@ -13,6 +13,7 @@ from prvo_planner.agent import (
     ROUTE_UNREACHABLE,
     AgentSettings,
     PlannerAgent,
+    route_preferred_velocity,
 )
 from prvo_planner.core import PlannerConfig, plan_velocity
 from prvo_planner.maps import GridMap
@@ -221,3 +222,24 @@ def test_with_wait_for_map_the_first_plan_waits_for_the_map_as_long_as_for_neigh
     without.receive_own(Measurement(0.0, np.array([2.0, 1.5]), np.zeros(2), 1e-4 * np.eye(4)),
                         10.0)
     assert without.ready(10.0)
+
+
+def test_the_carrot_moves_on_to_the_farthest_waypoint_in_sight():
+    route = np.array([[0.0, 0.0], [4.0, 0.0], [4.0, 4.0], [8.0, 4.0]])
+    position = np.array([1.0, 0.5])
+    everything = route_preferred_velocity(position, route[-1], route, 0, 1.0, 1.0, 0.5, 0.2,
+                                          in_sight=lambda a, b: True)[0]
+    np.testing.assert_allclose(everything / np.linalg.norm(everything),
+                               (route[-1] - position) / np.linalg.norm(route[-1] - position))
+    # The corner (4, 0) in sight, the next one not: head for the corner.
+    corner = route_preferred_velocity(position, route[-1], route, 0, 1.0, 1.0, 0.5, 0.2,
+                                      in_sight=lambda a, b: b[1] < 1.0)[0]
+    np.testing.assert_allclose(corner / np.linalg.norm(corner),
+                               (route[1] - position) / np.linalg.norm(route[1] - position))
+    # Nothing in sight beyond the lookahead: the carrot 1 m ahead (the circle meets the route
+    # at x = 1 + sqrt(0.75)).
+    near = route_preferred_velocity(position, route[-1], route, 0, 1.0, 1.0, 0.5, 0.2,
+                                    in_sight=lambda a, b: np.hypot(*(b - a)) <= 1.0 + 1e-9)[0]
+    carrot_point = np.array([1.0 + np.sqrt(0.75), 0.0])
+    np.testing.assert_allclose(near / np.linalg.norm(near),
+                               (carrot_point - position) / np.linalg.norm(carrot_point - position))

@@ -138,7 +138,10 @@ def route_preferred_velocity(position, goal, route, segment, lookahead, max_spee
     `path_following.carrot`). The direction is the carrot's, LOOKAHEAD [m] ahead on the route,
     or half as far, and so on, until IN_SIGHT(position, carrot) (if given) holds or the
     lookahead is SHORTEST_LOOKAHEAD: a carrot beyond a corner would pull the robot into the
-    corner. The speed slows over the last stretch as `preferred_velocity` does, by the
+    corner. A carrot in sight moves on to the farthest waypoint beyond it still in sight: a
+    carrot close ahead turns the robot back to its route at every push aside, and in a crowd
+    that fights the sidesteps of the avoidance (with the goal in sight the robot heads for it,
+    as without a map). The speed slows over the last stretch as `preferred_velocity` does, by the
     REMAINING length [m] of the way: from the robot to its closest point on the route, then
     along the route.
     """
@@ -146,6 +149,8 @@ def route_preferred_velocity(position, goal, route, segment, lookahead, max_spee
         return np.zeros(2), True, segment, 0.0
     target, reached = carrot(route, position, lookahead, segment)
     if in_sight is not None:
+        if in_sight(position, target):
+            target = _farthest_in_sight(route, position, target, reached, lookahead, in_sight)
         while lookahead > shortest_lookahead and not in_sight(position, target):
             lookahead *= 0.5
             target, reached = carrot(route, position, lookahead, segment)
@@ -162,6 +167,20 @@ def route_preferred_velocity(position, goal, route, segment, lookahead, max_spee
     speed = min(max_speed, remaining / approach_time,
                 math.sqrt(2.0 * max_acceleration * remaining))
     return offset * (speed / distance), False, segment, remaining
+
+
+def _farthest_in_sight(route, position, target, segment, lookahead, in_sight):
+    """Return the last waypoint of ROUTE beyond TARGET, in order, still IN_SIGHT; else TARGET.
+
+    The waypoints after SEGMENT at least LOOKAHEAD from POSITION are those beyond the carrot.
+    """
+    for waypoint in route[segment + 1:]:
+        if float(np.hypot(*(waypoint - position))) < lookahead:
+            continue
+        if not in_sight(position, waypoint):
+            break
+        target = waypoint
+    return target
 
 
 def goal_horizon(distance_to_goal, max_speed, approach_time, time_horizon):
