@@ -249,3 +249,21 @@ def test_snapping_finds_the_nearest_admissible_centre(seed):
         chosen = np.linalg.norm(ORIGIN + RESOLUTION * np.array([column + 0.5, row + 0.5])
                                 - position)
         assert chosen == pytest.approx(distances.min(), abs=1e-12)
+
+
+def test_with_a_margin_the_route_keeps_room_where_there_is_some_and_squeezes_where_not():
+    # A wall 1 m thick across a 6 m x 6 m room at x = 3 m with a 0.7 m gap about
+    # y = 1.95 m, then a 0.2 m stub, then an opening above y = 2.5 m.
+    occupied = np.zeros((60, 60), dtype=bool)
+    occupied[:16, 25:35] = True
+    occupied[23:25, 25:35] = True
+    start, goal = ORIGIN + [1.0, 1.95], ORIGIN + [5.0, 1.95]
+    hugging = RouteMap(occupied, RESOLUTION, ORIGIN, 0.3).tree_to(goal).route_from(start)
+    assert np.abs(hugging[:, 1] - ORIGIN[1] - 1.95).max() < 0.1
+    roomy = RouteMap(occupied, RESOLUTION, ORIGIN, 0.3, margin=0.3)
+    assert (roomy.tree_to(goal).route_from(start)[:, 1] - ORIGIN[1]).max() > 2.7
+    # With the opening closed the narrow gap is the only way: taken all the same.
+    occupied[25:, 25:35] = True
+    squeezed = RouteMap(occupied, RESOLUTION, ORIGIN, 0.3, margin=0.3)
+    route = squeezed.tree_to(goal).route_from(start)
+    assert route is not None and np.abs(route[:, 1] - ORIGIN[1] - 1.95).max() < 0.1

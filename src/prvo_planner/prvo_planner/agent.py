@@ -217,7 +217,8 @@ class AgentSettings:
     'unicycle' (which tracks its plans within `tracking_error` and plans, and announces itself,
     with its radius grown by it); the acceleration limits are inf when unlimited. With a map,
     obstacles within `obstacle_distance` [m] count, unknown cells are obstacles when
-    `unknown_is_occupied`, and the carrot is `lookahead_distance` [m] ahead on the route;
+    `unknown_is_occupied`, the carrot is `lookahead_distance` [m] ahead on the route, which
+    keeps `route_margin` [m] more than the radius from obstacles where there is room;
     `wait_for_map`: the first plan waits for a map as for listed neighbours.
     """
 
@@ -236,6 +237,7 @@ class AgentSettings:
     obstacle_distance: float = 3.0
     unknown_is_occupied: bool = True
     lookahead_distance: float = 1.0
+    route_margin: float = 0.3
     wait_for_map: bool = False
 
     @classmethod
@@ -707,7 +709,7 @@ class PlannerAgent:
         settings = self.settings
         # The route's cells keep the clearance the planner keeps from a wall of no thickness.
         built_for = (settings.unknown_is_occupied, settings.obstacle_distance,
-                     settings.planning_radius + self.config.safety_margin)
+                     settings.planning_radius + self.config.safety_margin, settings.route_margin)
         if self._grid is None:
             self._obstacle_index = self._route_map = None
         elif built_for != self._map_built_for:
@@ -716,7 +718,7 @@ class PlannerAgent:
                 grid_obstacles(self._grid, settings.unknown_is_occupied),
                 settings.obstacle_distance)
             self._route_map = RouteMap(occupied, self._grid.resolution, self._grid.origin,
-                                       built_for[2])
+                                       built_for[2], settings.route_margin)
         else:
             return
         self._map_built_for = None if self._grid is None else built_for

@@ -216,6 +216,9 @@ _SPECS = (
                   'this far [m] ahead on its route to the goal and looks for a new route when '
                   'it strays farther from it, in (0, 100].', (0.0, 100.0),
                   rule=_positive_up_to_100),
+    ParameterSpec('route_margin', FLOAT, 0.3, 'With a map, the route keeps this much more [m] '
+                  'than the radius from obstacles where there is room (a way hugging them costs '
+                  'up to twice its length), in [0, 10].', (0.0, 10.0)),
     ParameterSpec('wait_for_map', BOOL, False, 'Plan only once a map has arrived (for at most '
                   'neighbor_timeout after the first own odometry), as for listed neighbours: a '
                   'run whose world has a map plans its first step on it.'),

@@ -26,36 +26,36 @@ def _edge_distances_squared(offsets):
     return np.maximum(np.abs(offsets) - 0.5, 0.0) ** 2
 
 
-def admissible_cells(occupied, resolution, clearance):
+def obstacle_distances(occupied, resolution, reach):
     """
-    Return the cells whose centres keep at least CLEARANCE from every occupied cell.
+    Return the distance from every cell's centre to the nearest occupied cell, up to REACH.
 
     Exact: the squared distance from a centre to the nearest occupied cell's square is the
     smallest sum of the per-axis terms of ``_edge_distances_squared`` over occupied cells, a
     separable minimum taken one axis after the other over the offsets that can come closer
-    than the clearance.
+    than REACH.
 
     Parameters
     ----------
     occupied : numpy.ndarray
-        Shape (height, width), bool.
+        Shape (height, width), bool; the outside of the map counts as occupied.
     resolution : float
         Cell edge [m].
-    clearance : float
-        Distance [m] to keep, >= 0.
+    reach : float
+        Largest distance [m] of interest, >= 0.
 
     Returns
     -------
     numpy.ndarray
-        Shape (height, width), bool: free cells that keep the clearance (the outside of the
-        map counts as occupied).
+        Shape (height, width) [m]: 0 for an occupied cell, inf where nothing occupied is
+        nearer than REACH.
 
     """
     occupied = np.asarray(occupied, dtype=bool)
     height, width = occupied.shape
-    reach = clearance / resolution
-    # Cells farther than this many cells along an axis are at least the clearance away.
-    window = int(math.floor(reach + 0.5))
+    cells = reach / resolution
+    # Cells farther than this many cells along an axis are at least REACH away.
+    window = int(math.floor(cells + 0.5))
     padded = np.pad(occupied, window, constant_values=True)
     along_rows = np.full((height + 2 * window, width), np.inf)
     for offset in range(-window, window + 1):
@@ -66,7 +66,24 @@ def admissible_cells(occupied, resolution, clearance):
     for offset in range(-window, window + 1):
         cost = float(_edge_distances_squared(offset))
         nearest = np.minimum(nearest, along_rows[window + offset:window + offset + height] + cost)
-    return ~occupied & (nearest >= reach * reach)
+    distances = np.sqrt(nearest) * resolution
+    distances[nearest >= cells * cells] = np.inf
+    distances[occupied] = 0.0
+    return distances
+
+
+def admissible_cells(occupied, resolution, clearance):
+    """
+    Return the free cells whose centres keep at least CLEARANCE [m] from every occupied cell.
+
+    Shape (height, width), bool; the outside of the map counts as occupied.
+    """
+    return ~np.asarray(occupied, dtype=bool) & (
+        obstacle_distances(occupied, resolution, clearance) >= clearance)
+
+
+# A step through cells at the clearance costs this much more than one keeping the margin.
+MARGIN_COST = 1.0
 
 
 class RouteMap:
@@ -83,14 +100,25 @@ class RouteMap:
         Shape (2,): world position of cell (0, 0)'s lower-left corner [m].
     clearance : float
         Distance [m] a path's cell centres keep from every occupied cell, >= 0.
+    margin : float
+        Further distance [m] a path keeps where there is room: a step between cells closer
+        than clearance + margin costs up to ``1 + MARGIN_COST`` times its length, and a path
+        is pulled taut only along cells that keep it (or its own cells). Shortest paths hug
+        obstacles at the clearance, where robots meeting there have no room to pass.
 
     """
 
-    def __init__(self, occupied, resolution, origin, clearance):
+    def __init__(self, occupied, resolution, origin, clearance, margin=0.0):
         self.resolution = float(resolution)
         self.origin = np.asarray(origin, dtype=float)
         self.occupied = np.asarray(occupied, dtype=bool)
-        self.admissible = admissible_cells(occupied, self.resolution, clearance)
+        distances = obstacle_distances(occupied, self.resolution, clearance + margin)
+        self.admissible = ~self.occupied & (distances >= clearance)
+        # Cells that keep the margin too.
+        self.roomy = self.admissible & (distances >= clearance + margin)
+        closeness = (np.clip((clearance + margin - distances) / margin, 0.0, 1.0) if margin > 0.0
+                     else np.zeros(distances.shape))
+        closeness = closeness.ravel()
         height, width = self.admissible.shape
         self._width = width
         rows, columns = np.nonzero(self.admissible)
@@ -109,9 +137,12 @@ class RouteMap:
                 # Both cells beside a diagonal step must be admissible.
                 linked &= ok[1 + step_row:1 + step_row + height, 1:1 + width]
                 linked &= ok[1:1 + height, 1 + step_column:1 + step_column + width]
-            sources.append(index[linked])
-            targets.append(index[linked] + step_row * width + step_column)
-            weights.append(np.full(int(linked.sum()), weight))
+            here = index[linked]
+            there_index = here + step_row * width + step_column
+            sources.append(here)
+            targets.append(there_index)
+            weights.append(weight * (1.0 + MARGIN_COST * 0.5 * (
+                closeness[here] + closeness[there_index])))
         size = height * width
         sources, targets = np.concatenate(sources), np.concatenate(targets)
         weights = np.concatenate(weights)
@@ -141,8 +172,10 @@ class RouteMap:
         cell = self.cell_of(position)
         return cell is None or bool(self.occupied[cell])
 
-    def in_sight(self, start, end):
+    def in_sight(self, start, end, cells=None):
         """Whether the straight way from START to END (2,) [m] runs through admissible cells.
+
+        CELLS (height, width) bool, if given, are the cells allowed instead.
 
         Every cell whose inside the way crosses counts (found between the way's crossings of
         the grid lines); one it only touches at a corner does not, nor the cell of START: a
@@ -161,12 +194,13 @@ class RouteMap:
         fractions = np.unique(np.concatenate(crossings))
         middles = 0.5 * (fractions[:-1] + fractions[1:])
         columns, rows = np.floor(first + middles[:, None] * step).astype(int).T
-        height, width = self.admissible.shape
+        allowed = self.admissible if cells is None else cells
+        height, width = allowed.shape
         inside = (rows >= 0) & (rows < height) & (columns >= 0) & (columns < width)
         if not inside.all():
             return False
         own = (rows == math.floor(first[1])) & (columns == math.floor(first[0]))
-        return bool(self.admissible[rows[~own], columns[~own]].all())
+        return bool(allowed[rows[~own], columns[~own]].all())
 
     def snapped(self, position):
         """Return the flat index of the admissible cell whose centre is nearest POSITION (2,).
@@ -232,7 +266,8 @@ class RouteTree:
             Shape (2,) [m].
         taut : bool
             Pull the grid path taut: from each waypoint on, the next is the farthest centre of
-            the path still in sight along admissible cells (``RouteMap.in_sight``), found by
+            the path still in sight along cells that keep the margin or are the path's own
+            (``RouteMap.in_sight``), found by
             doubling and halving the step. A path along the 8 grid directions strays from the
             straight way up to 0.4 times its length; robots whose ways kink that way cross
             each other where straight ways would not. False: the grid path itself.
@@ -254,7 +289,9 @@ class RouteTree:
             cells.append(int(self._predecessors[cells[-1]]))
         points = route_map.centres(cells)
         if taut:
-            points = points[_taut(points, route_map.in_sight)]
+            allowed = route_map.roomy.copy()
+            allowed.ravel()[cells] = True
+            points = points[_taut(points, lambda a, b: route_map.in_sight(a, b, allowed))]
         elif len(points) > 2:
             steps = np.diff(points, axis=0)
             # A waypoint where the direction stays the same is not needed.
