@@ -95,8 +95,9 @@ class InProcessTeam:
     seed : int or None
         Noise seed; None uses the scenario's.
     grid_map : prvo_planner.maps.GridMap or None
-        The static world as the simulator publishes it on /map; every planned robot's agent
-        gets it as a planner node does, through the message. None: no map.
+        The map the planners are given, as a planner node receives it (through the message);
+        None: the world's own, as the simulator publishes it on /map (no map for a world
+        without walls, obstacles or map file).
 
     """
 
@@ -123,6 +124,8 @@ class InProcessTeam:
             self.agents.append(agent_of(robot.name, values, table))
         self._planned = [(index, agent) for index, agent in enumerate(self.agents)
                          if agent is not None]
+        if grid_map is None:
+            grid_map = self.world.static_world.grid
         if grid_map is not None:
             self._give_map(grid_map)
         # What the ROS run publishes of the last step, kept for that step only (a recording

@@ -103,6 +103,9 @@ def runner_planner_values(robot, scenario, method, eta, mode='lockstep'):
     for limit in ('max_acceleration', 'max_angular_acceleration'):
         if math.isfinite(getattr(robot, limit)):
             values[limit] = float(getattr(robot, limit))
+    if scenario.static_world.grid is not None:
+        # The planner's first plan is on the map the simulator publishes, as in-process.
+        values['wait_for_map'] = True
     if mode == 'lockstep':
         # The simulator waits for every answer, so a planner can wait for every neighbour's
         # odometry of the same stamp however loaded the machine: that makes runs reproducible.
