@@ -19,6 +19,7 @@ import numpy as np
 from rclpy.serialization import deserialize_message, serialize_message
 
 from prvo_msgs_util import (
+    MAP,
     WORLD_FRAME,
     AnnouncementChanges,
     announcement_stamp,
@@ -95,9 +96,9 @@ class InProcessTeam:
     seed : int or None
         Noise seed; None uses the scenario's.
     grid_map : prvo_planner.maps.GridMap or None
-        The map the planners are given, as a planner node receives it (through the message);
-        None: the world's own, as the simulator publishes it on /map (no map for a world
-        without walls, obstacles or map file).
+        The map on /map, given to the planners that listen there (`map_topic`) as a planner
+        node receives it (through the message); None: the world's own, as the simulator
+        publishes it (no map for a world without walls, obstacles or map file).
 
     """
 
@@ -127,7 +128,7 @@ class InProcessTeam:
         if grid_map is None:
             grid_map = self.world.static_world.grid
         if grid_map is not None:
-            self._give_map(grid_map)
+            self._give_map(grid_map, planner_values)
         # What the ROS run publishes of the last step, kept for that step only (a recording
         # takes it): each robot's serialized (odometry, ground truth), each robot's `Command`
         # (None for a scripted robot).
@@ -143,13 +144,14 @@ class InProcessTeam:
         self._announcement_changes = [AnnouncementChanges(name) for name in self.world.names]
         self._announce()
 
-    def _give_map(self, grid_map):
-        """Give every agent GRID_MAP as a planner node receives it: through the message."""
+    def _give_map(self, grid_map, planner_values):
+        """Give GRID_MAP to every agent whose node listens on /map, through the message."""
         received = _received(make_occupancy_grid(
             0.0, grid_map.cells, grid_map.resolution, grid_map.origin, WORLD_FRAME))
         grid = GridMap(*occupancy_grid_to_parts(received, expected_frame=WORLD_FRAME))
-        for _, agent in self._planned:
-            agent.set_map(grid)
+        for index, agent in self._planned:
+            if planner_values[index]['map_topic'] == MAP:
+                agent.set_map(grid)
 
     def _announce(self):
         """Give every agent what each other robot announces now, where it changed.

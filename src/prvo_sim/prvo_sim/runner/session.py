@@ -103,9 +103,6 @@ def runner_planner_values(robot, scenario, method, eta, mode='lockstep'):
     for limit in ('max_acceleration', 'max_angular_acceleration'):
         if math.isfinite(getattr(robot, limit)):
             values[limit] = float(getattr(robot, limit))
-    if scenario.static_world.grid is not None:
-        # The planner's first plan is on the map the simulator publishes, as in-process.
-        values['wait_for_map'] = True
     if mode == 'lockstep':
         # The simulator waits for every answer, so a planner can wait for every neighbour's
         # odometry of the same stamp however loaded the machine: that makes runs reproducible.
@@ -113,6 +110,12 @@ def runner_planner_values(robot, scenario, method, eta, mode='lockstep'):
     for key, value in robot.planner.items():
         if key not in RUNNER_PARAMETERS:
             values[key] = value
+    from prvo_planner.parameters import DEFAULTS
+
+    if scenario.static_world.grid is not None and (
+            values.get('map_topic', DEFAULTS['map_topic']) == DEFAULTS['map_topic']):
+        # The planner's first plan is on the map the simulator publishes, as in-process.
+        values.setdefault('wait_for_map', True)
     return values
 
 
