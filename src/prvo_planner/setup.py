@@ -1,5 +1,7 @@
 """Install prvo_planner, an ament_python package."""
 
+from glob import glob
+
 from setuptools import find_packages, setup
 
 package_name = 'prvo_planner'
@@ -11,6 +13,7 @@ setup(
     data_files=[
         ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
         ('share/' + package_name, ['package.xml']),
+        ('share/' + package_name + '/config', glob('config/*.yaml')),
     ],
     install_requires=['setuptools'],
     zip_safe=True,

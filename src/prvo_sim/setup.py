@@ -30,6 +30,7 @@ setup(
             'run_scenario = prvo_sim.run_scenario:main',
             'prvo-run = prvo_sim.run_scenario:main',
             'experiments = prvo_sim.experiments:main',
+            'nav2_stand_in = prvo_sim.upstream_node:main',
         ],
     },
 )

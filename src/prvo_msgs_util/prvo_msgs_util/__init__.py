@@ -23,16 +23,21 @@ from prvo_msgs_util.conversions import (
     body_to_world,
     check_world_point,
     checked_stamp_seconds,
+    filtered_twist,
     make_odometry,
+    make_path,
+    make_point_stamped,
     make_pose_stamped,
     make_twist,
     make_twist_stamped,
     odometry_to_measurement,
+    path_to_waypoints,
     pose_stamped_to_goal,
     seconds_to_stamp,
     serialize_odometry,
     serialized_odometry_to_measurement,
     stamp_to_seconds,
+    twist_components,
     twist_to_velocity,
     world_to_body,
 )
@@ -43,7 +48,6 @@ from prvo_msgs_util.diagnostics import (
 )
 from prvo_msgs_util.grid_maps import (
     make_occupancy_grid,
-    make_path,
     occupancy_grid_to_parts,
 )
 from prvo_msgs_util.interrupts import (
@@ -111,7 +115,7 @@ __all__ = [
     'DIAGNOSTICS_QOS', 'GOAL_POSE', 'GOAL_QOS', 'GROUND_TRUTH', 'MARKERS', 'MARKER_QOS',
     'MAX_FOOTPRINT_RADIUS', 'MAX_SPEED_COMPONENT', 'MAX_VARIANCE', 'MAX_WORLD_COORDINATE',
     'MIN_FOOTPRINT_RADIUS', 'MAP', 'MAP_QOS', 'PLAN', 'PLAN_QOS', 'make_occupancy_grid',
-    'make_path', 'occupancy_grid_to_parts',
+    'occupancy_grid_to_parts',
     'MessageFault', 'ODOM', 'ODOM_LATEST_QOS', 'ODOM_QOS', 'OdometryMeasurement',
     'QosWatch', 'quiet_publisher_events', 'quiet_subscription_events',
     'SigintRecorder', 'STOP_SIGNALS', 'hold_stop_signals', 'ignore_stop_signals',
@@ -125,5 +129,6 @@ __all__ = [
     'pose_stamped_to_goal', 'robot_from_topic', 'robot_topic', 'robots_with_topic',
     'seconds_to_stamp', 'serialize_odometry', 'serialized_odometry_to_measurement',
     'stamp_to_seconds',
-    'twist_to_velocity', 'validate_robot_name', 'WORLD_FRAME', 'world_to_body',
+    'twist_to_velocity', 'twist_components', 'filtered_twist', 'path_to_waypoints', 'make_path',
+    'make_point_stamped', 'validate_robot_name', 'WORLD_FRAME', 'world_to_body',
 ]

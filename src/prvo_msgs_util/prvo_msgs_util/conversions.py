@@ -5,8 +5,8 @@ import math
 import struct
 
 from builtin_interfaces.msg import Time
-from geometry_msgs.msg import PoseStamped, Twist, TwistStamped
-from nav_msgs.msg import Odometry
+from geometry_msgs.msg import PointStamped, PoseStamped, Twist, TwistStamped
+from nav_msgs.msg import Odometry, Path
 import numpy as np
 
 from prvo_msgs_util.topics import WORLD_FRAME
@@ -375,4 +375,64 @@ def make_pose_stamped(stamp_seconds, position, frame_id=WORLD_FRAME):
     msg.header.frame_id = frame_id
     msg.pose.position.x, msg.pose.position.y = (float(value) for value in position)
     msg.pose.orientation.w = 1.0
+    return msg
+
+
+def twist_components(msg):
+    """Return ((linear x, y), angular z) of a Twist or TwistStamped; MessageFault on NaN/inf."""
+    twist = msg.twist if isinstance(msg, TwistStamped) else msg
+    values = (twist.linear.x, twist.linear.y, twist.angular.z)
+    _require_finite(values, 'twist')
+    return (values[0], values[1]), values[2]
+
+
+def filtered_twist(upstream, velocity, turn_rate):
+    """Return a message of UPSTREAM's type (Twist or TwistStamped) moving at VELOCITY (x, y).
+
+    In the body frame, turning at TURN_RATE [rad/s]; a TwistStamped keeps UPSTREAM's header,
+    as a filter between a controller and the base does.
+    """
+    twist = make_twist(velocity, turn_rate)
+    if not isinstance(upstream, TwistStamped):
+        return twist
+    msg = TwistStamped()
+    msg.header = upstream.header
+    msg.twist = twist
+    return msg
+
+
+def path_to_waypoints(msg, expected_frame=WORLD_FRAME):
+    """Return the positions (K, 2) of a nav_msgs/Path's poses (K may be 0: no path).
+
+    The path's frame (an empty one is EXPECTED_FRAME) and every pose's non-empty frame must be
+    EXPECTED_FRAME. Raises MessageFault on another frame, NaN/inf or a coordinate beyond
+    MAX_WORLD_COORDINATE.
+    """
+    if msg.header.frame_id:
+        _check_frame(msg.header.frame_id, expected_frame, 'header.frame_id')
+    waypoints = np.empty((len(msg.poses), 2))
+    for index, pose in enumerate(msg.poses):
+        if pose.header.frame_id:
+            _check_frame(pose.header.frame_id, expected_frame, f'poses[{index}].header.frame_id')
+        point = (pose.pose.position.x, pose.pose.position.y)
+        check_world_point(point, f'poses[{index}].pose.position')
+        waypoints[index] = point
+    return waypoints
+
+
+def make_path(stamp_seconds, waypoints, frame_id=WORLD_FRAME):
+    """Return a nav_msgs/Path through WAYPOINTS (K, 2) in FRAME_ID, every pose stamped alike."""
+    msg = Path()
+    msg.header.stamp = seconds_to_stamp(stamp_seconds)
+    msg.header.frame_id = frame_id
+    msg.poses = [make_pose_stamped(stamp_seconds, point, frame_id) for point in waypoints]
+    return msg
+
+
+def make_point_stamped(stamp_seconds, point, frame_id=WORLD_FRAME):
+    """Return a geometry_msgs/PointStamped at POINT (x, y) in FRAME_ID."""
+    msg = PointStamped()
+    msg.header.stamp = seconds_to_stamp(stamp_seconds)
+    msg.header.frame_id = frame_id
+    msg.point.x, msg.point.y = (float(value) for value in point)
     return msg

@@ -1,4 +1,4 @@
-"""Occupancy grids and routes as messages: nav_msgs/OccupancyGrid and nav_msgs/Path.
+"""Occupancy grids as messages: nav_msgs/OccupancyGrid (routes: `conversions.make_path`).
 
 A grid travels as its parts, (cells, resolution, origin) in the conventions of
 ``prvo_planner.maps.GridMap``: ``cells`` (height, width) int8, row 0 at the smallest y, values
@@ -8,8 +8,7 @@ A grid travels as its parts, (cells, resolution, origin) in the conventions of
 import array
 import math
 
-from geometry_msgs.msg import PoseStamped
-from nav_msgs.msg import OccupancyGrid, Path
+from nav_msgs.msg import OccupancyGrid
 import numpy as np
 
 from prvo_msgs_util.conversions import (
@@ -103,18 +102,4 @@ def make_occupancy_grid(stamp_seconds, cells, resolution, origin, frame_id=WORLD
     msg.info.origin.position.x, msg.info.origin.position.y = (float(value) for value in origin)
     msg.info.origin.orientation.w = 1.0
     msg.data = array.array('b', cells.ravel().tobytes())
-    return msg
-
-
-def make_path(stamp_seconds, waypoints, frame_id=WORLD_FRAME):
-    """Return the nav_msgs/Path through WAYPOINTS (K, 2) [m], poses of identity orientation."""
-    msg = Path()
-    msg.header.stamp = seconds_to_stamp(stamp_seconds)
-    msg.header.frame_id = frame_id
-    for x, y in np.asarray(waypoints, dtype=float).reshape(-1, 2):
-        pose = PoseStamped()
-        pose.header = msg.header
-        pose.pose.position.x, pose.pose.position.y = float(x), float(y)
-        pose.pose.orientation.w = 1.0
-        msg.poses.append(pose)
     return msg

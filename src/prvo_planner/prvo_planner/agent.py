@@ -9,7 +9,8 @@ every call that needs the time of day takes `now`, monotonic seconds of the call
 The planner node wraps it in ROS endpoints; an in-process engine can feed it step by step.
 
 Given an occupancy grid (`set_map`), the agent plans against the obstacles of the grid near it
-and heads for a carrot on the shortest route to its goal instead of straight at the goal.
+and, heading for its goal, follows a carrot on the shortest route there instead of the straight
+line.
 """
 
 import dataclasses
@@ -21,6 +22,15 @@ from prvo_planner.core import AgentBelief, VelocityLimits, plan_velocity
 from prvo_planner.core.beliefs import validated_share
 from prvo_planner.maps import ObstacleIndex, grid_obstacles, occupied_cells
 from prvo_planner.path_following import carrot, closest_on_path
+from prvo_planner.preferred import (
+    GOAL,
+    PATH,
+    VELOCITY,
+    FilterGate,
+    LookaheadSettings,
+    PathFollower,
+    path_preferred_velocity,
+)
 from prvo_planner.route import RouteMap, path_length
 from prvo_planner.tracking import TrackingModel, tracking_command
 from prvo_planner.tracks import TrackTable, fuse
@@ -33,6 +43,8 @@ DEPARTURE_TOLERANCES = 2.0
 
 # A command below this [m/s] is standing still.
 _STANDING_SPEED = 1e-6
+# An upstream command goes on unchanged when the plan nearest to it is within this [m/s].
+_PASSING_SLACK = 1e-6
 # Every model of the core (prvo and its baselines rvo, inflate, mc) is reciprocal: it takes half
 # of a pair's avoidance against a neighbour that takes the other half.
 RECIPROCAL_SHARE = 0.5
@@ -215,11 +227,7 @@ class AgentSettings:
     `unknown_neighbor_radius` is assumed for a neighbour that announced no footprint;
     `neighbor_timeout` is in the seconds of the `now` arguments. `kinematics` is 'holonomic' or
     'unicycle' (which tracks its plans within `tracking_error` and plans, and announces itself,
-    with its radius grown by it); the acceleration limits are inf when unlimited. With a map,
-    obstacles within `obstacle_distance` [m] count, unknown cells are obstacles when
-    `unknown_is_occupied`, the carrot is `lookahead_distance` [m] ahead on the route, which
-    keeps `route_margin` [m] more than the radius from obstacles where there is room;
-    `wait_for_map`: the first plan waits for a map as for listed neighbours.
+    with its radius grown by it); the acceleration limits are inf when unlimited.
     """
 
     radius: float = 0.3
@@ -234,6 +242,17 @@ class AgentSettings:
     max_angular_acceleration: float = math.inf
     tracking_error: float = 0.1
     tracking_horizon: float = 0.5
+    # Where the preferred velocity comes from (`prvo_planner.preferred`); model 'none': the
+    # command is the preferred velocity, unplanned.
+    preferred_source: str = GOAL
+    model: str = 'prvo'
+    lookahead_dist: float = 0.6
+    use_velocity_scaled_lookahead_dist: bool = False
+    min_lookahead_dist: float = 0.3
+    max_lookahead_dist: float = 0.9
+    lookahead_time: float = 1.5
+    stop_pub_timeout: float = 2.0
+    state_timeout: float = 1.0
     obstacle_distance: float = 3.0
     unknown_is_occupied: bool = True
     lookahead_distance: float = 1.0
@@ -254,6 +273,18 @@ class AgentSettings:
     def planning_radius(self):
         """Return the radius the robot plans with [m]: grown by the tracking error if any."""
         return self.radius + self.tracking_error if self.unicycle else self.radius
+
+    @property
+    def avoids(self):
+        """Whether the robot avoids its neighbours (model other than 'none')."""
+        return self.model != 'none'
+
+    @property
+    def lookahead(self):
+        """Return the `LookaheadSettings` of path following."""
+        return LookaheadSettings(self.lookahead_dist, self.use_velocity_scaled_lookahead_dist,
+                                 self.min_lookahead_dist, self.max_lookahead_dist,
+                                 self.lookahead_time)
 
     def tracking_model(self, max_speed):
         """Return the `TrackingModel` of a unicycle with these settings and MAX_SPEED."""
@@ -302,9 +333,11 @@ class Command:
     what was not announced) are in the same order. `drive` is a unicycle's (forward speed, turn
     rate) that tracks `velocity`, None for a holonomic robot. `arrival` marks the first plan at
     the goal since the robot set off for it. `tally` is the agent's `PlanTally` with this plan.
-    `route` (K, 2) is the way to the goal the plan followed (None without a map or a way) and
-    `route_status` ROUTE_NONE (no map or no goal), ROUTE_FOUND or ROUTE_UNREACHABLE (the robot
-    holds its place).
+    In the velocity mode `upstream` is the `UpstreamCommand` answered, `passed_through` whether
+    it goes on unchanged (nothing constrained it) and `published` whether the answer is sent
+    (`FilterGate`). `route` (K, 2) is the way to the goal the plan followed (None without a map
+    or a way) and `route_status` ROUTE_NONE (no map, no goal or another preferred source),
+    ROUTE_FOUND or ROUTE_UNREACHABLE (the robot holds its place).
     """
 
     stamp: float
@@ -319,6 +352,9 @@ class Command:
     drive: tuple = None
     arrival: bool = False
     tally: PlanTally = PlanTally()
+    upstream: object = None
+    passed_through: bool = False
+    published: bool = True
     route: np.ndarray = None
     route_status: str = ROUTE_NONE
 
@@ -337,9 +373,12 @@ class PlanRequest:
 
     `problem` is the argument tuple of `prvo_planner.core.plan_velocity` (ego, neighbours,
     v_pref, config, previous, limits), or None when the robot stands still (no goal, or at its
-    goal while nobody comes). `obstacles` are the `StaticObstacles` of its map near it, passed
-    as `plan_velocity(*problem, obstacles=obstacles)`, None without a map or with nothing
-    near. `arrival`, `route` and `route_status` as in `Command`.
+    goal while nobody comes). `arrival` as in `Command`. `unplanned` is the velocity (2,)
+    commanded without a plan (model 'none', or an upstream command passed through), None when
+    there is none; `upstream` the `UpstreamCommand` answered (velocity mode) and `passed_through`
+    whether it goes on unchanged. `obstacles` are the `StaticObstacles` of its map near it,
+    passed as `plan_velocity(*problem, obstacles=obstacles)`, None without a map or with
+    nothing near; `route` and `route_status` as in `Command`.
     """
 
     stamp: float
@@ -349,6 +388,9 @@ class PlanRequest:
     announcements: tuple
     problem: tuple
     arrival: bool = False
+    unplanned: np.ndarray = None
+    upstream: object = None
+    passed_through: bool = False
     obstacles: object = None
     route: np.ndarray = None
     route_status: str = ROUTE_NONE
@@ -418,6 +460,14 @@ class PlannerAgent:
         # a team's processes start at different speeds, and a run begins with all of them.
         self._first_own_at = None
         self.tally = PlanTally()
+        # The path followed (path mode); the upstream command waiting for its answer, when it
+        # came and the last one answered (velocity mode); when the own state was last received.
+        self._path = None
+        self._upstream = None
+        self._upstream_received_at = None
+        self._upstream_answered = None
+        self._own_received_at = None
+        self._gate = FilterGate(settings.stop_pub_timeout)
         # The map (set_map) and what the agent made of it; the route to the goal in force.
         self._grid = None
         self._map_built_for = None
@@ -426,6 +476,7 @@ class PlannerAgent:
         self._route_tree = None
         self._route = None
         self._route_segment = 0
+        self._route_status = ROUTE_NONE
 
     @property
     def pending_stamp(self):
@@ -452,6 +503,7 @@ class PlannerAgent:
             self.goal = None
         elif self.goal is None or not np.array_equal(self.goal, goal):
             self.set_goal(goal)
+        self._gate.stop_pub_timeout = settings.stop_pub_timeout
         if self._owns_tracks:
             self._neighbour_tracks.acceleration_std = settings.acceleration_std
             self._neighbour_tracks.neighbor_timeout = settings.neighbor_timeout
@@ -475,6 +527,7 @@ class PlannerAgent:
                                        self.settings.acceleration_std,
                                        self.settings.neighbor_timeout)
         if fusion.accepted:
+            self._own_received_at = now
             if self._first_own_at is None:
                 self._first_own_at = now
             self._pending_stamp = measurement.stamp
@@ -494,7 +547,7 @@ class PlannerAgent:
         as a reciprocal planner does (a robot heading away from a standing one would otherwise
         see the standing one's half coming after it), so it announces none.
         """
-        moving = self.goal is not None and not self.arrived
+        moving = self._moving()
         # A unicycle's path strays up to its tracking error from its plan: its neighbours must
         # keep clear of the grown disc it plans with.
         return NeighbourAnnouncement(
@@ -565,6 +618,180 @@ class PlannerAgent:
         """
         return self._neighbour_tracks.forget(now, wanted)
 
+    # Preferred velocity: goal, path or upstream command --------------------------------------
+
+    def set_path(self, waypoints):
+        """Follow the path WAYPOINTS (K, 2) instead of any before; None or K = 0: stop following.
+
+        The goal becomes the path's last waypoint (none without a path). Raises ValueError
+        naming what is wrong with WAYPOINTS; the path followed then stays.
+        """
+        if waypoints is None or len(waypoints) == 0:
+            self._path, self.goal, self.arrived = None, None, False
+            self._previous_velocity = None
+            return
+        self._path = PathFollower(waypoints)
+        self.set_goal(self._path.goal)
+
+    @property
+    def path(self):
+        """The `PathFollower` of the path followed, None without one."""
+        return self._path
+
+    def receive_upstream(self, command, now):
+        """Take the upstream COMMAND (`UpstreamCommand`) received at NOW, to be answered.
+
+        The next plan answers it (a newer command replaces one not answered yet). Its stamp is
+        the next own measurement's, or the last one's when the caller's wait for a newer one
+        ran out (`repeat_last_stamp`).
+        """
+        self._upstream, self._upstream_received_at = command, now
+
+    def upstream_answer(self, now):
+        """Return how the waiting upstream command is to be answered at NOW.
+
+        'stale': by zero (`stale_answer`), the own state is stale; 'repeat': by the last answer
+        again (a stamped command no later than the last one answered, for the same own state:
+        its sender re-sent a step, as a lockstep simulator re-sends a step not answered, and one
+        step has one answer); 'plan': by `plan()`, the robot is ready;
+        'wait': for the own state the command's stamp is later than, or for the neighbours
+        (the caller plans at the latest when its wait runs out: `repeat_last_stamp`). A
+        command that finds no newer own state is answered from the last one.
+        """
+        upstream = self._upstream
+        if self.own_state_stale(now):
+            return 'stale'
+        if self._pending_stamp is None:
+            last = self._own_track.stamp
+            if upstream.stamp is not None and upstream.stamp > last:
+                return 'wait'
+            answered = self._upstream_answered
+            if (upstream.stamp is not None and answered is not None
+                    and answered.stamp is not None and upstream.stamp <= answered.stamp
+                    and self._command_stamp == last):
+                self._upstream = None
+                return 'repeat'
+            self.repeat_last_stamp()
+        return 'plan' if self.ready(now) else 'wait'
+
+    @property
+    def upstream_waiting(self):
+        """Whether an upstream command waits for its answer."""
+        return self._upstream is not None
+
+    def own_state_stale(self, now):
+        """Whether no own measurement came within `state_timeout` before NOW."""
+        return (self._own_received_at is None
+                or now - self._own_received_at > self.settings.state_timeout)
+
+    def repeat_last_stamp(self):
+        """Plan the next time for the last own stamp again (no newer measurement came)."""
+        if self._pending_stamp is None and self._own_track is not None:
+            self._pending_stamp = self._own_track.stamp
+
+    def stale_answer(self):
+        """Return the zero `Command` answering the waiting upstream command: no own state.
+
+        The robot's own state is stale (`own_state_stale`): a filter that cannot tell where the
+        robot is stops it. None if no command waits or the answer is not to be published.
+        """
+        upstream, self._upstream = self._upstream, None
+        if upstream is None or not self._gate.publishes(True, self._upstream_received_at):
+            return None
+        self._upstream_answered = upstream
+        self._command_in_force, self._drive = np.zeros(2), (0.0, 0.0)
+        self._previous_velocity = None
+        return Command(stamp=self._command_stamp or 0.0, velocity=np.zeros(2), yaw=self._own_yaw,
+                       result=None, arrived=False, own=None, neighbours=(), neighbour_names=(),
+                       announcements=(), drive=(0.0, 0.0) if self.settings.unicycle else None,
+                       tally=self.tally, upstream=upstream)
+
+    def _has_preference(self):
+        """Whether the robot has what it needs to plan: in the velocity mode, a command."""
+        return self.settings.preferred_source != VELOCITY or self._upstream is not None
+
+    def _moving(self):
+        """Whether the robot is on its way (it then takes its share of the avoidance)."""
+        if self.settings.preferred_source == VELOCITY:
+            return self._upstream_answered is not None and not self._upstream_answered.is_zero
+        return self.goal is not None and not self.arrived
+
+    def _preference(self, own):
+        """Return (v_pref (2,), arrived, distance to the goal [m]) from the robot's OWN belief.
+
+        The distance is along the path in the path mode and inf without a goal ahead.
+        """
+        settings = self.settings
+        position = own.mean[:2]
+        max_speed = self.config.max_speed
+        source = settings.preferred_source
+        if source == VELOCITY:
+            upstream = self._upstream
+            velocity = np.zeros(2) if upstream is None else upstream.world_velocity(
+                self._own_yaw, settings.unicycle)
+            return velocity, False, math.inf
+        if source == PATH and self._path is not None:
+            lookahead = settings.lookahead.distance(float(np.hypot(*own.mean[2:])))
+            return path_preferred_velocity(
+                position, self._path, lookahead, max_speed, settings.approach_time,
+                settings.goal_tolerance, settings.max_acceleration)
+        self._route_status = ROUTE_NONE
+        if self._route_map is not None and self.goal is not None:
+            return self._route_preference(position)
+        v_pref, arrived = preferred_velocity(
+            position, self.goal, max_speed, settings.approach_time, settings.goal_tolerance,
+            settings.max_acceleration)
+        return v_pref, arrived, (
+            math.inf if self.goal is None else float(np.hypot(*(self.goal - position))))
+
+    def _route_preference(self, position):
+        """Return (v_pref, arrived, the way left [m]) along the route to the goal on the map.
+
+        No way reaching the goal: the robot holds its place (and keeps avoiding whoever comes).
+        """
+        settings = self.settings
+        route = self._route_at(position)
+        if route is None:
+            self._route_status = ROUTE_UNREACHABLE
+            return np.zeros(2), False, math.inf
+        self._route_status = ROUTE_FOUND
+        v_pref, arrived, self._route_segment, remaining = route_preferred_velocity(
+            position, self.goal, route, self._route_segment, settings.lookahead_distance,
+            self.config.max_speed, settings.approach_time, settings.goal_tolerance,
+            settings.max_acceleration, self._route_map.in_sight, self._route_map.resolution)
+        return v_pref, arrived, remaining
+
+    def _problem(self, own, stamp, tracks, announcements, v_pref, horizon):
+        """Return the argument tuple of `plan_velocity` for the plan of STAMP."""
+        return (
+            AgentBelief(own.mean[:2], own.mean[2:], own.covariance,
+                        self.settings.planning_radius),
+            [track.agent_belief(stamp, announcement.radius, announcement.avoidance_share)
+             for track, announcement in zip(tracks, announcements, strict=True)],
+            v_pref, dataclasses.replace(
+                self.config, time_horizon=horizon,
+                control_period=self._control_period or self.config.control_period),
+            self._previous_velocity, self._limits(stamp))
+
+    def _unplanned_request(self, request, v_pref, tracks):
+        """Return REQUEST completed for a robot that does not avoid, or filters a command.
+
+        Without avoidance the preferred velocity is the command. An upstream command goes on
+        unchanged when it stands still, or when nothing constrains it: it is within max_speed
+        and the plan nearest to it (choosing by distance alone, without the robot's limits) is
+        the command itself. Otherwise the request is planned as a goal's is, with the command
+        as the preferred velocity over the whole horizon.
+        """
+        upstream = request.upstream
+        if not self.settings.avoids or upstream is None:
+            return dataclasses.replace(request, unplanned=v_pref,
+                                       passed_through=upstream is not None)
+        problem = self._problem(request.own, request.stamp, tracks, request.announcements,
+                                v_pref, self.config.time_horizon)
+        if upstream.is_zero or _unconstrained(problem):
+            return dataclasses.replace(request, unplanned=v_pref, passed_through=True)
+        return dataclasses.replace(request, problem=problem)
+
     # Planning ---------------------------------------------------------------------------------
 
     def awaiting_listed(self, now):
@@ -586,7 +813,8 @@ class PlannerAgent:
 
     def ready(self, now):
         """Whether a stamp is pending and every neighbour has been measured at or after it."""
-        return (self._pending_stamp is not None and not self.awaiting_listed(now) and all(
+        return (self._pending_stamp is not None and not self.awaiting_listed(now)
+                and self._has_preference() and all(
             self._neighbour_tracks.track(robot).stamp >= self._pending_stamp
             for robot in self._neighbour_names()))
 
@@ -615,8 +843,10 @@ class PlannerAgent:
         stamp, self._pending_stamp = self._pending_stamp, None
         own = self._own_track.belief_at(stamp)
         max_speed = self.config.max_speed
-        v_pref, self.arrived, distance_to_goal, route, route_status = self._preferred_velocity(
-            own.mean[:2])
+        v_pref, self.arrived, distance_to_goal = self._preference(own)
+        route_status = self._route_status
+        route = self._route if route_status == ROUTE_FOUND else None
+        upstream, self._upstream = self._upstream, None
         arrival = self._arrival(own.mean[:2])
         names = tuple(self._neighbour_names())
         tracks = [self._neighbour_tracks.track(robot) for robot in names]
@@ -627,22 +857,19 @@ class PlannerAgent:
         if self._command_stamp is not None and 0.0 < stamp - self._command_stamp:
             self._control_period = stamp - self._command_stamp
         problem = None
+        if upstream is not None or not self.settings.avoids:
+            return self._unplanned_request(PlanRequest(
+                stamp=stamp, own=own, neighbours=neighbour_beliefs, neighbour_names=names,
+                announcements=announcements, problem=None, arrival=arrival, upstream=upstream),
+                v_pref, tracks)
         if self.goal is not None:
             # At its goal the robot keeps planning, with v_pref = 0: it stands while nobody
             # comes and takes its share of the avoidance when someone does, over the whole
             # horizon (its neighbours count on that share).
-            horizon = self.config.time_horizon if distance_to_goal is None else goal_horizon(
+            horizon = self.config.time_horizon if self.arrived else goal_horizon(
                 distance_to_goal, max_speed, self.settings.approach_time,
                 self.config.time_horizon)
-            problem = (
-                AgentBelief(own.mean[:2], own.mean[2:], own.covariance,
-                            self.settings.planning_radius),
-                [track.agent_belief(stamp, announcement.radius, announcement.avoidance_share)
-                 for track, announcement in zip(tracks, announcements, strict=True)],
-                v_pref, dataclasses.replace(
-                    self.config, time_horizon=horizon,
-                    control_period=self._control_period or self.config.control_period),
-                self._previous_velocity, self._limits(stamp))
+            problem = self._problem(own, stamp, tracks, announcements, v_pref, horizon)
             if (self.arrived or route_status == ROUTE_UNREACHABLE) and nobody_comes(problem):
                 problem = None
         obstacles = None if self._obstacle_index is None else self._obstacle_index.near(
@@ -654,30 +881,6 @@ class PlannerAgent:
                            neighbour_names=names, announcements=announcements,
                            problem=problem, arrival=arrival, obstacles=obstacles, route=route,
                            route_status=route_status)
-
-    def _preferred_velocity(self, position):
-        """Return (v_pref, arrived, distance to the goal, route, route status) at POSITION.
-
-        The distance [m] is the way left, for the horizon: None when the robot stands (arrived,
-        or no way reaches the goal). Without a map the robot heads straight for its goal.
-        """
-        settings = self.settings
-        if self._route_map is None or self.goal is None:
-            v_pref, arrived = preferred_velocity(
-                position, self.goal, self.config.max_speed, settings.approach_time,
-                settings.goal_tolerance, settings.max_acceleration)
-            distance = (None if arrived or self.goal is None
-                        else float(np.hypot(*(self.goal - position))))
-            return v_pref, arrived, distance, None, ROUTE_NONE
-        route = self._route_at(position)
-        if route is None:
-            # No way reaches the goal: hold the place (and keep avoiding whoever comes).
-            return np.zeros(2), False, None, None, ROUTE_UNREACHABLE
-        v_pref, arrived, self._route_segment, remaining = route_preferred_velocity(
-            position, self.goal, route, self._route_segment, settings.lookahead_distance,
-            self.config.max_speed, settings.approach_time, settings.goal_tolerance,
-            settings.max_acceleration, self._route_map.in_sight, self._route_map.resolution)
-        return v_pref, arrived, None if arrived else remaining, route, ROUTE_FOUND
 
     # Map and route -----------------------------------------------------------------------------
 
@@ -757,7 +960,9 @@ class PlannerAgent:
 
         Standing still under an acceleration limit is braking toward zero at that limit.
         """
-        if result is None:
+        if request.unplanned is not None:
+            velocity = request.unplanned
+        elif result is None:
             velocity = np.zeros(2) if not math.isfinite(self.settings.max_acceleration) else (
                 self._command_in_force - _clipped_norm(
                     self._command_in_force,
@@ -766,7 +971,10 @@ class PlannerAgent:
             velocity = result.velocity
         self._previous_velocity = None if result is None else velocity
         drive = None
-        if self.settings.unicycle:
+        if request.passed_through and self.settings.unicycle:
+            drive = (request.upstream.linear[0], request.upstream.angular)
+            self._drive = drive
+        elif self.settings.unicycle:
             drive = tracking_command(velocity, self._own_yaw, *self._drive,
                                      self.settings.tracking_model(self.config.max_speed),
                                      self._period(request))
@@ -774,12 +982,18 @@ class PlannerAgent:
         self._command_in_force, self._command_stamp = velocity, request.stamp
         if result is not None:
             self.tally = self.tally.counted(result, request.stamp)
+        published = True
+        if request.upstream is not None:
+            self._upstream_answered = request.upstream
+            published = self._gate.publishes(
+                _is_zero(request, velocity, drive), self._upstream_received_at)
         return Command(stamp=request.stamp, velocity=velocity, yaw=self._own_yaw, result=result,
                        arrived=self.arrived, own=request.own, neighbours=request.neighbours,
                        neighbour_names=request.neighbour_names,
                        announcements=request.announcements, drive=drive,
-                       arrival=request.arrival, tally=self.tally, route=request.route,
-                       route_status=request.route_status)
+                       arrival=request.arrival, tally=self.tally, upstream=request.upstream,
+                       passed_through=request.passed_through, published=published,
+                       route=request.route, route_status=request.route_status)
 
     def _period(self, request):
         """Return the time [s] the command for REQUEST will be in force (0 before any)."""
@@ -823,6 +1037,30 @@ class PlannerAgent:
             previous = plan_velocity(own, neighbours, np.array([1.0, 0.0]), self.config,
                                      previous=previous).velocity
 
+
+
+def _unconstrained(problem):
+    """Whether PROBLEM's v_pref meets every constraint: the robot may keep it unchanged.
+
+    PROBLEM is the argument tuple of `plan_velocity`. The plan is made choosing by the distance
+    to v_pref alone and without the robot's limits (the command was made for them upstream);
+    the core keeps a choice a hair inside its feasible interval.
+    """
+    ego, neighbours, v_pref, config = problem[:4]
+    if float(np.hypot(*v_pref)) > config.max_speed:
+        return False
+    if not neighbours:
+        return True
+    result = plan_velocity(ego, neighbours, v_pref, dataclasses.replace(
+        config, inertia=0.0, passing_bias=0.0, progress_weight=0.0))
+    return result.feasible and float(np.hypot(*(result.velocity - v_pref))) <= _PASSING_SLACK
+
+
+def _is_zero(request, velocity, drive):
+    """Whether the command of REQUEST (VELOCITY (2,), a unicycle's DRIVE) stands still."""
+    if request.passed_through:
+        return request.upstream.is_zero
+    return not np.any(velocity) and (drive is None or not any(drive))
 
 
 def _clipped_norm(vector, limit):

@@ -18,6 +18,7 @@ import numpy as np
 from prvo_msgs_util import validate_robot_name
 from prvo_planner.core import PlannerConfig
 from prvo_planner.core.config import CERTIFICATES, METHODS, MODELS, RISKS
+from prvo_planner.preferred import SOURCES
 
 BOOL = 'bool'
 INTEGER = 'int'
@@ -26,6 +27,8 @@ STRING = 'str'
 FLOAT_ARRAY = 'float[]'
 STRING_ARRAY = 'str[]'
 KINEMATICS = ('holonomic', 'unicycle')
+# The `model` that disables avoidance: the command is the preferred velocity, unchanged.
+NO_AVOIDANCE = 'none'
 # Goals (and the scenario's coordinates) are in metres of one shared map: 1000 km is plenty and
 # keeps every product of coordinates far from floating-point trouble.
 COORDINATE_LIMIT = 1.0e6
@@ -113,6 +116,52 @@ def _not_empty(value):
     return None if value else 'must not be empty'
 
 
+def _topic_name(value):
+    return None if value and ' ' not in value else f'must be a topic name, got {value!r}'
+
+
+# Where the preferred velocity comes from, and the topics of each source. The names of the
+# path and filter parameters are those of Nav2's Regulated Pure Pursuit and collision monitor.
+_PREFERRED_SOURCE_SPECS = (
+    ParameterSpec('preferred_source', STRING, 'goal', 'Source of the preferred velocity: goal '
+                  '(straight to the goal parameter or goal_pose), path (follow a nav_msgs/Path '
+                  'on path_topic) or velocity (filter the command on cmd_vel_in_topic).',
+                  choices=SOURCES, read_only=True),
+    ParameterSpec('path_topic', STRING, 'plan', 'preferred_source path: the nav_msgs/Path (map '
+                  'frame) to follow; a new path replaces the old, an empty one cancels.',
+                  read_only=True, rule=_topic_name),
+    ParameterSpec('lookahead_dist', FLOAT, 0.6, 'preferred_source path: distance of the carrot '
+                  'on the path [m].', (0.01, 100.0)),
+    ParameterSpec('use_velocity_scaled_lookahead_dist', BOOL, False, 'preferred_source path: '
+                  'lookahead = speed * lookahead_time within [min_lookahead_dist, '
+                  'max_lookahead_dist] instead of lookahead_dist.'),
+    ParameterSpec('min_lookahead_dist', FLOAT, 0.3, 'Smallest velocity-scaled lookahead [m].',
+                  (0.01, 100.0)),
+    ParameterSpec('max_lookahead_dist', FLOAT, 0.9, 'Largest velocity-scaled lookahead [m], >= '
+                  'min_lookahead_dist.', (0.01, 100.0)),
+    ParameterSpec('lookahead_time', FLOAT, 1.5, 'Velocity-scaled lookahead: seconds of travel '
+                  'at the current speed [s].', (0.01, 100.0)),
+    ParameterSpec('cmd_vel_in_topic', STRING, 'cmd_vel_smoothed', 'preferred_source velocity: '
+                  'the upstream command filtered.', read_only=True, rule=_topic_name),
+    ParameterSpec('cmd_vel_out_topic', STRING, 'cmd_vel', 'preferred_source velocity: where the '
+                  'filtered command goes.', read_only=True, rule=_topic_name),
+    ParameterSpec('enable_stamped_cmd_vel', BOOL, False, 'preferred_source velocity: both '
+                  'topics carry geometry_msgs/TwistStamped (true) or Twist (false).',
+                  read_only=True),
+    ParameterSpec('stop_pub_timeout', FLOAT, 2.0, 'preferred_source velocity: once the output is '
+                  'zero it is published this long [s], then not until it moves; .inf for ever.',
+                  rule=_positive),
+    # Nav2's per-robot odom is in each robot's own odom frame: robots can only compare states in
+    # one shared frame, so the states read must come from localisation in frame_id.
+    ParameterSpec('state_topic', STRING, 'odom', 'nav_msgs/Odometry (with covariance, in '
+                  "frame_id) read for this robot and, under each neighbour's namespace, for "
+                  'the neighbours: e.g. odometry/global of robot_localization.', read_only=True,
+                  rule=_topic_name),
+    ParameterSpec('state_timeout', FLOAT, 1.0, 'preferred_source velocity: the output is zero '
+                  'while the own state is older than this [s, wall time].', (0.01, 3600.0)),
+)
+
+
 _SPECS = (
     ParameterSpec('eta', FLOAT, 0.8, 'Required probability that the RVO condition holds for '
                   'each neighbour, in (0, 1).', (0.0, 1.0), rule=_open_unit_interval),
@@ -141,8 +190,9 @@ _SPECS = (
                   'per axis [m/s] (PRVO ego noise).', (0.0, 1.0e3)),
     ParameterSpec('safety_margin', FLOAT, 0.0, 'Extra clearance added to the sum of radii [m].',
                   (0.0, 10.0)),
-    ParameterSpec('model', STRING, 'prvo', 'Planner model: prvo, rvo, inflate or mc.',
-                  choices=MODELS),
+    ParameterSpec('model', STRING, 'prvo', 'Planner model: prvo, rvo, inflate or mc; none '
+                  'disables avoidance (the command is the preferred velocity).',
+                  choices=(*MODELS, NO_AVOIDANCE)),
     ParameterSpec('method', STRING, 'exact', 'PRVO ray solver: exact (quartic) or taylor '
                   '(paper).', choices=METHODS),
     ParameterSpec('risk', STRING, 'pairwise', 'Risk allocation over neighbours: pairwise or '
@@ -152,7 +202,8 @@ _SPECS = (
                   'bound, smaller margins, less detour; Cantelli kept where it falls short).',
                   choices=CERTIFICATES),
     ParameterSpec('goal', FLOAT_ARRAY, None, 'Goal [x, y] in the map frame [m], |x|, |y| <= '
-                  '1e6; unset = wait for a goal_pose message.', rule=_goal_rule),
+                  '1e6; unset = wait for a goal_pose message (preferred_source goal only).',
+                  rule=_goal_rule),
     ParameterSpec('goal_tolerance', FLOAT, 0.2, 'Distance to the goal [m] under which the robot '
                   'stops, in (0, 100].', (0.0, 100.0), rule=_positive_up_to_100),
     ParameterSpec('approach_time', FLOAT, 0.5, 'Preferred speed is distance / approach_time '
@@ -225,6 +276,7 @@ _SPECS = (
     ParameterSpec('wait_for_map', BOOL, False, 'Plan only once a map has arrived (for at most '
                   'neighbor_timeout after the first own odometry), as for listed neighbours: a '
                   'run whose world has a map plans its first step on it.'),
+    *_PREFERRED_SOURCE_SPECS,
 )
 
 # Every planner parameter by name, in declaration order.
@@ -398,6 +450,10 @@ def planner_config_from(values):
     Raises ParameterError naming the first parameter the planner cannot use and its value.
     """
     merged = {**DEFAULTS, **checked_parameters(values)}
+    if merged['max_lookahead_dist'] < merged['min_lookahead_dist']:
+        raise ParameterError('max_lookahead_dist', f"must be >= min_lookahead_dist "
+                             f"({_shown(merged['min_lookahead_dist'])}), got "
+                             f"{_shown(merged['max_lookahead_dist'])}")
     k = merged['k']
     seed = merged['seed']
     try:
@@ -407,7 +463,9 @@ def planner_config_from(values):
             neighbor_distance=merged['neighbor_distance'],
             actuation_cov=merged['actuation_std'] ** 2 * np.eye(2),
             safety_margin=merged['safety_margin'], method=merged['method'],
-            model=merged['model'], risk=merged['risk'], certificate=merged['certificate'],
+            # A robot that does not avoid never plans: its config's model is never used.
+            model=MODELS[0] if merged['model'] == NO_AVOIDANCE else merged['model'],
+            risk=merged['risk'], certificate=merged['certificate'],
             seed=None if seed < 0 else seed,
             inertia=merged['inertia'], passing_bias=merged['passing_bias'],
             progress_weight=merged['progress_weight'],

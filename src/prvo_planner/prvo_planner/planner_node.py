@@ -8,14 +8,14 @@ The node is a thin shell around `prvo_planner.agent.PlannerAgent`: it declares p
 converts messages through prvo_msgs_util, feeds the agent, waits at most `sync_timeout` for
 neighbours and publishes the agent's commands and its announcements (footprint, share). With
 an occupancy grid on `map_topic` (latched, as map_server publishes it) it plans against the
-grid's obstacles and publishes its route to the goal on `<robot>/plan`.
+grid's obstacles and, heading for a goal, publishes its route there on `<robot>/plan`.
 """
 
 import dataclasses
 import sys
 import time
 
-from geometry_msgs.msg import PoseStamped, Twist, TwistStamped
+from geometry_msgs.msg import PointStamped, PoseStamped, Twist, TwistStamped
 from nav_msgs.msg import OccupancyGrid, Odometry, Path
 from rcl_interfaces.msg import SetParametersResult
 import rclpy
@@ -31,7 +31,6 @@ from prvo_msgs_util import (
     GOAL_POSE,
     GOAL_QOS,
     MAP_QOS,
-    ODOM,
     ODOM_LATEST_QOS,
     PLAN,
     PLAN_QOS,
@@ -41,12 +40,15 @@ from prvo_msgs_util import (
     QosWatch,
     ThrottledWarnings,
     declare_parameters,
+    filtered_twist,
     freeze_startup_objects,
     hold_stop_signals,
     ignore_stop_signals,
     make_path,
+    make_point_stamped,
     occupancy_grid_to_parts,
     parameter_descriptor,
+    path_to_waypoints,
     pose_stamped_to_goal,
     quiet_after_shutdown,
     quiet_publisher_events,
@@ -56,7 +58,10 @@ from prvo_msgs_util import (
     robots_with_topic,
     serialized_odometry_to_measurement,
     spin_events,
+    stamp_to_seconds,
     subscribe_announcements,
+    twist_components,
+    world_to_body,
 )
 from prvo_planner.agent import ROUTE_UNREACHABLE, AgentSettings, PlannerAgent
 from prvo_planner.maps import GridMap
@@ -70,10 +75,13 @@ from prvo_planner.parameters import (
     neighbour_names,
     planner_config_from,
 )
+from prvo_planner.preferred import GOAL, PATH, VELOCITY, UpstreamCommand
 from prvo_planner.reports import PlanReporter, command_message
 
 _WARN_PERIOD_SECONDS = 2.0
 _ODOMETRY_TYPE = 'nav_msgs/msg/Odometry'
+_TWIST_TYPES = {Twist: 'geometry_msgs/msg/Twist', TwistStamped: 'geometry_msgs/msg/TwistStamped'}
+LOOKAHEAD_POINT = 'lookahead_point'
 # name: (default, descriptor), in declaration order. A parameter without a default (goal,
 # neighbors) is dynamically typed, so that it can stay unset and take integers as well as
 # doubles; its rules are checked on every set.
@@ -96,7 +104,8 @@ class PlannerNode(Node):
             raise
         self.add_on_set_parameters_callback(self._on_set_parameters)
         self._agent = PlannerAgent(
-            self._robot, self._config, AgentSettings.from_parameters(self._values), self._goal,
+            self._robot, self._config, AgentSettings.from_parameters(self._values),
+            self._goal if self._values['preferred_source'] == GOAL else None,
             self._neighbours_listed)
         self._steady_clock = Clock(clock_type=ClockType.STEADY_TIME)
         self._neighbour_subscriptions = {}
@@ -106,12 +115,17 @@ class PlannerNode(Node):
         self._resent_stamp = None
         self._warnings = ThrottledWarnings(self.get_logger(), _WARN_PERIOD_SECONDS)
 
-        self._stamped = self._values['stamped_cmd_vel']
+        self._source = self._values['preferred_source']
+        filtering = self._source == VELOCITY
+        self._stamped = self._values[
+            'enable_stamped_cmd_vel' if filtering else 'stamped_cmd_vel']
+        self._twist_type = TwistStamped if self._stamped else Twist
         # Endpoints without rclpy's QoS event handlers (each would cost every executor wake-up);
         # the watch reports incompatible QoS from the graph instead.
         self._qos_watch = QosWatch(self)
+        self._cmd_vel_topic = self._values['cmd_vel_out_topic'] if filtering else CMD_VEL
         self._cmd_vel_publisher = self.create_publisher(
-            TwistStamped if self._stamped else Twist, CMD_VEL, CMD_VEL_QOS,
+            self._twist_type, self._cmd_vel_topic, CMD_VEL_QOS,
             event_callbacks=quiet_publisher_events())
         self._reporter = PlanReporter(self, self._robot)
         self._announcer = Announcer(self, self._robot)
@@ -119,20 +133,18 @@ class PlannerNode(Node):
         self._commands = CommandsAfterAnnouncements(
             self, self._cmd_vel_publisher, self._steady_clock,
             lambda text: self._warnings.warn('acknowledgement', text))
-        self._own_odom_topic = robot_topic(self._robot, ODOM)
+        self._state_topic = self._values['state_topic']
+        self._own_odom_topic = robot_topic(self._robot, self._state_topic)
         # Odometry arrives serialized (raw): eight messages a step in an 8-robot team, and
         # reading the few fields needed from the bytes costs a fraction of deserializing them.
         own_odometry = self.create_subscription(
-            Odometry, ODOM, self._on_own_odometry, ODOM_LATEST_QOS,
+            Odometry, self._state_topic, self._on_own_odometry, ODOM_LATEST_QOS,
             event_callbacks=quiet_subscription_events(), raw=True)
-        goal = self.create_subscription(
-            PoseStamped, GOAL_POSE, self._on_goal_pose, GOAL_QOS,
-            event_callbacks=quiet_subscription_events())
-        map_endpoints = self._map_endpoints()
         self._qos_watch.watch(
             self._cmd_vel_publisher, self._reporter.diagnostics_publisher,
             self._reporter.marker_publisher, self._announcer.footprint_publisher,
-            self._announcer.share_publisher, own_odometry, goal, *map_endpoints)
+            self._announcer.share_publisher, own_odometry, *self._source_endpoints(),
+            *self._map_endpoints())
 
         # Wall-clock timers: under use_sim_time sim time waits for us and would never fire them.
         self._sync_timer = self.create_timer(
@@ -143,7 +155,49 @@ class PlannerNode(Node):
         self.get_logger().info(
             f'planning for {self._robot}: model={self._config.model} '
             f'method={self._config.method} k={self._config.effective_k:.3f} '
-            f'goal={None if self._goal is None else self._goal.tolist()}')
+            f'preferred_source={self._source} '
+            f'goal={None if self._agent.goal is None else self._agent.goal.tolist()}')
+
+    def _source_endpoints(self):
+        """Create the endpoints of the preferred velocity's source; return them.
+
+        goal: goal_pose; path: path_topic and the carrot on lookahead_point; velocity: the
+        upstream command on cmd_vel_in_topic (answered on cmd_vel_out_topic).
+        """
+        quiet = quiet_subscription_events
+        self._lookahead_publisher = None
+        if self._source == GOAL:
+            return [self.create_subscription(PoseStamped, GOAL_POSE, self._on_goal_pose,
+                                             GOAL_QOS, event_callbacks=quiet())]
+        if self._source == PATH:
+            self._lookahead_publisher = self.create_publisher(
+                PointStamped, LOOKAHEAD_POINT, CMD_VEL_QOS,
+                event_callbacks=quiet_publisher_events())
+            return [self.create_subscription(Path, self._values['path_topic'], self._on_path,
+                                             GOAL_QOS, event_callbacks=quiet()),
+                    self._lookahead_publisher]
+        return [self.create_subscription(
+            self._twist_type, self._values['cmd_vel_in_topic'], self._on_upstream, CMD_VEL_QOS,
+            event_callbacks=quiet())]
+
+    def _resolved(self, topic):
+        """Return TOPIC as the graph names it (resolved in the node's namespace)."""
+        return self.resolve_topic_name(topic)
+
+    def _check_topic_types(self):
+        """Warn about a filter topic that carries another Twist type than the filter's."""
+        if self._source != VELOCITY:
+            return
+        wanted = _TWIST_TYPES[self._twist_type]
+        for topic, endpoints in (
+                (self._values['cmd_vel_in_topic'], self.get_publishers_info_by_topic),
+                (self._cmd_vel_topic, self.get_subscriptions_info_by_topic)):
+            name = self._resolved(topic)
+            other = sorted({info.topic_type for info in endpoints(name)} - {wanted})
+            if other:
+                self._warnings.warn((name, 'type'), f'{name} carries {", ".join(other)}, the '
+                                    f'filter {wanted} (enable_stamped_cmd_vel '
+                                    f'{str(self._stamped).lower()}): they do not connect')
 
     # Parameters -------------------------------------------------------------------------------
 
@@ -172,7 +226,9 @@ class PlannerNode(Node):
         except ParameterError as error:
             return SetParametersResult(successful=False, reason=str(error))
         self._values, self._config, self._goal = values, config, goal
-        self._agent.reconfigure(config, AgentSettings.from_parameters(values), goal)
+        # The goal parameter is the goal_pose's; a path brings its own goal, a filter none.
+        self._agent.reconfigure(config, AgentSettings.from_parameters(values), (
+            goal if self._source == GOAL else self._agent.goal))
         self._announce()
         if any(parameter.name == 'sync_timeout' for parameter in parameters):
             self._sync_timer.timer_period_ns = int(max(values['sync_timeout'], 1e-3) * 1e9)
@@ -216,7 +272,7 @@ class PlannerNode(Node):
         fusion = self._agent.receive_own(measurement, time.monotonic())
         self._report(fusion, self._own_odom_topic)
         if fusion.status == 'duplicate':
-            if (self._last_command_stamp == measurement.stamp
+            if (self._source != VELOCITY and self._last_command_stamp == measurement.stamp
                     and self._resent_stamp != measurement.stamp and not self._commands.holding):
                 # The simulator re-sends odometry it has no answer to: the answer may be lost.
                 self._resent_stamp = measurement.stamp
@@ -226,7 +282,8 @@ class PlannerNode(Node):
             return
         if self._agent.ready(time.monotonic()):
             self._plan()
-        elif self._sync_timer.is_canceled():
+        elif self._sync_timer.is_canceled() and (
+                self._source != VELOCITY or self._agent.upstream_waiting):
             # Armed once per wait: re-arming it on every own odometry would postpone the plan
             # for as long as odometry comes faster than sync_timeout and a neighbour is silent.
             self._sync_timer.reset()
@@ -259,9 +316,57 @@ class PlannerNode(Node):
         self.get_logger().info(f'new goal {goal.tolist()}')
 
     @quiet_after_shutdown
+    def _on_path(self, msg):
+        topic = self._resolved(self._values['path_topic'])
+        try:
+            waypoints = path_to_waypoints(msg, expected_frame=self._values['frame_id'])
+            self._agent.set_path(waypoints)
+        except ValueError as fault:
+            self._warnings.warn((topic, 'path'), f'ignoring path on {topic}: {fault}')
+            return
+        self._announce()
+        self.get_logger().info(f'following a path of {len(waypoints)} poses' if len(waypoints)
+                               else 'empty path: stopped following')
+
+    @quiet_after_shutdown
+    def _on_upstream(self, msg):
+        topic = self._resolved(self._values['cmd_vel_in_topic'])
+        try:
+            linear, angular = twist_components(msg)
+        except MessageFault as fault:
+            self._warnings.warn((topic, 'upstream'), f'ignoring command on {topic}: {fault}')
+            return
+        now = time.monotonic()
+        agent = self._agent
+        agent.receive_upstream(UpstreamCommand(
+            linear, angular, msg,
+            stamp_to_seconds(msg.header.stamp) if self._stamped else None), now)
+        answer = agent.upstream_answer(now)
+        if answer == 'stale':
+            self._warnings.warn('stale', f'no state on {self._own_odom_topic} within '
+                                f"state_timeout {self._values['state_timeout']:g} s: stopping")
+            if agent.stale_answer() is not None:
+                self._commands.publish(
+                    filtered_twist(msg, (0.0, 0.0), 0.0), self._announce())
+        elif answer == 'repeat':
+            if self._last_command is not None and not self._commands.holding:
+                self._cmd_vel_publisher.publish(self._last_command)
+        elif answer == 'plan':
+            self._plan()
+        elif self._sync_timer.is_canceled():
+            self._sync_timer.reset()
+
+    @quiet_after_shutdown
     def _on_sync_timeout(self):
+        agent = self._agent
+        if self._source == VELOCITY:
+            if not agent.upstream_waiting:
+                self._sync_timer.cancel()
+                return
+            # No newer own state came: the command is answered from the last one.
+            agent.repeat_last_stamp()
         # While a listed neighbour may still turn up, the timer keeps firing: plan then.
-        if self._agent.pending_stamp is None or self._agent.awaiting_listed(time.monotonic()):
+        if agent.pending_stamp is None or agent.awaiting_listed(time.monotonic()):
             return
         self._plan()
 
@@ -322,11 +427,11 @@ class PlannerNode(Node):
         The robots to avoid are the `neighbors` list, or every other /<name>/odom in the graph.
         """
         listed = self._neighbours_listed
-        wanted = (robots_with_topic(self, ODOM, _ODOMETRY_TYPE) if listed is None
+        wanted = (robots_with_topic(self, self._state_topic, _ODOMETRY_TYPE) if listed is None
                   else set(listed)) - {self._robot}
         agent = self._agent
         for robot in wanted - set(self._neighbour_subscriptions):
-            topic = robot_topic(robot, ODOM)
+            topic = robot_topic(robot, self._state_topic)
             self._neighbour_subscriptions[robot] = [self.create_subscription(
                 Odometry, topic,
                 lambda data, robot=robot, topic=topic: self._on_neighbour_odometry(
@@ -342,6 +447,7 @@ class PlannerNode(Node):
                 self.destroy_subscription(subscription)
             agent.forget_announcements(robot)
         self._qos_watch.check()
+        self._check_topic_types()
         for robot, silent in self._agent.forget_neighbours(time.monotonic(), wanted):
             self.get_logger().info(f'dropped neighbour {robot}: silent for {silent:.1f} s')
 
@@ -356,9 +462,16 @@ class PlannerNode(Node):
         if command.arrival:
             self.get_logger().info(f'arrived at {self._agent.goal.tolist()}')
         # Once neighbours hold a changed announcement: in lockstep they plan the next step with it.
-        message = command_message(self._robot, command, self._stamped)
-        self._commands.publish(message, self._announce())
+        message = self._command_message(command)
+        if command.published:
+            self._commands.publish(message, self._announce())
+        else:
+            self._announce()
         self._last_command, self._last_command_stamp = message, command.stamp
+        if self._lookahead_publisher is not None and self._agent.path is not None and (
+                self._agent.path.last_carrot is not None):
+            self._lookahead_publisher.publish(make_point_stamped(
+                command.stamp, self._agent.path.last_carrot, self._values['frame_id']))
         self._publish_route(command)
         result = command.result
         if result is not None and not result.feasible:
@@ -368,6 +481,20 @@ class PlannerNode(Node):
         self._reporter.report(
             time.monotonic(), self._values['status_period'], command, plan_time_ms,
             self._config, self._agent.settings.planning_radius, self._values['frame_id'])
+
+
+    def _command_message(self, command):
+        """Return the cmd_vel of COMMAND; a filter's answers its upstream message."""
+        upstream = command.upstream
+        if upstream is None:
+            return command_message(self._robot, command, self._stamped)
+        if command.passed_through:
+            return upstream.message
+        if command.drive is not None:
+            return filtered_twist(upstream.message, (command.drive[0], 0.0), command.drive[1])
+        # A holonomic robot turns as it was told: turning does not move its disc.
+        return filtered_twist(upstream.message, world_to_body(command.velocity, command.yaw),
+                              upstream.angular)
 
 
 def main(args=None):

@@ -41,7 +41,9 @@ from prvo_planner.agent import (
 from prvo_planner.core import plan_velocities
 from prvo_planner.maps import GridMap
 from prvo_planner.parameters import planner_config_from
+from prvo_planner.preferred import UpstreamCommand
 from prvo_planner.tracks import TrackTable
+from prvo_sim.upstream import PurePursuitUpstream
 from prvo_sim.world import TeamWorld
 from prvo_sim.world_messages import serialized_odometry
 
@@ -80,6 +82,15 @@ def agent_of(name, values, neighbour_tracks=None):
     """
     return PlannerAgent(name, planner_config_from(values), AgentSettings.from_parameters(values),
                         values['goal'], values['neighbors'], neighbour_tracks)
+
+
+def upstream_of(robot, scenario):
+    """Return the `PurePursuitUpstream` that drives ROBOT (its `upstream` path) in SCENARIO.
+
+    It stops within half the scenario's goal tolerance, as the robot's planner would.
+    """
+    return PurePursuitUpstream(robot.upstream.waypoints, robot.upstream.speed, robot.kinematics,
+                               scenario.goal_tolerance / 2.0, robot.max_angular_speed)
 
 
 class InProcessTeam:
@@ -129,6 +140,10 @@ class InProcessTeam:
             grid_map = self.world.static_world.grid
         if grid_map is not None:
             self._give_map(grid_map, planner_values)
+        # The Nav2 stand-ins of the robots driven upstream (their planners filter), by index.
+        self._upstreams = {index: upstream_of(robot, scenario)
+                           for index, robot in enumerate(scenario.robots)
+                           if robot.upstream is not None}
         # What the ROS run publishes of the last step, kept for that step only (a recording
         # takes it): each robot's serialized (odometry, ground truth), each robot's `Command`
         # (None for a scripted robot).
@@ -209,6 +224,11 @@ class InProcessTeam:
         names = world.names
         for index, agent in self._planned:
             agent.receive_own(measurements[index], now)
+            if index in self._upstreams:
+                # The stand-in answers the same odometry the planner reads.
+                measurement = measurements[index]
+                agent.receive_upstream(UpstreamCommand(*self._upstreams[index].command(
+                    measurement.position, measurement.yaw)), now)
         for table in self._track_tables.values():
             for name, measurement in zip(names, measurements, strict=True):
                 table.receive(name, measurement, now)
@@ -242,10 +262,11 @@ class InProcessTeam:
                 executed[index] = command.drive
                 commands[index] = body_to_world((command.drive[0], 0.0), yaws[index])
                 continue
-            # The node publishes in the body frame; the simulator turns it back by the heading
-            # at the command's stamp.
-            commands[index] = body_to_world(world_to_body(command.velocity, command.yaw),
-                                            yaws[index])
+            # The node publishes in the body frame (a filter passes its input on as it came);
+            # the simulator turns it back by the heading at the command's stamp.
+            body = (command.upstream.linear if command.passed_through
+                    else world_to_body(command.velocity, command.yaw))
+            commands[index] = body_to_world(body, yaws[index])
             executed[index] = commands[index]
         self._announce()
         # One call plans the team: each planned robot is charged an equal share of it.

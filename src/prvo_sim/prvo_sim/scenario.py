@@ -52,13 +52,14 @@ _TOP_LEVEL_KEYS = {'name', 'description', 'seed', 'dt', 'duration', 'goal_tolera
 _TOP_LEVEL_REQUIRED = {'name', 'seed', 'dt', 'duration', 'goal_tolerance', 'robots'}
 _ROBOT_KEYS = {'name', 'start', 'goal', 'radius', 'max_speed', 'noise', 'planner', 'scripted',
                'kinematics', 'max_angular_speed', 'max_acceleration', 'max_angular_acceleration',
-               'start_yaw'}
+               'start_yaw', 'upstream'}
 DEFAULT_MAX_ANGULAR_SPEED = 2.0
 # Limits of a robot's motion [m/s^2, rad/s^2, rad/s]: as large as a speed may be, and more.
 MAX_LIMIT = 1.0e3
 _UNICYCLE_ONLY = ('max_angular_speed', 'max_angular_acceleration')
 _ROBOT_REQUIRED = {'name', 'start', 'goal', 'radius', 'max_speed'}
 _SCRIPTED_KEYS = {'waypoints', 'speed', 'loop'}
+_UPSTREAM_KEYS = {'waypoints', 'speed'}
 _NOISE_KEYS = ('position_std', 'velocity_std', 'actuation_std')
 _WALL_KEYS = {'line', 'thickness'}
 _DISC_KEYS = {'position', 'radius'}
@@ -177,7 +178,9 @@ class RobotSpec:
     the robot's own block over it. `scripted` is the `ScriptedPath` of a robot that the
     simulator moves along waypoints (no planner; its `goal` is the last waypoint), else None.
     `kinematics` is 'holonomic' or 'unicycle'; the acceleration limits are inf when unlimited;
-    `start_yaw` [rad] is the heading at the start (None: facing the goal).
+    `start_yaw` [rad] is the heading at the start (None: facing the goal). `upstream` is the
+    `ScriptedPath` (never looping) that a stand-in for Nav2's controller drives the robot along,
+    its planner filtering the commands (its `goal` is the last waypoint), else None.
     """
 
     name: str
@@ -193,6 +196,7 @@ class RobotSpec:
     max_acceleration: float = math.inf
     max_angular_acceleration: float = math.inf
     start_yaw: float | None = None
+    upstream: ScriptedPath = None
 
 
 @dataclass(frozen=True)
@@ -515,8 +519,9 @@ def _map(check, name, key='map'):
 
 def _robot(check, entry, key, file_noise, file_planner):
     scripted = isinstance(entry, dict) and 'scripted' in entry
-    # A scripted robot goes to its waypoints: it has no goal of its own.
-    required = _ROBOT_REQUIRED - {'goal'} if scripted else _ROBOT_REQUIRED
+    driven = isinstance(entry, dict) and 'upstream' in entry
+    # A scripted robot, or one driven upstream, goes to its waypoints: it has no goal of its own.
+    required = _ROBOT_REQUIRED - {'goal'} if scripted or driven else _ROBOT_REQUIRED
     entry = check.mapping(entry, key, _ROBOT_KEYS, required)
     name = check.string(entry['name'], f'{key}.name')
     problem = ros_name_problem(name)
@@ -556,20 +561,31 @@ def _robot(check, entry, key, file_noise, file_planner):
             check.fail(f'{key}.kinematics', f'robot {name!r} is scripted: it moves holonomic '
                        f'along its waypoints, got {kinematics!r}')
         path = _scripted_path(check, entry['scripted'], f'{key}.scripted', name, max_speed)
-    goal = path.waypoints[-1] if path is not None else check.point(entry['goal'], f'{key}.goal')
+    upstream = None
+    if driven:
+        if scripted or 'goal' in entry:
+            check.fail(f'{key}.upstream', f'robot {name!r} is driven along upstream.waypoints: '
+                       f"it has no {'scripted block' if scripted else 'goal'}")
+        upstream = _scripted_path(check, entry['upstream'], f'{key}.upstream', name, max_speed,
+                                  _UPSTREAM_KEYS)
+    goal = (path or upstream).waypoints[-1] if (path or upstream) is not None else check.point(
+        entry['goal'], f'{key}.goal')
     return RobotSpec(
         name=name, start=start, goal=goal, kinematics=kinematics, start_yaw=start_yaw,
         **limits, radius=radius, max_speed=max_speed,
         noise=NoiseSpec(**{field: noise.get(field, 0.0) for field in _NOISE_KEYS}),
         planner={} if path is not None else {
             **file_planner, **check.planner(entry.get('planner'), f'{key}.planner')},
-        scripted=path)
+        scripted=path, upstream=upstream)
 
 
-def _scripted_path(check, value, key, name, max_speed):
-    """Return the ScriptedPath of robot NAME's `scripted` block VALUE; errors name the robot."""
+def _scripted_path(check, value, key, name, max_speed, keys=_SCRIPTED_KEYS):
+    """Return the ScriptedPath of robot NAME's block VALUE (KEYS allowed); errors name the robot.
+
+    A `scripted` block, or an `upstream` block (waypoints and speed, no loop).
+    """
     try:
-        block = check.mapping(value, key, _SCRIPTED_KEYS, {'waypoints'})
+        block = check.mapping(value, key, keys, {'waypoints'})
         waypoints = block['waypoints']
         if not isinstance(waypoints, list) or not waypoints:
             check.fail(f'{key}.waypoints',

@@ -23,13 +23,16 @@ from prvo_sim.runner.processes import (
     package_command,
 )
 
-METHODS = ('prvo', 'rvo', 'inflate', 'prvo-no-ego')
-# The planner's `model` parameter for each method; prvo-no-ego is PRVO planned with S_a = 0.
-MODEL_OF_METHOD = {'prvo': 'prvo', 'rvo': 'rvo', 'inflate': 'inflate', 'prvo-no-ego': 'prvo'}
+METHODS = ('prvo', 'rvo', 'inflate', 'prvo-no-ego', 'none')
+# The planner's `model` parameter for each method; prvo-no-ego is PRVO planned with S_a = 0,
+# none avoids nobody (the reference that shows what avoidance adds).
+MODEL_OF_METHOD = {'prvo': 'prvo', 'rvo': 'rvo', 'inflate': 'inflate', 'prvo-no-ego': 'prvo',
+                   'none': 'none'}
 ENGINES = ('ros', 'inprocess')
 DEFAULT_ETA = 0.8
 SIM_NODE = 'prvo_sim'
 PLANNER_NODE = 'planner'
+STAND_IN_NODE = 'nav2_stand_in'
 STEP_TIMEOUT = 2.0  # wall seconds the sim waits for a late planner before reusing its command
 STARTUP_LIMIT = 60.0  # wall seconds for each start-up stage before the run counts as failed
 SETTLE_TIME = 1.0  # sim seconds every robot must stay at its goal before the run ends
@@ -46,6 +49,11 @@ GRAPH_CHECK_PERIOD = 1.0  # wall seconds between looks for intruders during a ru
 # taken, and a plan made without it parted the run from the in-process one); and for every
 # listed neighbour's first message.
 LOCKSTEP_SYNC = {'sync_timeout': STEP_TIMEOUT - 0.1, 'neighbor_timeout': 5.0}
+# A robot driven by the Nav2 stand-in: its planner filters the stand-in's TwistStamped (the
+# simulator's cmd_vel type), never falls silent within a run (the simulator waits for every
+# answer) and counts its own state as stale only when the run has surely stalled.
+FILTER_PARAMETERS = {'preferred_source': 'velocity', 'enable_stamped_cmd_vel': True,
+                     'stop_pub_timeout': 1.0e9, 'state_timeout': 60.0}
 # Parameters the runner sets itself; a scenario's planner block cannot override them.
 RUNNER_PARAMETERS = ('use_sim_time', 'goal', 'radius', 'max_speed', 'actuation_std',
                      'goal_tolerance', 'model', 'eta', 'kinematics', 'max_angular_speed',
@@ -103,6 +111,8 @@ def runner_planner_values(robot, scenario, method, eta, mode='lockstep'):
     for limit in ('max_acceleration', 'max_angular_acceleration'):
         if math.isfinite(getattr(robot, limit)):
             values[limit] = float(getattr(robot, limit))
+    if robot.upstream is not None:
+        values.update(FILTER_PARAMETERS)
     if mode == 'lockstep':
         # The simulator waits for every answer, so a planner can wait for every neighbour's
         # odometry of the same stamp however loaded the machine: that makes runs reproducible.
@@ -185,10 +195,44 @@ class RunSpec:
             return shlex.split(self._planner_command)
         return package_command('prvo_planner', 'planner', 'prvo_planner.planner_node')
 
+    @property
+    def stand_in_command(self):
+        """The Nav2 stand-in's argv prefix (the ROS engine's)."""
+        return package_command('prvo_sim', 'nav2_stand_in', 'prvo_sim.upstream_node')
+
     def own_nodes(self):
         """Return the fully qualified names of the nodes the run's children create."""
         return {f'/{SIM_NODE}', *(f'/{robot.name}/{PLANNER_NODE}'
-                                   for robot in planned_robots(self.scenario))}
+                                   for robot in planned_robots(self.scenario)),
+                *(f'/{robot.name}/{STAND_IN_NODE}' for robot in self.scenario.robots
+                  if robot.upstream is not None)}
+
+
+def stand_in_parameters(robot, scenario, mode):
+    """Return the `-p` parameters of ROBOT's Nav2 stand-in, ROS-formatted.
+
+    As the in-process engine's (`prvo_sim.engine.upstream_of`); in lockstep it answers each
+    odometry message with its stamp.
+    """
+    return {'use_sim_time': 'true',
+            'waypoints': ros_parameter(robot.upstream.waypoints.ravel()),
+            'speed': ros_parameter(robot.upstream.speed), 'kinematics': robot.kinematics,
+            'goal_tolerance': ros_parameter(scenario.goal_tolerance / 2.0),
+            'max_angular_speed': ros_parameter(robot.max_angular_speed),
+            'answer_odometry': ros_parameter(mode == 'lockstep'),
+            'enable_stamped_cmd_vel': 'true'}
+
+
+def start_stand_ins(children, spec):
+    """Start the Nav2 stand-in of every robot driven upstream."""
+    for robot in spec.scenario.robots:
+        if robot.upstream is None:
+            continue
+        argv = [*spec.stand_in_command, '--ros-args', '-r', f'__ns:=/{robot.name}',
+                '-r', f'__node:={STAND_IN_NODE}']
+        for key, value in stand_in_parameters(robot, spec.scenario, spec.mode).items():
+            argv += ['-p', f'{key}:={value}']
+        children.start(f'stand_in_{robot.name}', argv)
 
 
 def start_planners(children, spec):
@@ -372,6 +416,8 @@ def run_once(spec, domain_id, monitor=None):
         # The first file of the run: a run that never got here leaves the folder alone.
         log_dir.mkdir(parents=True, exist_ok=True)
         watch = _Watch(recorder, children, spec)
+        # Before the planners: a stand-in is then up before the simulator's first step.
+        start_stand_ins(children, spec)
         start_planners(children, spec)
         failure = wait_for_planners(recorder, watch)
         if failure is None:
