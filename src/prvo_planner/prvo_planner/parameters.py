@@ -257,6 +257,25 @@ _SPECS = (
                   (0.0, 10.0), rule=_positive),
     ParameterSpec('tracking_horizon', FLOAT, 0.5, 'A unicycle turns toward its plan at the '
                   'heading error / tracking_horizon [s].', (1.0e-3, 100.0)),
+    # The map: nav_msgs/OccupancyGrid, cells of occupancy >= 65 % (map_server's default
+    # occupied_thresh) are obstacles.
+    ParameterSpec('map_topic', STRING, '/map', 'Occupancy grid (nav_msgs/OccupancyGrid, frame '
+                  'map, reliable, transient local) to plan against and route through; none '
+                  'published = an empty plane.', read_only=True, rule=_not_empty),
+    ParameterSpec('obstacle_distance', FLOAT, 3.0, 'Map obstacles farther than this [m] are not '
+                  'considered, > 0.', (0.0, 1.0e4), rule=_positive),
+    ParameterSpec('unknown_is_occupied', BOOL, True, 'Unknown map cells (-1) are obstacles '
+                  '(true) or free (false).'),
+    ParameterSpec('lookahead_distance', FLOAT, 1.0, 'With a map, the robot heads for the point '
+                  'this far [m] ahead on its route to the goal and looks for a new route when '
+                  'it strays farther from it, in (0, 100].', (0.0, 100.0),
+                  rule=_positive_up_to_100),
+    ParameterSpec('route_margin', FLOAT, 0.3, 'With a map, the route keeps this much more [m] '
+                  'than the radius from obstacles where there is room (a way hugging them costs '
+                  'up to twice its length), in [0, 10].', (0.0, 10.0)),
+    ParameterSpec('wait_for_map', BOOL, False, 'Plan only once a map has arrived (for at most '
+                  'neighbor_timeout after the first own odometry), as for listed neighbours: a '
+                  'run whose world has a map plans its first step on it.'),
     *_PREFERRED_SOURCE_SPECS,
 )
 

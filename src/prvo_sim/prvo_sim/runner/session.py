@@ -120,6 +120,12 @@ def runner_planner_values(robot, scenario, method, eta, mode='lockstep'):
     for key, value in robot.planner.items():
         if key not in RUNNER_PARAMETERS:
             values[key] = value
+    from prvo_planner.parameters import DEFAULTS
+
+    if scenario.static_world.grid is not None and (
+            values.get('map_topic', DEFAULTS['map_topic']) == DEFAULTS['map_topic']):
+        # The planner's first plan is on the map the simulator publishes, as in-process.
+        values.setdefault('wait_for_map', True)
     return values
 
 
