@@ -14,6 +14,7 @@ import time
 
 import numpy as np
 
+from prvo_planner.parameters import DEFAULTS as PLANNER_DEFAULTS
 from prvo_sim.runner.outputs import Ending, RunResult, write_outputs
 from prvo_sim.runner.processes import (
     INTERRUPTS,
@@ -27,7 +28,7 @@ METHODS = ('prvo', 'rvo', 'inflate', 'prvo-no-ego')
 # The planner's `model` parameter for each method; prvo-no-ego is PRVO planned with S_a = 0.
 MODEL_OF_METHOD = {'prvo': 'prvo', 'rvo': 'rvo', 'inflate': 'inflate', 'prvo-no-ego': 'prvo'}
 ENGINES = ('ros', 'inprocess')
-DEFAULT_ETA = 0.8
+DEFAULT_ETA = PLANNER_DEFAULTS['eta']
 SIM_NODE = 'prvo_sim'
 PLANNER_NODE = 'planner'
 STEP_TIMEOUT = 2.0  # wall seconds the sim waits for a late planner before reusing its command
