@@ -138,11 +138,14 @@ def sweep_team_document(index, seed=SWEEP_SEED):
 class StallMonitor:
     """Finds robots that gain less than STALL_PROGRESS m toward their goals in STALL_WINDOW s.
 
-    Called after every step (`run_team`'s observer). A robot farther than the goal tolerance
-    from its goal whose distance to it fell by less than STALL_PROGRESS over the last
-    STALL_WINDOW seconds stalls; each stall is reported once, when first seen, until the robot
-    gains that much again. A report holds the time, the robot's position and distance to its
-    goal, how often its command reversed (turned by more than 90 degrees from one step to the
+    Called after every step (`run_team`'s observer). A robot that stayed farther than the goal
+    tolerance from its goal over the last STALL_WINDOW seconds and whose distance to it fell by
+    less than STALL_PROGRESS (or, from closer, by less than the way left to the tolerance) over
+    them stalls; each stall is reported once, when first seen: it lasts until the robot has come
+    STALL_PROGRESS closer to its goal than it was then, or arrives. A robot at its goal that
+    steps aside for a passing neighbour and comes back does not stall: it was within the
+    tolerance during the window. A report holds the time, the robot's position and distance to
+    its goal, how often its command reversed (turned by more than 90 degrees from one step to the
     next) within the window, its mean command, and the binding constraints of its last plan:
     the BINDING_COUNT neighbours whose bounds at the chosen velocity are lowest, with their
     surface-to-surface gaps.
@@ -155,7 +158,7 @@ class StallMonitor:
         self.planned = [index for index, robot in enumerate(scenario.robots)
                         if robot.scripted is None]
         self.history = collections.deque()  # (time, distances (N,), commands (N, 2))
-        self.stalled = set()
+        self.stalled = {}  # robot -> its distance to its goal when its stall was reported
         self.stalls = []
 
     def __call__(self, team, step):
@@ -169,11 +172,15 @@ class StallMonitor:
         if step.time - then < STALL_WINDOW - 1e-9:
             return
         gained = before - distances
+        needed = np.minimum(STALL_PROGRESS, before - self.tolerance)
+        away = np.all([entry[1] > self.tolerance for entry in self.history], axis=0)
         for robot in self.planned:
-            if gained[robot] >= STALL_PROGRESS or distances[robot] <= self.tolerance:
-                self.stalled.discard(robot)
-            elif robot not in self.stalled:
-                self.stalled.add(robot)
+            if robot in self.stalled:
+                if (distances[robot] <= self.tolerance
+                        or distances[robot] <= self.stalled[robot] - STALL_PROGRESS):
+                    del self.stalled[robot]
+            elif gained[robot] < needed[robot] and away[robot]:
+                self.stalled[robot] = distances[robot]
                 self.stalls.append(self.report(team, step, robot, distances[robot],
                                                gained[robot]))
 
