@@ -191,6 +191,25 @@ class Probe:
         finally:
             self.node.destroy_subscription(subscription)
 
+    def call(self, client, request, what, timeout=60.0, resend_after=10.0):
+        """Return CLIENT's answer to REQUEST; raise TimeoutError naming WHAT after TIMEOUT.
+
+        A request sent just after discovery can be lost (the server may not yet know the
+        client's response reader), so one unanswered for RESEND_AFTER seconds is sent again:
+        the parameter services these tests call give the same answer to a repeated request.
+        """
+        deadline = time.monotonic() + timeout
+        while True:
+            future = client.call_async(request)
+            resend_at = min(time.monotonic() + resend_after, deadline)
+            while not future.done() and time.monotonic() < resend_at:
+                threading.Event().wait(0.05)
+            if future.done():
+                return future.result()
+            client.remove_pending_request(future)
+            if time.monotonic() >= deadline:
+                raise TimeoutError(f'{what} did not happen within {timeout} s')
+
     def wait_until(self, condition, timeout, what, poll=0.05):
         """Return once CONDITION() is true; raise TimeoutError naming WHAT after TIMEOUT."""
         deadline = time.monotonic() + timeout

@@ -33,9 +33,7 @@ def _set(probe, client, name, value):
     request = SetParameters.Request(parameters=[Parameter(
         name=name, value=ParameterValue(type=ParameterType.PARAMETER_DOUBLE,
                                         double_value=value))])
-    future = client.call_async(request)
-    probe.wait_until(future.done, timeout=10.0, what=f'the answer to setting {name}')
-    return future.result().results[0]
+    return probe.call(client, request, f'the answer to setting {name}').results[0]
 
 
 def test_set_parameters_rejects_bad_values_with_a_reason(children, ros2_executable, probe):
@@ -66,14 +64,11 @@ def test_goal_set_as_a_double_array_is_accepted_and_driven_to(children, ros2_exe
     request = SetParameters.Request(parameters=[Parameter(
         name='goal', value=ParameterValue(type=ParameterType.PARAMETER_DOUBLE_ARRAY,
                                           double_array_value=[2.0, -1.0]))])
-    future = setter.call_async(request)
-    probe.wait_until(future.done, timeout=10.0, what='the answer to setting goal')
-    result = future.result().results[0]
+    result = probe.call(setter, request, 'the answer to setting goal').results[0]
     assert result.successful, result.reason
 
-    future = getter.call_async(GetParameters.Request(names=['goal']))
-    probe.wait_until(future.done, timeout=10.0, what='the answer to getting goal')
-    value = future.result().values[0]
+    value = probe.call(getter, GetParameters.Request(names=['goal']),
+                       'the answer to getting goal').values[0]
     assert value.type == ParameterType.PARAMETER_DOUBLE_ARRAY
     assert list(value.double_array_value) == [2.0, -1.0]
 

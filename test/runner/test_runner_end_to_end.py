@@ -11,7 +11,8 @@ from runner_testing import HEADON, output, processes_with_token, start_runner, w
 
 SCHEMA_KEYS = {'scenario', 'method', 'eta', 'seed', 'mode', 'engine', 'ending', 'robots',
                'scripted_robots', 'success_rate',
-               'collisions', 'min_separation', 'makespan', 'mean_time_to_goal',
+               'collisions', 'min_separation', 'wall_contacts', 'min_wall_clearance',
+               'makespan', 'mean_time_to_goal',
                'infeasible_fraction', 'min_achieved_eta', 'planner_ms',
                'deadline_misses', 'sim_time', 'wall_time'}
 

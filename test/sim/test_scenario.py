@@ -39,7 +39,7 @@ from prvo_sim.scenario import (
 )
 
 SHIPPED = ('circle8', 'crossing4', 'headon2', 'paper3', 'walkers', 'diffdrive_circle6',
-           'mixed_drive', 'accel8')
+           'mixed_drive', 'accel8', 'corridor8', 'doorway8', 'pillars12', 'office', 'u_trap')
 
 VALID = """\
 name: pair

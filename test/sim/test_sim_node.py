@@ -569,3 +569,33 @@ def test_scripted_robot_walks_without_cmd_vel_and_is_reported(probe, children, r
     assert statuses['prvo_sim/robot_1']['waypoint'] == '0'
     assert statuses['prvo_sim/robot_1']['deadline_misses'] == '0'
     assert statuses['prvo_sim/robot_0']['scripted'] == 'false'
+
+
+def test_map_and_world_markers_reach_a_late_subscriber(probe, children, ros2_executable):
+    from nav_msgs.msg import OccupancyGrid
+    from visualization_msgs.msg import Marker, MarkerArray
+
+    from prvo_msgs_util import MAP, MAP_QOS, WORLD_MARKERS
+
+    sim = start_sim(children, ros2_executable, 'sim', scenario='doorway8')
+    # The simulator publishes the map once, at start-up; it waits for planners that never
+    # come. Subscribe only once it has published.
+    probe.wait_until(lambda: 'simulating doorway8' in children.output(sim), 20.0,
+                     'the simulator to start')
+    maps = probe.record(OccupancyGrid, MAP, MAP_QOS)
+    markers = probe.record(MarkerArray, WORLD_MARKERS, MAP_QOS)
+    probe.wait_until(lambda: maps and markers, 10.0, 'the latched /map and world markers')
+    (grid,) = maps
+    static = load_scenario(find_scenario('doorway8')).static_world
+    expected = static.grid
+    assert grid.header.frame_id == 'map'
+    assert (grid.info.height, grid.info.width) == expected.shape
+    assert grid.info.resolution == pytest.approx(expected.resolution)
+    assert [grid.info.origin.position.x, grid.info.origin.position.y] == pytest.approx(
+        expected.origin.tolist())
+    assert np.array_equal(np.array(grid.data, dtype=np.int8).reshape(expected.shape),
+                          expected.cells)
+    (array,) = markers
+    cubes = [marker for marker in array.markers if marker.type == Marker.CUBE]
+    assert len(cubes) == len(static.walls) == 6
+    assert children.interrupt(sim) == 0

@@ -41,6 +41,11 @@ from prvo_msgs_util.diagnostics import (
     make_diagnostic_array,
     make_diagnostic_status,
 )
+from prvo_msgs_util.grid_maps import (
+    make_occupancy_grid,
+    make_path,
+    occupancy_grid_to_parts,
+)
 from prvo_msgs_util.interrupts import (
     STOP_SIGNALS,
     SigintRecorder,
@@ -48,7 +53,7 @@ from prvo_msgs_util.interrupts import (
     ignore_stop_signals,
     release_stop_signals,
 )
-from prvo_msgs_util.markers import make_belief_markers
+from prvo_msgs_util.markers import make_belief_markers, make_static_world_markers
 from prvo_msgs_util.parameters import (
     PARAMETER_TYPES,
     declare_parameters,
@@ -61,9 +66,11 @@ from prvo_msgs_util.qos import (
     CONTACT_QOS,
     DIAGNOSTICS_QOS,
     GOAL_QOS,
+    MAP_QOS,
     MARKER_QOS,
     ODOM_LATEST_QOS,
     ODOM_QOS,
+    PLAN_QOS,
     QosWatch,
     quiet_publisher_events,
     quiet_subscription_events,
@@ -83,9 +90,12 @@ from prvo_msgs_util.topics import (
     FOOTPRINT,
     GOAL_POSE,
     GROUND_TRUTH,
+    MAP,
     MARKERS,
     ODOM,
+    PLAN,
     WORLD_FRAME,
+    WORLD_MARKERS,
     robot_from_topic,
     robot_topic,
     robots_with_topic,
@@ -100,7 +110,8 @@ __all__ = [
     'CLOCK', 'CLOCK_QOS', 'CMD_VEL', 'CMD_VEL_QOS', 'CONTACTS', 'CONTACT_QOS', 'DIAGNOSTICS',
     'DIAGNOSTICS_QOS', 'GOAL_POSE', 'GOAL_QOS', 'GROUND_TRUTH', 'MARKERS', 'MARKER_QOS',
     'MAX_FOOTPRINT_RADIUS', 'MAX_SPEED_COMPONENT', 'MAX_VARIANCE', 'MAX_WORLD_COORDINATE',
-    'MIN_FOOTPRINT_RADIUS',
+    'MIN_FOOTPRINT_RADIUS', 'MAP', 'MAP_QOS', 'PLAN', 'PLAN_QOS', 'make_occupancy_grid',
+    'make_path', 'occupancy_grid_to_parts',
     'MessageFault', 'ODOM', 'ODOM_LATEST_QOS', 'ODOM_QOS', 'OdometryMeasurement',
     'QosWatch', 'quiet_publisher_events', 'quiet_subscription_events',
     'SigintRecorder', 'STOP_SIGNALS', 'hold_stop_signals', 'ignore_stop_signals',
@@ -108,6 +119,7 @@ __all__ = [
     'declare_parameters',
     'diagnostic_values', 'freeze_startup_objects', 'PARAMETER_TYPES', 'parameter_descriptor',
     'quiet_after_shutdown', 'spin_events', 'ThrottledWarnings',
+    'WORLD_MARKERS', 'make_static_world_markers',
     'make_belief_markers', 'make_diagnostic_array', 'make_diagnostic_status', 'make_odometry',
     'make_pose_stamped', 'make_twist', 'make_twist_stamped', 'odometry_to_measurement',
     'pose_stamped_to_goal', 'robot_from_topic', 'robot_topic', 'robots_with_topic',

@@ -1,4 +1,7 @@
-"""RViz markers of a planner's belief: neighbour ellipses, sizes, shares, the chosen velocity."""
+"""RViz markers of a planner's belief and of the static world.
+
+A belief: neighbour ellipses, sizes, shares, the chosen velocity. The world: walls, obstacles.
+"""
 
 import math
 
@@ -88,4 +91,62 @@ def make_belief_markers(stamp_seconds, frame_id, namespace, ego_position, chosen
         label.pose.orientation.w = 1.0
         label.scale.z = _LABEL_HEIGHT
         markers.markers.append(label)
+    return markers
+
+
+_WALL_COLOUR = ColorRGBA(r=0.55, g=0.55, b=0.6, a=0.9)
+_OBSTACLE_COLOUR = ColorRGBA(r=0.4, g=0.4, b=0.45, a=0.9)
+_STATIC_HEIGHT = 0.5
+# A wall of no thickness is drawn this wide, so that it shows.
+_MIN_DRAWN_THICKNESS = 0.02
+
+
+def make_static_world_markers(stamp_seconds, frame_id, walls, discs, polygons,
+                              namespace='static_world'):
+    """Return a MarkerArray of a world's walls, disc and polygon obstacles, after a DELETEALL.
+
+    WALLS: (segment (2, 2), thickness) pairs, each a CUBE along the segment, as long as it
+    plus its thickness and as wide as its thickness (at least a line's width); DISCS: (centre
+    (2,), radius) pairs, each a CYLINDER; POLYGONS: vertices (V, 2), each a closed LINE_STRIP.
+    Every shape stands _STATIC_HEIGHT tall on the ground; ids count from 0 in that order.
+    """
+    markers = MarkerArray()
+    delete_all = Marker(ns=namespace, action=Marker.DELETEALL)
+    delete_all.header.frame_id = frame_id
+    delete_all.header.stamp = seconds_to_stamp(stamp_seconds)
+    markers.markers.append(delete_all)
+    header = delete_all.header
+    for line, thickness in walls:
+        start, end = (np.asarray(point, dtype=float) for point in line)
+        along = end - start
+        yaw = math.atan2(along[1], along[0])
+        width = max(float(thickness), _MIN_DRAWN_THICKNESS)
+        marker = Marker(header=header, ns=namespace, id=len(markers.markers) - 1,
+                        type=Marker.CUBE, action=Marker.ADD, color=_WALL_COLOUR)
+        centre = 0.5 * (start + end)
+        marker.pose.position.x, marker.pose.position.y = float(centre[0]), float(centre[1])
+        marker.pose.position.z = 0.5 * _STATIC_HEIGHT
+        marker.pose.orientation.z = math.sin(0.5 * yaw)
+        marker.pose.orientation.w = math.cos(0.5 * yaw)
+        marker.scale.x = float(np.linalg.norm(along)) + float(thickness)
+        marker.scale.y = width
+        marker.scale.z = _STATIC_HEIGHT
+        markers.markers.append(marker)
+    for centre, radius in discs:
+        marker = Marker(header=header, ns=namespace, id=len(markers.markers) - 1,
+                        type=Marker.CYLINDER, action=Marker.ADD, color=_OBSTACLE_COLOUR)
+        marker.pose.position.x, marker.pose.position.y = (float(value) for value in centre)
+        marker.pose.position.z = 0.5 * _STATIC_HEIGHT
+        marker.pose.orientation.w = 1.0
+        marker.scale.x = marker.scale.y = 2.0 * float(radius)
+        marker.scale.z = _STATIC_HEIGHT
+        markers.markers.append(marker)
+    for vertices in polygons:
+        marker = Marker(header=header, ns=namespace, id=len(markers.markers) - 1,
+                        type=Marker.LINE_STRIP, action=Marker.ADD, color=_OBSTACLE_COLOUR)
+        marker.pose.orientation.w = 1.0
+        marker.scale.x = 2.0 * _MIN_DRAWN_THICKNESS
+        closed = [*vertices, vertices[0]]
+        marker.points = [Point(x=float(x), y=float(y)) for x, y in closed]
+        markers.markers.append(marker)
     return markers

@@ -34,6 +34,10 @@ CONTACT_QOS = _reliable(100, DurabilityPolicy.TRANSIENT_LOCAL)
 GOAL_QOS = _reliable(1)
 # Latched: a planner that starts or discovers a robot later still receives its announcements.
 ANNOUNCEMENT_QOS = _reliable(1, DurabilityPolicy.TRANSIENT_LOCAL)
+# As map_server publishes the map: latched, so that a planner started later receives it.
+MAP_QOS = _reliable(1, DurabilityPolicy.TRANSIENT_LOCAL)
+# A route is published when it changes: latched, for an RViz started later.
+PLAN_QOS = _reliable(1, DurabilityPolicy.TRANSIENT_LOCAL)
 
 
 def quiet_subscription_events():

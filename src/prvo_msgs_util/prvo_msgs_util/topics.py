@@ -12,6 +12,11 @@ AVOIDANCE_SHARE = 'avoidance_share'
 DIAGNOSTICS = '/diagnostics'
 CONTACTS = '/prvo_sim/contacts'
 CLOCK = '/clock'
+# The static world as an occupancy grid (map_server's topic), and each robot's way to its goal.
+MAP = '/map'
+PLAN = 'plan'
+# The simulator's walls and obstacles as RViz markers (latched, MAP_QOS).
+WORLD_MARKERS = '/prvo_sim/world_markers'
 # The world frame of odometry, ground truth, goals and world-frame commands.
 WORLD_FRAME = 'map'
 

@@ -10,6 +10,11 @@ insensitive to other processes competing for the cores.
 swap sides of a circle in a noise-free closed loop of the core alone; every step is planned once
 by ``plan_velocities`` for the whole team and once by ``plan_velocity`` per robot (the two must
 agree bit for bit), and both are timed per robot-step.
+
+``python -m prvo_planner.bench --obstacles [--json PATH] [--repeats R] [--clock wall|cpu]``:
+the ego of each seeded encounter (N neighbours in {0, 1, 5, 10, 20}, 64 directions, prvo) is
+planned with and without 50 seeded wall segments around it (``bench_walls``), alternately, and
+the ratio of the median times is reported with the plan's feasibility either way.
 """
 
 import argparse
@@ -20,6 +25,7 @@ import time
 import numpy as np
 
 from prvo_planner.core import AgentBelief, PlannerConfig, plan_velocities, plan_velocity
+from prvo_planner.core.obstacles import StaticObstacles
 from prvo_planner.encounters import EncounterDistribution, random_encounter
 
 NEIGHBOURS = (1, 5, 10, 20, 50)
@@ -42,15 +48,80 @@ def bench_encounter(count):
         velocity_std=(0.05, 0.1)))
 
 
-def time_calls(ego, neighbours, config, repeats, clock=time.perf_counter):
+def time_calls(ego, neighbours, config, repeats, clock=time.perf_counter, obstacles=None):
     """Time ``repeats`` calls (milliseconds) after one warm-up call."""
-    plan_velocity(ego, neighbours, [1.0, 0.0], config)
+    plan_velocity(ego, neighbours, [1.0, 0.0], config, obstacles=obstacles)
     times = []
     for _ in range(repeats):
         start = clock()
-        plan_velocity(ego, neighbours, [1.0, 0.0], config)
+        plan_velocity(ego, neighbours, [1.0, 0.0], config, obstacles=obstacles)
         times.append(1e3 * (clock() - start))
     return np.array(times)
+
+
+OBSTACLE_NEIGHBOURS = (0, 1, 5, 10, 20)
+WALL_COUNT = 50
+
+
+def bench_walls(count=WALL_COUNT, seed=0):
+    """
+    Return COUNT seeded wall segments around an ego at the origin (radius 0.3 m).
+
+    Half of them form a corridor beside the ego (two rows of 1-2.5 m pieces with 0.3-1 m gaps
+    along ``y = -1.2`` and ``y = +1.2``, from ``x = -4``), the others lie at random 3-10 m away
+    (length 0.5-3 m, any orientation); thickness 0.1 m.
+    """
+    rng = np.random.default_rng(seed)
+    segments = []
+    for side in (-1.2, 1.2):
+        x = -4.0
+        for _ in range(count // 4):
+            length = rng.uniform(1.0, 2.5)
+            segments.append([[x, side], [x + length, side]])
+            x += length + rng.uniform(0.3, 1.0)
+    while len(segments) < count:
+        distance, bearing, heading = rng.uniform(3.0, 10.0), *rng.uniform(0.0, 2.0 * np.pi, 2)
+        middle = distance * np.array([np.cos(bearing), np.sin(bearing)])
+        half = 0.5 * rng.uniform(0.5, 3.0) * np.array([np.cos(heading), np.sin(heading)])
+        segments.append([middle - half, middle + half])
+    return StaticObstacles(np.array(segments), np.full(count, 0.05), np.zeros((0, 2)),
+                           np.zeros(0))
+
+
+def run_obstacles(repeats, clock=time.perf_counter):
+    """Time the ego of each encounter with and without the walls of ``bench_walls``."""
+    walls = bench_walls()
+    config = PlannerConfig(max_speed=1.0, num_directions=64, actuation_cov=0.01 * np.eye(2),
+                           seed=0)
+    rows = []
+    for count in OBSTACLE_NEIGHBOURS:
+        ego, neighbours = bench_encounter(max(count, 1))
+        neighbours = neighbours[:count]
+        # Alternated, so that other load on the machine slows both alike.
+        free, walled = np.median([[time_calls(ego, neighbours, config, 1, clock)[0],
+                                   time_calls(ego, neighbours, config, 1, clock, walls)[0]]
+                                  for _ in range(repeats)], axis=0)
+        result = plan_velocity(ego, neighbours, [1.0, 0.0], config, obstacles=walls)
+        plain = plan_velocity(ego, neighbours, [1.0, 0.0], config)
+        rows.append({'neighbours': count, 'walls': len(walls.segments),
+                     'without_ms': float(free), 'with_ms': float(walled),
+                     'ratio': float(walled / free), 'feasible_without': plain.feasible,
+                     'feasible_with': result.feasible,
+                     'clearance': result.obstacle_clearance,
+                     'obstacle_probability': result.obstacle_probability})
+    return rows
+
+
+def obstacle_table(rows):
+    """Markdown table: median ms per plan without and with the walls, and their ratio."""
+    lines = ['| neighbours | walls | without ms | with ms | ratio | feasible without / with '
+             '| clearance m | P(obstacles) |', '|---|---|---|---|---|---|---|---|']
+    for row in rows:
+        lines.append(f"| {row['neighbours']} | {row['walls']} | {row['without_ms']:.3f} "
+                     f"| {row['with_ms']:.3f} | {row['ratio']:.2f} "
+                     f"| {row['feasible_without']} / {row['feasible_with']} "
+                     f"| {row['clearance']:.2f} | {row['obstacle_probability']:.3f} |")
+    return '\n'.join(lines)
 
 
 def run(repeats, mc_repeats, clock=time.perf_counter):
@@ -208,9 +279,17 @@ def main(argv=None):
                         help='time plan_velocities per robot-step on circle swaps instead')
     parser.add_argument('--robots', type=int, nargs='+', default=list(TEAM_SIZES),
                         help='team sizes of --team')
+    parser.add_argument('--obstacles', action='store_true',
+                        help=f'time plans beside {WALL_COUNT} wall segments against plans '
+                        'without them instead')
     arguments = parser.parse_args(argv)
     clock = time.perf_counter if arguments.clock == 'wall' else time.process_time
-    if arguments.team:
+    if arguments.obstacles:
+        rows = run_obstacles(arguments.repeats, clock)
+        print(f'median ms per plan_velocity call, with and without walls ({arguments.clock} '
+              'clock)')
+        print(obstacle_table(rows))
+    elif arguments.team:
         if min(arguments.robots) < 2:
             parser.error(f'--robots must all be >= 2, got {arguments.robots}')
         rows = [run_team(count, clock) for count in arguments.robots]

@@ -135,6 +135,9 @@ _SPECS = (
                   (1, 4096)),
     ParameterSpec('time_horizon', FLOAT, 5.0, 'Collisions later than this many seconds do not '
                   'constrain now, > 0; .inf for none.', rule=_positive),
+    ParameterSpec('obstacle_horizon', FLOAT, 2.0, 'Walls and static obstacles constrain the '
+                  'straight path over this many seconds [s], in [0.5, 10]: longer keeps further '
+                  'from walls and slows earlier, shorter passes closer.', (0.5, 10.0)),
     ParameterSpec('neighbor_distance', FLOAT, 10.0, 'Neighbours farther than this [m] are not '
                   'considered, > 0.', (0.0, 1.0e4), rule=_positive),
     ParameterSpec('actuation_std', FLOAT, 0.0, "Std of this robot's velocity execution error "
@@ -391,7 +394,8 @@ def planner_config_from(values):
             model=merged['model'], risk=merged['risk'], certificate=merged['certificate'],
             seed=None if seed < 0 else seed,
             inertia=merged['inertia'], passing_bias=merged['passing_bias'],
-            progress_weight=merged['progress_weight'])
+            progress_weight=merged['progress_weight'],
+            obstacle_horizon=merged['obstacle_horizon'])
     except ValueError as error:
         # The rules above cover PlannerConfig's; should they ever diverge, still one clear line.
         raise ParameterError('planner', str(error)) from error

@@ -47,7 +47,9 @@ def plan_status(robot, command, plan_time_ms, model, planning_radius):
     the eta bound holds for it. The tally's keys count every plan since the planner started:
     `min_achieved_eta` and `tally_stamp` are 'none' before the first. `certificate` is the
     plan's mode and `min_certified_probability` the lowest of its neighbours' bounds that are
-    certified ('none' without one).
+    certified ('none' without one). `obstacle_clearance` [m] is the mean's distance from the
+    nearest static obstacle grown by the planning radius (inf without obstacles) and
+    `obstacle_probability` the probability certified against static obstacles (1 without).
     """
     result = command.result
     feasible = True if result is None else bool(result.feasible)
@@ -65,6 +67,8 @@ def plan_status(robot, command, plan_time_ms, model, planning_radius):
          'arrived': command.arrived, 'model': model, 'planning_radius': planning_radius,
          'certificate': 'cantelli' if result is None else result.certificate,
          'min_certified_probability': _or_none(min(certified, default=None)),
+         'obstacle_clearance': math.inf if result is None else result.obstacle_clearance,
+         'obstacle_probability': 1.0 if result is None else result.obstacle_probability,
          'plans': tally.plans, 'infeasible_plans': tally.infeasible,
          'min_achieved_eta': _or_none(tally.min_achieved_eta),
          'tally_stamp': _or_none(tally.last_stamp), **command.announcement_values()},

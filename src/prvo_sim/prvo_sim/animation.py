@@ -17,7 +17,11 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 from prvo_sim.metrics import pair_indices, pairwise_separation  # noqa: E402
-from prvo_sim.plotting import robot_colours  # noqa: E402
+from prvo_sim.plotting import (  # noqa: E402
+    draw_static_world,
+    robot_colours,
+    static_world_bounds,
+)
 
 MAX_FRAMES = 150  # keeps every shipped scenario's GIF far under 5 MB
 MAX_FPS = 20.0  # a faster run is shown at this rate (fewer frames per sim second instead)
@@ -59,13 +63,14 @@ def contact_frames(positions, radii, steps):
 
 
 def animate_run(path, times, states, goals, radii, robot_names, title, position_std=None,
-                scripted=None, max_frames=MAX_FRAMES):
+                scripted=None, max_frames=MAX_FRAMES, static_world=None):
     """Write the GIF of one run to PATH; return the number of frames.
 
     TIMES (T,) [s]; STATES (T, N, 4 or more) ground truth x, y, vx, vy, and yaw [rad] where a
     fifth column holds it (headings are drawn then); GOALS (N, 2); RADII (N,). POSITION_STD
     (N,) [m], where known, draws each robot's uncertainty halo; SCRIPTED (N,) bools marks
-    robots that follow a script rather than plan (drawn hatched, in grey outline).
+    robots that follow a script rather than plan (drawn hatched, in grey outline);
+    STATIC_WORLD (`prvo_sim.static_world.StaticWorld`), if given, is drawn under every frame.
     """
     times = np.asarray(times, dtype=float)
     states = np.asarray(states, dtype=float)
@@ -76,7 +81,8 @@ def animate_run(path, times, states, goals, radii, robot_names, title, position_
     scripted = np.zeros(robot_count, dtype=bool) if scripted is None else np.asarray(scripted)
     colours = robot_colours(robot_count)
     figure, axes = plt.subplots(figsize=(FIGURE_INCHES, FIGURE_INCHES), dpi=DPI)
-    _set_limits(axes, positions, goals, radii)
+    _set_limits(axes, positions, goals, radii, static_world_bounds(static_world))
+    draw_static_world(axes, static_world)
     axes.set_aspect('equal')
     axes.grid(True, alpha=0.3)
     axes.set_title(title, fontsize=8)
@@ -140,10 +146,12 @@ def animate_run(path, times, states, goals, radii, robot_names, title, position_
     return len(steps)
 
 
-def _set_limits(axes, positions, goals, radii):
-    """Fit the axes to every position and goal, with a disc's margin."""
+def _set_limits(axes, positions, goals, radii, static_bounds=None):
+    """Fit the axes to every position and goal, with a disc's margin, and STATIC_BOUNDS."""
     points = np.vstack([positions.reshape(-1, 2), goals])
     margin = 2.0 * float(np.max(radii)) + 0.2
     low, high = points.min(axis=0) - margin, points.max(axis=0) + margin
+    if static_bounds is not None:
+        low, high = np.minimum(low, static_bounds[0]), np.maximum(high, static_bounds[1])
     axes.set_xlim(low[0], high[0])
     axes.set_ylim(low[1], high[1])

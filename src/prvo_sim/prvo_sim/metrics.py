@@ -3,12 +3,15 @@
 Shapes: `times` (T,), `positions` (T, N, 2) for N robots sampled at the same T instants,
 `radii` (N,), `goals` (N, 2). Definitions follow the metrics.json schema of the scenario
 README: a collision is an entry into contact of a pair of robots, a separation is the centre
-distance minus the sum of radii.
+distance minus the sum of radii; a wall contact is a robot's entry into contact with a static
+shape, its wall clearance the distance from its centre to the nearest shape minus its radius.
 """
 
 import math
 
 import numpy as np
+
+from prvo_sim.static_world import CONTACT_TOLERANCE
 
 
 def pair_indices(num_robots):
@@ -128,6 +131,34 @@ def run_metrics(times, positions, radii, goals, goal_tolerance, robot_names, scr
         'mean_time_to_goal': float(np.mean(times_to_goal)) if times_to_goal else None,
         'sim_time': float(times[-1] - times[0]),
     }
+
+
+def wall_metrics(positions, radii, robot_names, clearance=None,
+                 contact_tolerance=CONTACT_TOLERANCE):
+    """Return how close the robots came to the walls, obstacles and map, per robot and overall.
+
+    CLEARANCE maps points (P, 2) to their signed distances to the nearest static shape (P,)
+    [m] (`StaticWorld.clearance`); None for a world without any. A robot is in contact while
+    its clearance is at most CONTACT_TOLERANCE (the world stops it at the surface) and counts
+    once each time it enters contact (including at the first sample). Returns {'robots':
+    {name: {'wall_contacts', 'min_wall_clearance'}}, 'wall_contacts': their sum,
+    'min_wall_clearance': the least}; clearances are None without static shapes.
+    """
+    positions = np.asarray(positions, dtype=float)
+    if clearance is None or positions.size == 0:
+        return {'robots': {name: {'wall_contacts': 0, 'min_wall_clearance': None}
+                           for name in robot_names},
+                'wall_contacts': 0, 'min_wall_clearance': None}
+    steps, robots = positions.shape[:2]
+    clearances = (np.asarray(clearance(positions.reshape(-1, 2))).reshape(steps, robots)
+                  - np.asarray(radii, dtype=float))
+    touching = clearances <= contact_tolerance
+    entries = touching & ~np.vstack([np.zeros((1, robots), dtype=bool), touching[:-1]])
+    counts = entries.sum(axis=0)
+    lowest = clearances.min(axis=0)
+    return {'robots': {name: {'wall_contacts': int(count), 'min_wall_clearance': float(least)}
+                       for name, count, least in zip(robot_names, counts, lowest, strict=True)},
+            'wall_contacts': int(counts.sum()), 'min_wall_clearance': float(lowest.min())}
 
 
 def plan_quality(tallies):

@@ -4,11 +4,17 @@ import matplotlib
 
 matplotlib.use('Agg')
 
-from matplotlib.patches import Circle  # noqa: E402  (the backend must be chosen first)
+from matplotlib.patches import Circle, Polygon  # noqa: E402  (the backend must be chosen first)
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 SCRIPTED_COLOUR = 'grey'
+STATIC_COLOUR = '#555560'
+# Map cells (RGBA): unknown light grey; occupied dark, as opaque as its occupancy (free: clear).
+_UNKNOWN_RGBA = (0.8, 0.8, 0.82, 0.6)
+_OCCUPIED_RGB = (0.33, 0.33, 0.38)
+# Points on each end's half circle of a drawn wall.
+_CAP_POINTS = 12
 
 
 def robot_colours(count):
@@ -63,6 +69,56 @@ def draw_trajectories(axes, times, positions, starts, goals, radii, contacts,
     axes.grid(True, alpha=0.3)
 
 
+def draw_static_world(axes, static_world):
+    """Draw STATIC_WORLD's map cells, walls (their capsules), disc and polygon obstacles.
+
+    Drawn below the robots. Nothing for a world without static shapes.
+    """
+    if static_world is None or static_world.empty:
+        return
+    grid = static_world.map_grid
+    if grid is not None:
+        height, width = grid.shape
+        low = grid.origin
+        high = low + grid.resolution * np.array([width, height])
+        shown = np.zeros((height, width, 4))
+        shown[..., :3] = _OCCUPIED_RGB
+        shown[..., 3] = np.maximum(grid.cells, 0) / 100.0
+        shown[grid.cells < 0] = _UNKNOWN_RGBA
+        axes.imshow(shown, origin='lower', extent=(low[0], high[0], low[1], high[1]),
+                    interpolation='nearest', zorder=0)
+    for line, thickness in static_world.walls:
+        if thickness == 0.0:
+            axes.plot(line[:, 0], line[:, 1], '-', color=STATIC_COLOUR, linewidth=2.0,
+                      zorder=1)
+            continue
+        axes.add_patch(Polygon(_capsule_outline(line, 0.5 * thickness), closed=True,
+                               color=STATIC_COLOUR, zorder=1))
+    for centre, radius in static_world.discs:
+        axes.add_patch(Circle(centre, radius, color=STATIC_COLOUR, zorder=1))
+    for vertices in static_world.polygons:
+        axes.add_patch(Polygon(vertices, closed=True, color=STATIC_COLOUR, zorder=1))
+
+
+def static_world_bounds(static_world):
+    """Return (low (2,), high (2,)) of what draw_static_world draws, or None if nothing."""
+    if static_world is None or static_world.empty:
+        return None
+    grid = static_world.grid
+    return grid.origin, grid.origin + grid.resolution * np.array(grid.shape[::-1])
+
+
+def _capsule_outline(line, half_width):
+    """Return the (2 _CAP_POINTS, 2) outline of the points within HALF_WIDTH of LINE (2, 2)."""
+    start, end = line
+    angle = np.arctan2(*(end - start)[::-1])
+    caps = []
+    for centre, facing in ((end, angle), (start, angle + np.pi)):
+        turns = facing + np.linspace(-0.5 * np.pi, 0.5 * np.pi, _CAP_POINTS)
+        caps.append(centre + half_width * np.stack([np.cos(turns), np.sin(turns)], axis=1))
+    return np.vstack(caps)
+
+
 def _draw_scripted(axes, path, start, radius, disc_steps, label):
     """Draw a scripted robot: dashed grey PATH, hatched grey discs, grey start square."""
     axes.plot(path[:, 0], path[:, 1], '--', color=SCRIPTED_COLOUR, linewidth=1.2, label=label)
@@ -81,9 +137,13 @@ def _steps_every(times, interval):
 
 
 def plot_run(path, times, positions, starts, goals, radii, robot_names, contacts, title,
-             scripted=None, yaws=None):
-    """Write a PNG of one run's trajectories to PATH (SCRIPTED, YAWS: see draw_trajectories)."""
+             scripted=None, yaws=None, static_world=None):
+    """Write a PNG of one run's trajectories to PATH (SCRIPTED, YAWS: see draw_trajectories).
+
+    STATIC_WORLD (`prvo_sim.static_world.StaticWorld`), if given, is drawn under them.
+    """
     figure, axes = plt.subplots(figsize=(7.0, 7.0))
+    draw_static_world(axes, static_world)
     draw_trajectories(axes, times, positions, starts, goals, radii, contacts,
                       labels=list(robot_names), scripted=scripted, yaws=yaws)
     axes.set_title(title, fontsize=10)

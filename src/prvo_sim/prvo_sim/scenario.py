@@ -28,6 +28,7 @@ from prvo_msgs_util import (
     ODOM,
     validate_robot_name,
 )
+from prvo_planner.maps import GridMap
 from prvo_planner.parameters import (
     COORDINATE_LIMIT,
     KINEMATICS,
@@ -36,10 +37,18 @@ from prvo_planner.parameters import (
     type_name,
     unknown_parameter_reason,
 )
+from prvo_sim.map_files import (
+    DEFAULT_FREE_THRESH,
+    DEFAULT_OCCUPIED_THRESH,
+    MODES,
+    cells_from_image,
+    read_image,
+)
+from prvo_sim.static_world import StaticWorld, polygon_crossing
 
 _SCENARIO_NAME = re.compile(r'[A-Za-z0-9_-]+')
 _TOP_LEVEL_KEYS = {'name', 'description', 'seed', 'dt', 'duration', 'goal_tolerance', 'noise',
-                   'planner', 'robots'}
+                   'planner', 'robots', 'walls', 'obstacles', 'map'}
 _TOP_LEVEL_REQUIRED = {'name', 'seed', 'dt', 'duration', 'goal_tolerance', 'robots'}
 _ROBOT_KEYS = {'name', 'start', 'goal', 'radius', 'max_speed', 'noise', 'planner', 'scripted',
                'kinematics', 'max_angular_speed', 'max_acceleration', 'max_angular_acceleration',
@@ -51,6 +60,14 @@ _UNICYCLE_ONLY = ('max_angular_speed', 'max_angular_acceleration')
 _ROBOT_REQUIRED = {'name', 'start', 'goal', 'radius', 'max_speed'}
 _SCRIPTED_KEYS = {'waypoints', 'speed', 'loop'}
 _NOISE_KEYS = ('position_std', 'velocity_std', 'actuation_std')
+_WALL_KEYS = {'line', 'thickness'}
+_DISC_KEYS = {'position', 'radius'}
+_POLYGON_KEYS = {'polygon'}
+_MAP_KEYS = {'image', 'resolution', 'origin', 'negate', 'occupied_thresh', 'free_thresh', 'mode'}
+_MAP_REQUIRED = {'image', 'resolution', 'origin'}
+# The largest rasterised grid of a scenario's static world [cells]: 400 MB of int8 cells at most
+# would be far more than a simulator or planner should hold.
+MAX_GRID_CELLS = 4 * 10 ** 7
 DT_RANGE = (1.0e-4, 10.0)
 MAX_STEPS = 10 ** 6
 MAX_NOISE_STD = 1.0e3
@@ -190,6 +207,7 @@ class Scenario:
     goal_tolerance: float
     robots: tuple
     path: pathlib.Path
+    static_world: StaticWorld = StaticWorld()
 
 
 class _UniqueKeyLoader(yaml.SafeLoader):
@@ -359,10 +377,140 @@ def load_scenario(path, seed=None):
     robots = tuple(_robot(check, entry, f'robots[{index}]', file_noise, file_planner)
                    for index, entry in enumerate(robot_list))
     _check_robots_distinct(check, robots)
+    static_world = _static_world(check, document, robots)
     if seed is not None:
         file_seed = _Validator('seed override').seed(seed, 'seed')
     return Scenario(name=name, description=description, seed=file_seed, dt=dt,
-                    duration=duration, goal_tolerance=goal_tolerance, robots=robots, path=path)
+                    duration=duration, goal_tolerance=goal_tolerance, robots=robots, path=path,
+                    static_world=static_world)
+
+
+def _static_world(check, document, robots):
+    """Return the StaticWorld of the file's walls, obstacles and map; check the robots in it."""
+    walls = [_wall(check, entry, f'walls[{index}]')
+             for index, entry in enumerate(_entries(check, document, 'walls'))]
+    discs, polygons = [], []
+    for index, entry in enumerate(_entries(check, document, 'obstacles')):
+        key = f'obstacles[{index}]'
+        if isinstance(entry, dict) and 'polygon' in entry:
+            polygons.append(_polygon(check, entry, key))
+        else:
+            discs.append(_disc(check, entry, key))
+    map_grid = (_map(check, check.string(document['map'], 'map'))
+                if document.get('map') is not None else None)
+    points = np.array([point for robot in robots for point in (robot.start, robot.goal)])
+    world = StaticWorld(walls, discs, polygons, map_grid, extent_points=points)
+    if world.empty:
+        return world
+    _, (height, width), _ = world.grid_layout()
+    if height * width > MAX_GRID_CELLS:
+        check.fail('walls' if map_grid is None else 'map',
+                   f'the static world spans {width} x {height} cells of '
+                   f'{world.grid_layout()[2]:g} m: more than {MAX_GRID_CELLS:.3g}')
+    for index, robot in enumerate(robots):
+        for place in ('start', 'goal'):
+            point = getattr(robot, place)
+            clearance = float(world.clearance(point)[0])
+            if clearance < robot.radius:
+                where = ('inside an obstacle' if clearance <= 0.0 else
+                         f'{clearance:g} m from an obstacle, closer than its radius '
+                         f'{robot.radius:g} m')
+                check.fail(f'robots[{index}].{place}',
+                           f'{point.tolist()} is {where} (robot {robot.name!r})')
+    return world
+
+
+def _entries(check, document, key):
+    """Return the list under KEY (absent or null: empty)."""
+    value = document.get(key)
+    if value is None:
+        return []
+    if not isinstance(value, list):
+        check.fail(key, f'expected a list, got {type_name(value)}')
+    return value
+
+
+def _wall(check, entry, key):
+    """Return (segment (2, 2), thickness) of the wall ENTRY."""
+    entry = check.mapping(entry, key, _WALL_KEYS, {'line'})
+    line = entry['line']
+    if not isinstance(line, list) or len(line) != 2:
+        check.fail(f'{key}.line', f'expected [[x1, y1], [x2, y2]], got {line!r}')
+    ends = np.array([check.point(point, f'{key}.line[{index}]')
+                     for index, point in enumerate(line)])
+    if np.array_equal(ends[0], ends[1]):
+        check.fail(f'{key}.line', f'the two ends are equal ({ends[0].tolist()}): a wall needs a '
+                   'length')
+    thickness = check.number(entry.get('thickness', 0.0), f'{key}.thickness', 0.0,
+                             COORDINATE_LIMIT)
+    return ends, thickness
+
+
+def _disc(check, entry, key):
+    """Return (centre (2,), radius) of the disc obstacle ENTRY."""
+    entry = check.mapping(entry, key, _DISC_KEYS, _DISC_KEYS)
+    centre = check.point(entry['position'], f'{key}.position')
+    radius = check.number(entry['radius'], f'{key}.radius', 0.0, COORDINATE_LIMIT,
+                          low_open=True)
+    return centre, radius
+
+
+def _polygon(check, entry, key):
+    """Return the vertices (V, 2) of the polygon obstacle ENTRY: V >= 3, no edges crossing."""
+    entry = check.mapping(entry, key, _POLYGON_KEYS, _POLYGON_KEYS)
+    value = entry['polygon']
+    if not isinstance(value, list) or len(value) < 3:
+        check.fail(f'{key}.polygon', f'expected a list of at least 3 vertices [x, y], got '
+                   f'{value!r}')
+    vertices = np.array([check.point(point, f'{key}.polygon[{index}]')
+                         for index, point in enumerate(value)])
+    crossing = polygon_crossing(vertices)
+    if crossing is not None:
+        first, second = crossing
+        check.fail(f'{key}.polygon', f'edges {first} and {second} cross (edge i runs from vertex '
+                   'i to the next): a polygon must be simple')
+    return vertices
+
+
+def _map(check, name, key='map'):
+    """Return the GridMap of the map_server map file NAME, relative to the scenario file."""
+    path = check.path.parent / name
+    if not path.is_file():
+        check.fail(key, f'no map file {str(path)!r}')
+    map_check = _Validator(path)
+    document = map_check.mapping(_parse(path), '(top level)', _MAP_KEYS, _MAP_REQUIRED)
+    image_name = map_check.string(document['image'], 'image')
+    resolution = map_check.number(document['resolution'], 'resolution', 0.0, COORDINATE_LIMIT,
+                                  low_open=True)
+    origin = document['origin']
+    if not isinstance(origin, list) or len(origin) != 3:
+        map_check.fail('origin', f'expected [x, y, yaw], got {origin!r}')
+    corner = map_check.point(origin[:2], 'origin')
+    if map_check.number(origin[2], 'origin[2]') != 0.0:
+        map_check.fail('origin[2]', f'only maps aligned with the world frame (yaw 0) are '
+                       f'supported, got {origin[2]!r}')
+    negate = document.get('negate', 0)
+    if negate not in (0, 1) or isinstance(negate, float):
+        map_check.fail('negate', f'expected 0 or 1, got {negate!r}')
+    thresholds = {name: map_check.number(document.get(name, default), name, 0.0, 1.0)
+                  for name, default in (('occupied_thresh', DEFAULT_OCCUPIED_THRESH),
+                                        ('free_thresh', DEFAULT_FREE_THRESH))}
+    if thresholds['free_thresh'] > thresholds['occupied_thresh']:
+        map_check.fail('free_thresh', f"{thresholds['free_thresh']:g} is above occupied_thresh "
+                       f"{thresholds['occupied_thresh']:g}")
+    mode = document.get('mode', 'trinary')
+    if mode not in MODES:
+        map_check.fail('mode', f'must be one of {", ".join(MODES)}, got {mode!r}')
+    image_path = path.parent / image_name
+    try:
+        levels, alpha = read_image(image_path)
+    except OSError as error:
+        map_check.fail('image', f'cannot read {str(image_path)!r}: {error}')
+    if levels.size > MAX_GRID_CELLS:
+        map_check.fail('image', f'{levels.shape[1]} x {levels.shape[0]} pixels, more than '
+                       f'{MAX_GRID_CELLS:.3g} cells')
+    cells = cells_from_image(levels, alpha, mode, bool(negate), **thresholds)
+    return GridMap(cells, resolution, corner)
 
 
 def _robot(check, entry, key, file_noise, file_planner):

@@ -12,7 +12,7 @@ import time
 
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import Twist, TwistStamped
-from nav_msgs.msg import Odometry
+from nav_msgs.msg import OccupancyGrid, Odometry
 import numpy as np
 from rcl_interfaces.msg import SetParametersResult
 import rclpy
@@ -21,6 +21,7 @@ from rclpy.exceptions import ParameterException
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rosgraph_msgs.msg import Clock as ClockMsg
+from visualization_msgs.msg import MarkerArray
 
 from prvo_msgs_util import (
     CLOCK,
@@ -32,8 +33,11 @@ from prvo_msgs_util import (
     DIAGNOSTICS,
     DIAGNOSTICS_QOS,
     GROUND_TRUTH,
+    MAP,
+    MAP_QOS,
     ODOM,
     ODOM_QOS,
+    WORLD_MARKERS,
     Announcer,
     MessageFault,
     QosWatch,
@@ -54,7 +58,14 @@ from prvo_sim.scenario import ScenarioError, find_scenario, load_scenario
 from prvo_sim.sim_parameters import PARAMETERS, parameter_fault
 from prvo_sim.step_timing import REPUBLISH, STEP, StepTiming
 from prvo_sim.world import TeamWorld
-from prvo_sim.world_messages import contact_array, serialized_odometry, status_array
+from prvo_sim.world_messages import (
+    contact_array,
+    map_message,
+    serialized_odometry,
+    static_world_markers,
+    status_array,
+    wall_contact_array,
+)
 
 # Exit code of a run rejected at startup (bad scenario or parameter).
 EXIT_BAD_INPUT = 2
@@ -116,6 +127,16 @@ class SimNode(Node):
         self._contacts_publisher = self.create_publisher(
             DiagnosticArray, CONTACTS, CONTACT_QOS, event_callbacks=quiet())
         endpoints = [self._clock_publisher, self._diagnostics_publisher, self._contacts_publisher]
+        grid = map_message(self._world)
+        if grid is not None:
+            # The static world, once and latched, as map_server publishes a map.
+            map_publisher = self.create_publisher(OccupancyGrid, MAP, MAP_QOS,
+                                                  event_callbacks=quiet())
+            markers_publisher = self.create_publisher(MarkerArray, WORLD_MARKERS, MAP_QOS,
+                                                      event_callbacks=quiet())
+            map_publisher.publish(grid)
+            markers_publisher.publish(static_world_markers(self._world))
+            endpoints += [map_publisher, markers_publisher]
         # What every observer must subscribe to: each robot's ground truth, /diagnostics and
         # /clock (a recording is complete from t_0).
         observed = [(DIAGNOSTICS, self._diagnostics_publisher), (CLOCK, self._clock_publisher)]
@@ -264,6 +285,8 @@ class SimNode(Node):
                 'command')
         for contact in world.step([robot.command for robot in self._robots]):
             self._report_contact(contact)
+        for contact in world.last_wall_contacts:
+            self._report_wall_contact(contact)
         self._stamp = seconds_to_stamp(world.time)
         self._publish_state()
         self._timing.step_published(time.monotonic())
@@ -273,6 +296,7 @@ class SimNode(Node):
                 self._realtime_timer.cancel()
             self.get_logger().info(
                 f'finished at t={world.time:.3f} s: {world.contact_count} contacts, '
+                f'{world.wall_contact_count} with walls, '
                 f'{sum(self._timing.deadline_misses)} deadline misses')
 
     def _report_contact(self, contact):
@@ -281,6 +305,13 @@ class SimNode(Node):
             f'contact at t={contact.time:.3f} s: {first} and {second}, centre distance '
             f'{contact.distance:.3f} m')
         self._contacts_publisher.publish(contact_array(self._world, contact))
+
+    def _report_wall_contact(self, contact):
+        name = self._robots[contact.robot].name
+        self.get_logger().warning(
+            f'contact at t={contact.time:.3f} s: {name} and a wall or obstacle',
+            throttle_duration_sec=_WARNING_THROTTLE)
+        self._contacts_publisher.publish(wall_contact_array(self._world, contact))
 
     def _publish_state(self):
         """Publish /clock, every robot's odometry, then ground truth and diagnostics.

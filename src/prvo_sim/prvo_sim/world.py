@@ -2,6 +2,10 @@
 
 Holonomic robots execute world-frame velocities; unicycle (differential-drive) robots execute a
 forward speed and a turn rate along exact arcs. Either kind may have acceleration limits.
+The scenario's walls, obstacles and map (`prvo_sim.static_world.StaticWorld`) are solid: a robot
+whose step would take it into one stops at its surface, the part of its motion into it removed
+and the rest along the surface kept (tested on the straight motion of the step, so no robot
+passes through a thin wall; a unicycle's arc is taken by its chord), and the contact counts.
 
 `TeamWorld` is what the `sim` node steps; it draws from one seeded generator in a fixed order
 (the t_0 odometry, then per step the actuation noise and the odometry of the new state), so a
@@ -14,6 +18,7 @@ import math
 import numpy as np
 
 from prvo_sim import kinematics, scripted
+from prvo_sim.static_world import CONTACT_TOLERANCE
 
 # Below this executed speed [m/s] the heading is noise, so the last heading is kept.
 HEADING_MIN_SPEED = 1e-3
@@ -31,6 +36,18 @@ class Contact:
     distance: float
 
 
+@dataclass(frozen=True)
+class WallContact:
+    """A robot that came into contact with a static shape: index, sim time, clearance [m].
+
+    The clearance is 0 up to rounding: the world stops a robot at the surface.
+    """
+
+    robot: int
+    time: float
+    clearance: float
+
+
 class TeamWorld:
     """Every robot of SCENARIO, stepped with its kinematics and seeded noise.
 
@@ -39,7 +56,10 @@ class TeamWorld:
     (executed, 0 for holonomic robots), `unicycle` (bool), `measured_positions`,
     `measured_velocities`, `measured_turn_rates` (the noisy odometry of the current state),
     `radii`, `max_speeds`, `goals`, `position_std`, `velocity_std`, `actuation_std`;
-    `step_count`, `contact_count`; `followers`, {index: `scripted.WaypointFollower`} of the
+    `step_count`, `contact_count`; `static_world`, the scenario's walls, obstacles and map
+    (`StaticWorld`; its `grid`, the rasterised `GridMap` of them all, None without any);
+    `wall_contact_count` and `last_wall_contacts` (the `WallContact`s of the last step);
+    `followers`, {index: `scripted.WaypointFollower`} of the
     scripted robots, whose commands the world makes itself.
     """
 
@@ -80,6 +100,10 @@ class TeamWorld:
         self.step_count = 0
         self.contact_count = 0
         self._in_contact = set()
+        self.static_world = scenario.static_world
+        self.wall_contact_count = 0
+        self.last_wall_contacts = []
+        self._at_wall = np.zeros(len(specs), dtype=bool)
         self._yaw_history = {}
         self._record_state()
 
@@ -130,13 +154,43 @@ class TeamWorld:
             noise[self.unicycle], dt)
         executed[self.unicycle] = executed_forward[:, None] * np.stack(
             [np.cos(self.yaws[self.unicycle]), np.sin(self.yaws[self.unicycle])], axis=1)
+        if not self.static_world.empty:
+            positions, executed = self._stopped_at_walls(positions, executed, dt)
         self.positions, self.velocities = positions, executed
         self.step_count += 1
+        self.last_wall_contacts = self._new_wall_contacts()
         moving = holonomic & (np.linalg.norm(self.velocities, axis=1) > HEADING_MIN_SPEED)
         self.yaws[moving] = np.arctan2(self.velocities[moving, 1], self.velocities[moving, 0])
         contacts = self._new_contacts()
         self._record_state()
         return contacts
+
+    def _stopped_at_walls(self, positions, executed, dt):
+        """Return POSITIONS and EXECUTED velocities with every step into a static shape cut.
+
+        A robot stopped or deflected moves by what it could; its velocity is that motion / dt.
+        """
+        positions, executed = positions.copy(), executed.copy()
+        for index, (start, end) in enumerate(zip(self.positions, positions, strict=True)):
+            moved, touched = self.static_world.move(start, end - start, self.radii[index])
+            if touched:
+                positions[index] = moved
+                executed[index] = (moved - start) / dt
+        return positions, executed
+
+    def wall_clearances(self):
+        """Return (N,) each robot's clearance to the nearest static shape [m] (inf: none)."""
+        return self.static_world.clearance(self.positions) - self.radii
+
+    def _new_wall_contacts(self):
+        if self.static_world.empty:
+            return []
+        clearances = self.wall_clearances()
+        at_wall = clearances <= CONTACT_TOLERANCE
+        new = np.flatnonzero(at_wall & ~self._at_wall)
+        self._at_wall = at_wall
+        self.wall_contact_count += len(new)
+        return [WallContact(int(index), self.time, float(clearances[index])) for index in new]
 
     def yaws_at(self, step):
         """Return the headings at STEP (one of the last `YAW_HISTORY`), else the current ones."""

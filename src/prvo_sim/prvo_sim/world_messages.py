@@ -1,4 +1,4 @@
-"""The simulator's messages built from a TeamWorld: odometry, ground truth, diagnostics."""
+"""The simulator's messages built from a TeamWorld: odometry, ground truth, diagnostics, map."""
 
 from dataclasses import dataclass
 
@@ -10,6 +10,8 @@ from prvo_msgs_util import (
     diagnostic_values,
     make_diagnostic_array,
     make_diagnostic_status,
+    make_occupancy_grid,
+    make_static_world_markers,
     serialize_odometry,
 )
 
@@ -50,11 +52,12 @@ def status_array(world, message, mode, deadline_misses):
     DEADLINE_MISSES gives each robot's count; the keys are those of docs/interfaces.md.
     """
     total_misses = sum(deadline_misses)
-    warn = world.contact_count or total_misses
+    warn = world.contact_count or world.wall_contact_count or total_misses
     statuses = [make_diagnostic_status(
         'prvo_sim', message,
         {'sim_time': world.time, 'step': world.step_count, 'finished': world.finished,
-         'contacts': world.contact_count, 'deadline_misses': total_misses, 'mode': mode},
+         'contacts': world.contact_count, 'wall_contacts': world.wall_contact_count,
+         'deadline_misses': total_misses, 'mode': mode},
         level=DiagnosticStatus.WARN if warn else DiagnosticStatus.OK)]
     arrived = world.arrived()
     for index, name in enumerate(world.names):
@@ -99,3 +102,30 @@ def contact_array(world, contact):
         'contact', f'{first} and {second} in contact',
         {'robot_a': first, 'robot_b': second, 'time': contact.time,
          'distance': contact.distance}, level=DiagnosticStatus.WARN)])
+
+
+def wall_contact_array(world, contact):
+    """Return the DiagnosticArray of one `wall_contact` status for CONTACT (world.WallContact)."""
+    name = world.names[contact.robot]
+    return make_diagnostic_array(contact.time, [make_diagnostic_status(
+        'wall_contact', f'{name} in contact with a wall or obstacle',
+        {'robot': name, 'time': contact.time, 'clearance': contact.clearance},
+        level=DiagnosticStatus.WARN)])
+
+
+def map_message(world):
+    """Return the nav_msgs/OccupancyGrid of WORLD's static shapes (its rasterised grid).
+
+    None for a world without walls, obstacles or map. Stamped at t = 0, in the world frame.
+    """
+    grid = world.static_world.grid
+    if grid is None:
+        return None
+    return make_occupancy_grid(0.0, grid.cells, grid.resolution, grid.origin, WORLD_FRAME)
+
+
+def static_world_markers(world):
+    """Return the MarkerArray of WORLD's walls and obstacles (the map shows on /map)."""
+    static = world.static_world
+    return make_static_world_markers(0.0, WORLD_FRAME, static.walls, static.discs,
+                                     static.polygons)

@@ -298,17 +298,27 @@ def fallback_measures(velocities, origin, lead, radius, horizon, period):
     return intrusion, closing, np.minimum(time_to_collision, horizon), left_passes
 
 
-def fallback_index(intrusion, closing, time_to_collision, left_passes, costs):
+def fallback_index(intrusion, closing, time_to_collision, left_passes, costs, walls=None):
     """
     Index of the fallback's choice among candidates, all shape (K,).
 
-    Lexicographic: the least intrusion into contact within the period (0 whenever some
-    candidate touches nobody new and presses into no overlap), then the least closing on near
-    neighbours, then the longest time to collision, then the smallest cost. Among candidates of
-    equal cost (mirror images in a symmetric encounter), the fewest neighbours passed on the
-    left: both robots of a pair then pass on the right.
+    Lexicographic: the least intrusion into static obstacles within the period (with WALLS,
+    a pair ``(intrusion, time_to_contact)`` of shape (K,) each; 0 for standing still, so the
+    choice never drives deeper into a wall), then the least intrusion into contact with
+    neighbours (0 whenever some candidate touches nobody new and presses into no overlap),
+    then (with WALLS) the longest time to reach a wall's support line, then the least closing
+    on near neighbours, then the longest time to collision, then the smallest cost. Among
+    candidates of equal cost (mirror images in a symmetric encounter), the fewest neighbours
+    passed on the left: both robots of a pair then pass on the right.
     """
-    ranked = intrusion <= np.min(intrusion) + 1e-9
+    if walls is None:
+        ranked = intrusion <= np.min(intrusion) + 1e-9
+    else:
+        wall_intrusion, time_to_contact = walls
+        ranked = wall_intrusion <= np.min(wall_intrusion) + 1e-9
+        ranked &= intrusion <= np.min(intrusion[ranked]) + 1e-9
+        longest = np.max(time_to_contact[ranked])
+        ranked &= time_to_contact >= longest - 1e-9 * max(1.0, longest)
     ranked &= closing <= np.min(closing[ranked]) + 1e-9
     longest = np.max(time_to_collision[ranked])
     if np.isfinite(longest):

@@ -115,6 +115,11 @@ class PlannerConfig:
         ``model='prvo'``: rays searched with the smaller margin at which the Gaussian bound
         typically reaches ``eta``, the chosen velocity certified against every neighbour, and
         Cantelli's margin restored for the neighbours it falls short for).
+    obstacle_horizon : float
+        ``tau`` against static obstacles, seconds, > 0, finite (as RVO2's ``timeHorizonObst``):
+        a wall is a constraint on the straight path over the next ``tau`` seconds. Longer:
+        robots slow down earlier and keep further from walls; shorter: they pass closer and
+        may approach a wall faster than they can stop.
 
     """
 
@@ -137,6 +142,7 @@ class PlannerConfig:
     progress_weight: float = 0.0
     control_period: float = 0.1
     certificate: str = 'cantelli'
+    obstacle_horizon: float = 2.0
 
     def __post_init__(self):
         eta = _real(self.eta, 'PlannerConfig.eta')
@@ -191,6 +197,8 @@ class PlannerConfig:
         object.__setattr__(self, 'progress_weight', progress)
         object.__setattr__(self, 'control_period',
                            _positive(self.control_period, 'PlannerConfig.control_period'))
+        object.__setattr__(self, 'obstacle_horizon',
+                           _positive(self.obstacle_horizon, 'PlannerConfig.obstacle_horizon'))
 
     @property
     def effective_k(self):
@@ -232,6 +240,12 @@ class PlanResult:
         docs/method.md, section 13, on ``f`` or ``g``) or ``'cantelli'``.
     certificate : str
         The configuration's ``certificate``.
+    obstacle_clearance : float
+        Distance of the ego's mean from the nearest static obstacle's surface grown by the
+        planning radius and margin [m], negative inside (``inf`` without obstacles).
+    obstacle_probability : float
+        Smallest over the static obstacles of the probability certified that the path over
+        the obstacle horizon avoids it at ``velocity`` (1 without obstacles).
 
     """
 
@@ -244,6 +258,8 @@ class PlanResult:
     neighbour_bounds: np.ndarray = field(default_factory=lambda: np.zeros(0))
     bound_kinds: tuple = ()
     certificate: str = 'cantelli'
+    obstacle_clearance: float = math.inf
+    obstacle_probability: float = 1.0
 
     def __post_init__(self):
         object.__setattr__(self, 'velocity',

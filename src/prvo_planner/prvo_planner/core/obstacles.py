@@ -7,6 +7,7 @@ is a static neighbour: known centre, zero velocity, no covariance of its own.
 """
 
 from dataclasses import dataclass
+import functools
 
 import numpy as np
 
@@ -66,3 +67,23 @@ class StaticObstacles:
     def __len__(self):
         """Return the number of shapes: segments plus discs."""
         return len(self.segments) + len(self.disc_radii)
+
+    @functools.cached_property
+    def frames(self):
+        """
+        Each segment's frame, computed once: shape (N, 6).
+
+        Columns: the unit vector ``u`` along ``b - a`` (2), the unit vector across it,
+        ``(-u_y, u_x)`` (2), ``u.a`` and ``u.b``.
+        """
+        start, end = self.segments[:, 0], self.segments[:, 1]
+        along = end - start
+        unit = along / np.hypot(along[:, 0], along[:, 1])[:, None]
+        frames = np.empty((len(start), 6))
+        frames[:, :2] = unit
+        frames[:, 2] = -unit[:, 1]
+        frames[:, 3] = unit[:, 0]
+        frames[:, 4] = np.sum(unit * start, axis=1)
+        frames[:, 5] = np.sum(unit * end, axis=1)
+        frames.setflags(write=False)
+        return frames

@@ -55,10 +55,24 @@ from .moments import (
     poly_eval,
     ray_rows,
 )
+from .obstacles import StaticObstacles
 from .probability import eta_from_k
+from .walls import (
+    WallModel,
+    cut_by_walls,
+    obstacle_probability,
+    rejected_intervals,
+    wall_intrusion,
+    wall_model,
+    wall_time_to_contact,
+)
 
 
-def _validated_inputs(ego, neighbours, v_pref, config, previous, limits):
+def _validated_inputs(ego, neighbours, v_pref, config, previous, limits, obstacles=None):
+    if obstacles is not None and not isinstance(obstacles, StaticObstacles):
+        raise ValueError(f'obstacles must be StaticObstacles or None, got {obstacles!r}')
+    if obstacles is not None and len(obstacles) and config.model == 'mc':
+        raise ValueError("obstacles are not supported with model='mc'")
     if limits is not None and not isinstance(limits, VelocityLimits):
         raise ValueError(f'limits must be VelocityLimits or None, got {limits!r}')
     if not isinstance(ego, AgentBelief):
@@ -79,7 +93,7 @@ def _clip_speed(velocity, max_speed):
     return velocity * (max_speed / speed) if speed > max_speed else np.array(velocity)
 
 
-def plan_velocity(ego, neighbours, v_pref, config, previous=None, limits=None):
+def plan_velocity(ego, neighbours, v_pref, config, previous=None, limits=None, obstacles=None):
     """
     Choose the commanded velocity closest to ``v_pref`` that meets the chance constraints.
 
@@ -100,6 +114,8 @@ def plan_velocity(ego, neighbours, v_pref, config, previous=None, limits=None):
         The previous command, shape (2,), for ``config.inertia``; None for none.
     limits : VelocityLimits or None
         What the robot can command next (acceleration, tracking); None: any velocity.
+    obstacles : StaticObstacles or None
+        Walls and discs that never move (docs/method.md, walls); None or empty: none.
 
     Returns
     -------
@@ -112,10 +128,12 @@ def plan_velocity(ego, neighbours, v_pref, config, previous=None, limits=None):
         On invalid inputs.
 
     """
-    return plan_velocities([ego], [neighbours], [v_pref], [config], [previous], [limits])[0]
+    return plan_velocities([ego], [neighbours], [v_pref], [config], [previous], [limits],
+                           [obstacles])[0]
 
 
-def plan_velocities(egos, neighbours_per_ego, v_prefs, configs, previous=None, limits=None):
+def plan_velocities(egos, neighbours_per_ego, v_prefs, configs, previous=None, limits=None,
+                    obstacles=None):
     """
     Plan every robot of a team in few, large numpy calls.
 
@@ -138,6 +156,8 @@ def plan_velocities(egos, neighbours_per_ego, v_prefs, configs, previous=None, l
         Each robot's previous command; None: none for any robot.
     limits : None or sequence of (VelocityLimits or None)
         Each robot's limits; None: none for any robot.
+    obstacles : None or sequence of (StaticObstacles or None)
+        Each robot's static obstacles; None: none for any robot.
 
     Returns
     -------
@@ -157,7 +177,8 @@ def plan_velocities(egos, neighbours_per_ego, v_prefs, configs, previous=None, l
     per_robot = {'neighbours_per_ego': list(neighbours_per_ego), 'v_prefs': list(v_prefs),
                  'configs': list(configs),
                  'previous': [None] * count if previous is None else list(previous),
-                 'limits': [None] * count if limits is None else list(limits)}
+                 'limits': [None] * count if limits is None else list(limits),
+                 'obstacles': [None] * count if obstacles is None else list(obstacles)}
     for name, values in per_robot.items():
         if len(values) != count:
             raise ValueError(f'{name} must have one entry per ego ({count}), got {len(values)}')
@@ -167,10 +188,13 @@ def plan_velocities(egos, neighbours_per_ego, v_prefs, configs, previous=None, l
         try:
             plan = _prepared_plan(egos[index], per_robot['neighbours_per_ego'][index],
                                   per_robot['v_prefs'][index], per_robot['configs'][index],
-                                  per_robot['previous'][index], per_robot['limits'][index])
+                                  per_robot['previous'][index], per_robot['limits'][index],
+                                  per_robot['obstacles'][index])
         except ValueError as error:
             raise ValueError(f'robot {index}: {error}') from error
-        if plan.encounter.origin.shape[0] == 0:
+        if plan.encounter.origin.shape[0] == 0 and plan.walls is not None:
+            results[index] = _wall_only_plan(plan)
+        elif plan.encounter.origin.shape[0] == 0:
             velocity = (_clip_speed(plan.v_pref, plan.config.max_speed) if plan.allowed is None
                         else free_choice(plan.directions, *plan.allowed, plan.v_pref,
                                          plan.config))
@@ -206,6 +230,10 @@ class _Plan:
     deterministic: bool
     # Allowed t on each direction (lower, upper), (M,) each; None: [0, 1] everywhere.
     allowed: tuple | None = None
+    # Static obstacles (None: none), and the open intervals (upper, lower) of t they reject on
+    # each direction, (K, M) each.
+    walls: WallModel | None = None
+    wall_rejected: tuple | None = None
 
     @property
     def structure(self):
@@ -214,9 +242,9 @@ class _Plan:
                 self.layout.has_receding, self.deterministic, self.config.certificate)
 
 
-def _prepared_plan(ego, neighbours, v_pref, config, previous, limits=None):
+def _prepared_plan(ego, neighbours, v_pref, config, previous, limits=None, obstacles=None):
     neighbours, v_pref, previous = _validated_inputs(ego, neighbours, v_pref, config, previous,
-                                                     limits)
+                                                     limits, obstacles)
     encounter = build_encounter(ego, neighbours, config)
     directions = candidate_directions(ego, v_pref, config)
     allowed = None
@@ -227,10 +255,13 @@ def _prepared_plan(ego, neighbours, v_pref, config, previous, limits=None):
     cov, radius, deterministic = (model_moments(encounter, config)
                                   if layout is not None and config.model != 'mc'
                                   else (None, None, False))
+    walls = wall_model(obstacles, ego, config) if obstacles is not None and len(obstacles) \
+        else None
     return _Plan(v_pref=v_pref, config=config, previous=previous, encounter=encounter,
                  directions=directions, preferred=directions @ v_pref / config.max_speed,
                  layout=layout, cov=cov, radius=radius, deterministic=deterministic,
-                 allowed=allowed)
+                 allowed=allowed, walls=walls,
+                 wall_rejected=None if walls is None else rejected_intervals(walls, directions))
 
 
 def _monte_carlo_plan(plan):
@@ -263,18 +294,72 @@ def _monte_carlo_plan(plan):
 
 def _result(plan, velocity, candidates_feasible, achieved, bounds, certified):
     """PLAN's result; ACHIEVED, BOUNDS, CERTIFIED per neighbour (see ``_Choice``)."""
-    smallest = float(achieved.min())
+    smallest = float(achieved.min(initial=math.inf))
     certificate = plan.config.certificate
-    return PlanResult(velocity=_clip_speed(velocity, plan.config.max_speed),
+    velocity = _clip_speed(velocity, plan.config.max_speed)
+    obstacles = ({} if plan.walls is None else {
+        'obstacle_clearance': plan.walls.clearance,
+        'obstacle_probability': obstacle_probability(plan.walls, velocity)})
+    return PlanResult(velocity=velocity,
                       feasible=bool(candidates_feasible)
-                      and not plan.encounter.overlapping.any(),
+                      and not plan.encounter.overlapping.any()
+                      and obstacles.get('obstacle_clearance', math.inf) > 0.0,
                       achieved_k=smallest,
                       eta_bound=(eta_from_k(max(smallest, 0.0)) if certificate == 'cantelli'
                                  else float(bounds.min())),
                       num_constraints=plan.encounter.origin.shape[0],
                       candidates_feasible=candidates_feasible, neighbour_bounds=bounds,
                       bound_kinds=['certified' if flag else 'cantelli' for flag in certified],
-                      certificate=certificate)
+                      certificate=certificate, **obstacles)
+
+
+def _wall_only_plan(plan):
+    """Plan a robot whose only constraints are static obstacles (else the fallback)."""
+    rays = plan.directions.shape[0]
+    lower, upper = (np.zeros(rays), np.ones(rays)) if plan.allowed is None else plan.allowed
+    reachable = lower <= upper
+    gap_ray, lower, upper = _cut_by_walls(plan, 0, np.flatnonzero(reachable),
+                                          lower[reachable], upper[reachable])
+    candidates_feasible = int(np.unique(gap_ray).size)
+    if candidates_feasible:
+        rows = RayRows(means=np.zeros((0, 1, 3)), variances=np.zeros((0, 1, 5)),
+                       margins=np.zeros((0, 1)), link_ray=np.zeros(0, dtype=int),
+                       link_enabled=np.zeros(0, dtype=bool), ray_local=np.arange(rays),
+                       ray_robot=np.zeros(rays, dtype=int), preferred=plan.preferred)
+        direction_index, t = _choose_on_gaps([plan], rows, gap_ray, lower, upper)[0]
+    else:
+        speeds, costs = (speed_grid(plan.directions, plan.preferred, plan.v_pref, plan.previous,
+                                    plan.config) if plan.allowed is None
+                         else allowed_speed_grid(plan, *plan.allowed))
+        direction_index, speed_index = _fallback_choice(plan, speeds, costs)
+        t = speeds[direction_index, speed_index]
+    empty = np.zeros(0)
+    return _result(plan, plan.config.max_speed * t * plan.directions[direction_index],
+                   candidates_feasible, empty, empty, np.zeros(0, dtype=bool))
+
+
+def _cut_by_walls(plan, first_ray, gap_ray, lower, upper):
+    """PLAN's feasible intervals (rays numbered from FIRST_RAY) minus its walls' rejections."""
+    wall_upper, wall_lower = plan.wall_rejected
+    wall_ray = np.broadcast_to(first_ray + np.arange(wall_upper.shape[1]), wall_upper.shape)
+    return cut_by_walls(gap_ray, lower, upper, wall_ray.ravel(), wall_upper.ravel(),
+                        wall_lower.ravel())
+
+
+def _wall_gaps(plans, ray_starts, gap_ray, lower, upper):
+    """Cut the feasible intervals of every robot with walls by them; keep the others'."""
+    if all(plan.walls is None for plan in plans):
+        return gap_ray, lower, upper
+    robots = np.searchsorted(ray_starts, gap_ray, side='right') - 1
+    pieces = []
+    for robot, plan in enumerate(plans):
+        own = robots == robot
+        if plan.walls is None:
+            pieces.append((gap_ray[own], lower[own], upper[own]))
+        else:
+            pieces.append(_cut_by_walls(plan, ray_starts[robot], gap_ray[own], lower[own],
+                                        upper[own]))
+    return tuple(np.concatenate(values) for values in zip(*pieces, strict=True))
 
 
 def _solve_group(plans):
@@ -426,8 +511,8 @@ def _choose(search, margins, required=None, certify=None):
     first = plans[0]
     rows = replace(search.rows, margins=margins)
     robots = len(plans)
-    gap_ray, lower, upper = _allowed_gaps(
-        plans, *team_ray_gaps(rows, first.layout, first.config.method, first.deterministic))
+    gap_ray, lower, upper = _wall_gaps(plans, ray_starts, *_allowed_gaps(
+        plans, *team_ray_gaps(rows, first.layout, first.config.method, first.deterministic)))
     feasible_rays = np.bincount(gap_ray, minlength=directions.shape[0]) > 0
     candidates_feasible = np.add.reduceat(feasible_rays.astype(int), ray_starts)
     chosen = _choose_on_gaps(plans, rows, gap_ray, lower, upper)
@@ -592,9 +677,14 @@ def _fallback_choice(plan, speeds, costs):
         velocities.reshape(-1, 2), encounter.origin, encounter.lead,
         ranking_radius(encounter, config.model), config.time_horizon, config.control_period)
     # A candidate of infinite cost is out of reach (acceleration, tracking): never chosen.
-    intrusion = np.where(np.isfinite(costs.reshape(-1)), intrusion, np.inf)
+    reachable = np.isfinite(costs.reshape(-1))
+    intrusion = np.where(reachable, intrusion, np.inf)
+    walls = (None if plan.walls is None else (
+        np.where(reachable, wall_intrusion(plan.walls, velocities.reshape(-1, 2),
+                                           config.control_period), np.inf),
+        wall_time_to_contact(plan.walls, velocities.reshape(-1, 2))))
     return np.unravel_index(fallback_index(intrusion, closing, time_to_collision, left_passes,
-                                           costs.reshape(-1)), speeds.shape)
+                                           costs.reshape(-1), walls), speeds.shape)
 
 
 def _achieved(plans, means, variances, chosen_links, pair_robot, chosen_t, velocities,

@@ -1,9 +1,11 @@
 """A run's rosbag2 recording: `<out>/bag/`, metadata.yaml and one .mcap file (rosbag2's layout).
 
-The bag holds /clock, every robot's odom, ground_truth, cmd_vel and prvo_markers, and
-/diagnostics, each message serialized as it was published. Messages are logged at their sim-time
-stamp, as `ros2 bag record --use-sim-time` logs them, so that both engines give the same bag
-and `ros2 bag play --clock` replays a run at its own pace. The `rosbags` library writes it.
+The bag holds /clock, every robot's odom, ground_truth, cmd_vel and prvo_markers,
+/diagnostics, and in a world with walls, obstacles or a map, /map and every planner's route
+`<robot>/plan`, each message serialized as it was published. Messages are logged at their
+sim-time stamp, as `ros2 bag record --use-sim-time` logs them, so that both engines give the
+same bag and `ros2 bag play --clock` replays a run at its own pace. The `rosbags` library
+writes it.
 """
 
 import math
@@ -20,10 +22,14 @@ from prvo_msgs_util import (
     DIAGNOSTICS,
     DIAGNOSTICS_QOS,
     GROUND_TRUTH,
+    MAP,
+    MAP_QOS,
     MARKER_QOS,
     MARKERS,
     ODOM,
     ODOM_QOS,
+    PLAN,
+    PLAN_QOS,
     robot_topic,
 )
 
@@ -34,23 +40,28 @@ ODOMETRY_TYPE = 'nav_msgs/msg/Odometry'
 TWIST_STAMPED_TYPE = 'geometry_msgs/msg/TwistStamped'
 MARKER_ARRAY_TYPE = 'visualization_msgs/msg/MarkerArray'
 DIAGNOSTIC_ARRAY_TYPE = 'diagnostic_msgs/msg/DiagnosticArray'
+OCCUPANCY_GRID_TYPE = 'nav_msgs/msg/OccupancyGrid'
+PATH_TYPE = 'nav_msgs/msg/Path'
 # Where the stamp (builtin_interfaces/Time: int32 sec, uint32 nanosec) of a serialized message
 # of each type starts: after the 4-byte CDR encapsulation header, the header's stamp (or the
 # clock) comes first; a MarkerArray's first marker's header follows its uint32 length.
 _STAMP_OFFSETS = {CLOCK_TYPE: 4, ODOMETRY_TYPE: 4, TWIST_STAMPED_TYPE: 4,
-                  DIAGNOSTIC_ARRAY_TYPE: 4, MARKER_ARRAY_TYPE: 8}
+                  DIAGNOSTIC_ARRAY_TYPE: 4, MARKER_ARRAY_TYPE: 8, OCCUPANCY_GRID_TYPE: 4,
+                  PATH_TYPE: 4}
 _CDR_LITTLE_ENDIAN = 1  # the second byte of the encapsulation header: 0 big, 1 little endian
 
 
-def bag_topics(robot_names, planned_names=None):
+def bag_topics(robot_names, planned_names=None, with_map=False):
     """Return {topic: (message type, publisher QoS profile)} of a run of ROBOT_NAMES, in order.
 
     PLANNED_NAMES (default: all) are the robots with a planner: only they publish cmd_vel and
-    markers (a scripted robot is moved by the simulator).
+    markers (a scripted robot is moved by the simulator). WITH_MAP: the world has static
+    shapes, which the simulator publishes on /map at start-up, and the planners their routes.
     """
     planned_names = robot_names if planned_names is None else planned_names
     # In the order a step publishes them: the bag keeps it among messages of one stamp.
-    topics = {CLOCK: (CLOCK_TYPE, CLOCK_QOS)}
+    topics = {MAP: (OCCUPANCY_GRID_TYPE, MAP_QOS)} if with_map else {}
+    topics[CLOCK] = (CLOCK_TYPE, CLOCK_QOS)
     for leaf, message_type, qos in ((ODOM, ODOMETRY_TYPE, ODOM_QOS),
                                     (GROUND_TRUTH, ODOMETRY_TYPE, ODOM_QOS)):
         topics.update({robot_topic(name, leaf): (message_type, qos) for name in robot_names})
@@ -58,6 +69,8 @@ def bag_topics(robot_names, planned_names=None):
     for leaf, message_type, qos in ((CMD_VEL, TWIST_STAMPED_TYPE, CMD_VEL_QOS),
                                     (MARKERS, MARKER_ARRAY_TYPE, MARKER_QOS)):
         topics.update({robot_topic(name, leaf): (message_type, qos) for name in planned_names})
+    if with_map:
+        topics.update({robot_topic(name, PLAN): (PATH_TYPE, PLAN_QOS) for name in planned_names})
     return topics
 
 
@@ -81,9 +94,9 @@ def _unpack(data, layout, offset):
 class BagMessages:
     """Every serialized message of a run's bag, by topic, each with its sim-time stamp [ns]."""
 
-    def __init__(self, robot_names, planned_names=None):
+    def __init__(self, robot_names, planned_names=None, with_map=False):
         """Hold no message yet of any topic of a run of ROBOT_NAMES (see bag_topics)."""
-        self.topics = bag_topics(robot_names, planned_names)
+        self.topics = bag_topics(robot_names, planned_names, with_map)
         self.messages = {topic: [] for topic in self.topics}
 
     def add(self, topic, data, stamp=None):
@@ -195,9 +208,17 @@ class TeamMessages:
 
     def __init__(self, names, planner_values, team):
         """Build the messages of robots NAMES with the PLANNER_VALUES of TEAM (InProcessTeam)."""
+        from rclpy.serialization import serialize_message
+
+        from prvo_sim.world_messages import map_message
+
+        grid = map_message(team.world)
         self.bag_messages = BagMessages(names, [
             name for name, values in zip(names, planner_values, strict=True)
-            if values is not None])
+            if values is not None], with_map=grid is not None)
+        if grid is not None:
+            # The simulator's /map, published once at start-up.
+            self.bag_messages.add(MAP, serialize_message(grid))
         self._names = list(names)
         self._planner_values = list(planner_values)
         self._team = team

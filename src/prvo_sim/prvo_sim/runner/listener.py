@@ -39,7 +39,7 @@ def _message_kinds():
     """Return {kind: (message type, publisher QoS)} of every kind of topic a run records."""
     from diagnostic_msgs.msg import DiagnosticArray
     from geometry_msgs.msg import TwistStamped
-    from nav_msgs.msg import Odometry
+    from nav_msgs.msg import OccupancyGrid, Odometry, Path
     from rosgraph_msgs.msg import Clock
     from visualization_msgs.msg import MarkerArray
 
@@ -47,16 +47,19 @@ def _message_kinds():
         CLOCK_QOS,
         CMD_VEL_QOS,
         DIAGNOSTICS_QOS,
+        MAP_QOS,
         MARKER_QOS,
         ODOM_QOS,
+        PLAN_QOS,
     )
 
     return {'odometry': (Odometry, ODOM_QOS), 'command': (TwistStamped, CMD_VEL_QOS),
             'diagnostics': (DiagnosticArray, DIAGNOSTICS_QOS), 'clock': (Clock, CLOCK_QOS),
-            'markers': (MarkerArray, MARKER_QOS)}
+            'markers': (MarkerArray, MARKER_QOS), 'map': (OccupancyGrid, MAP_QOS),
+            'plan': (Path, PLAN_QOS)}
 
 
-KINDS = ('odometry', 'command', 'diagnostics', 'clock', 'markers')
+KINDS = ('odometry', 'command', 'diagnostics', 'clock', 'markers', 'map', 'plan')
 
 
 def full_name(namespace, name):

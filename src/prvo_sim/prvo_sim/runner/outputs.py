@@ -28,7 +28,8 @@ from prvo_sim.runner.bag import BAG_FOLDER
 from prvo_sim.runner.processes import INTERRUPTS, RunInterruptedError
 
 RUN_RESULTS = ('trajectories.csv', 'trajectories.png', 'trajectories.gif', 'metrics.json')
-AGGREGATED_KEYS = ('success_rate', 'collisions', 'min_separation', 'makespan',
+AGGREGATED_KEYS = ('success_rate', 'collisions', 'min_separation', 'wall_contacts',
+                   'min_wall_clearance', 'makespan',
                    'mean_time_to_goal', 'infeasible_fraction', 'min_achieved_eta',
                    'planner_ms.median', 'planner_ms.p95', 'planner_ms.max', 'deadline_misses',
                    'sim_time', 'wall_time')
@@ -135,6 +136,8 @@ def write_outputs(spec, recording, ending, failure, wall_time):
         'success_rate': measured['success_rate'],
         'collisions': measured['collisions'],
         'min_separation': measured['min_separation'],
+        'wall_contacts': 0,
+        'min_wall_clearance': None,
         'makespan': measured['makespan'],
         'mean_time_to_goal': measured['mean_time_to_goal'],
         'planner_ms': metrics.distribution_summary(list(recording.plan_times_ms)),
@@ -142,6 +145,7 @@ def write_outputs(spec, recording, ending, failure, wall_time):
         'sim_time': measured['sim_time'],
         'wall_time': round(wall_time, 3),
     })
+    add_wall_metrics(run_metrics, states[..., :2], radii, scenario.static_world)
     add_plan_quality(run_metrics, recording.plan_tallies)
     if failure is not None:
         run_metrics['failure'] = failure
@@ -158,7 +162,8 @@ def write_outputs(spec, recording, ending, failure, wall_time):
             write_view(out_dir, 'trajectories.png', lambda path: plot_run(
                 path, times, states[..., :2],
                 np.array([robot.start for robot in scenario.robots], dtype=float), goals, radii,
-                names, contacts, plot_title(run_metrics), scripted, yaws=recording.yaws))
+                names, contacts, plot_title(run_metrics), scripted, yaws=recording.yaws,
+                static_world=scenario.static_world))
         write_run_bag(spec, recording)
         if times.size and spec.animation:
             from prvo_sim.animation import animate_run
@@ -170,11 +175,25 @@ def write_outputs(spec, recording, ending, failure, wall_time):
                 write_view(out_dir, 'trajectories.gif', lambda path: animate_run(
                     path, times, drawn, goals, radii, names, plot_title(run_metrics),
                     position_std=[robot.noise.position_std for robot in scenario.robots],
-                    scripted=scripted))
+                    scripted=scripted, static_world=scenario.static_world))
             if INTERRUPTS.last_signal is not None:
                 warn(f'trajectories.gif not written: interrupted by '
                      f'{signal.Signals(INTERRUPTS.last_signal).name}')
     return run_metrics
+
+
+def add_wall_metrics(run_metrics, positions, radii, static_world):
+    """Add to RUN_METRICS each robot's and the run's wall contacts and least wall clearance.
+
+    From the recorded ground truth POSITIONS (T, N, 2) against STATIC_WORLD (the scenario's
+    walls, obstacles and map; `metrics.wall_metrics`).
+    """
+    walls = metrics.wall_metrics(positions, radii, list(run_metrics['robots']),
+                                 None if static_world.empty else static_world.clearance)
+    for name, robot in run_metrics['robots'].items():
+        robot.update(walls['robots'][name])
+    run_metrics['wall_contacts'] = walls['wall_contacts']
+    run_metrics['min_wall_clearance'] = walls['min_wall_clearance']
 
 
 def add_plan_quality(run_metrics, tallies):
@@ -311,6 +330,9 @@ def outcome(run_metrics):
     arrived = sum(robot['arrived'] for robot in planned)
     collisions = run_metrics['collisions']
     contact_text = 'no contact' if collisions == 0 else f'{collisions} contact(s)'
+    wall_contacts = run_metrics.get('wall_contacts')
+    if wall_contacts:
+        contact_text += f', {wall_contacts} wall contact(s)'
     walkers = len(run_metrics['robots']) - len(planned)
     scripted_text = f' ({walkers} scripted)' if walkers else ''
     return (f'{arrived}/{len(planned)} arrived{scripted_text}, {contact_text}'
@@ -360,7 +382,9 @@ def print_summary(run_metrics, out_dir):
     print(f"  outcome: {outcome(run_metrics)}; success rate "
           f"{_format(run_metrics['success_rate'])}, "
           f"min separation {_format(run_metrics['min_separation'], ' m')}, "
-          f"makespan {_format(run_metrics['makespan'], ' s', 1)}")
+          + ('' if run_metrics['min_wall_clearance'] is None else
+             f"min wall clearance {_format(run_metrics['min_wall_clearance'], ' m')}, ")
+          + f"makespan {_format(run_metrics['makespan'], ' s', 1)}")
     print(f"  planner ms median/p95/max {_format(planner_ms['median'])}/"
           f"{_format(planner_ms['p95'])}/{_format(planner_ms['max'])}; deadline misses "
           f"{run_metrics['deadline_misses']}; sim {_format(run_metrics['sim_time'], '', 1)} s "

@@ -56,7 +56,7 @@ class Recorder:
     """What a run heard, streamed from a listener child on the run's domain (see the module)."""
 
     def __init__(self, domain_id, robot_names, role='recorder', planned_names=None,
-                 record_bag=False):
+                 record_bag=False, with_map=False):
         """Start a listener on DOMAIN_ID subscribed to what ROBOT_NAMES' run publishes.
 
         ROLE goes into the listener's node name, which is unique to the runner and the
@@ -64,6 +64,8 @@ class Recorder:
         scripted, moved by the simulator, and publish no cmd_vel or planner diagnostics. With
         RECORD_BAG it also keeps, serialized, everything else of the run's bag (see
         `bag_messages`): /clock, odometry and markers; planners build markers only then.
+        WITH_MAP (a world with static shapes) records the simulator's /map and each planner's
+        route in the bag too.
         Raises RecorderError if the listener does not start.
         """
         from prvo_msgs_util import (
@@ -71,13 +73,16 @@ class Recorder:
             CMD_VEL,
             DIAGNOSTICS,
             GROUND_TRUTH,
+            MAP,
             MARKERS,
             ODOM,
+            PLAN,
             robot_topic,
         )
 
         self.robot_names = list(robot_names)
         self.planned_names = list(robot_names if planned_names is None else planned_names)
+        self._with_map = with_map
         self.domain_id = domain_id
         # Ground truth and commands are kept serialized as they arrive and decoded when read.
         self._serialized = {kind: {name: [] for name in self.robot_names}
@@ -116,6 +121,13 @@ class Recorder:
                 self._bag_topics[robot_topic(name, CMD_VEL)] = self._serialized['commands'][name]
                 for leaf, kind in ((ODOM, 'odometry'), (MARKERS, 'markers')):
                     topic = robot_topic(name, leaf)
+                    self._bag_topics[topic] = []
+                    routes.append((topic, kind, self._bag_topics[topic].append))
+            if with_map:
+                # Latched, as each planner's route: the listener receives them whenever it
+                # subscribes.
+                for topic, kind in [(MAP, 'map')] + [(robot_topic(name, PLAN), 'plan')
+                                                     for name in self.planned_names]:
                     self._bag_topics[topic] = []
                     routes.append((topic, kind, self._bag_topics[topic].append))
         if role == 'domain_check':
@@ -217,7 +229,7 @@ class Recorder:
 
         if self._bag_topics is None:
             return None
-        messages = BagMessages(self.robot_names, self.planned_names)
+        messages = BagMessages(self.robot_names, self.planned_names, self._with_map)
         for topic in messages.topics:
             for data in self._bag_topics[topic]:
                 messages.add(topic, data)

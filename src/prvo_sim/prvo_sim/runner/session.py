@@ -363,7 +363,7 @@ def run_once(spec, domain_id, monitor=None):
     try:
         recorder = Recorder(domain_id, [robot.name for robot in scenario.robots],
                             planned_names=[robot.name for robot in planned_robots(scenario)],
-                            record_bag=spec.bag)
+                            record_bag=spec.bag, with_map=not scenario.static_world.empty)
         # The first file of the run: a run that never got here leaves the folder alone.
         log_dir.mkdir(parents=True, exist_ok=True)
         watch = _Watch(recorder, children, spec)

@@ -1,0 +1,563 @@
+"""
+Chance constraints against static obstacles: wall segments and discs (docs/method.md, walls).
+
+Against a static obstacle only the ego's uncertainty remains: its position ``p ~ N(mu, S_p)``
+and its execution error ``eps ~ N(0, S_a)``. Over the obstacle horizon ``tau`` the ego moves
+along ``p(t) = p + t (v + eps)`` for the command ``v``, and touches a wall ``[a, b]`` of
+half-width ``w`` exactly when its centre enters the capsule of radius ``R = R_i + w + margin``
+around the segment (a disc of radius ``r``: the disc of radius ``R_i + r + margin``).
+
+A linear condition ``y(t) = n.p(t) - c >= 0`` at ``t = 0`` and ``t = tau`` keeps the straight
+path out of the half-plane ``n.x < c`` for the whole horizon. Both values are Gaussian:
+``y(0) ~ N(m0, s0^2)`` with ``m0 = n.mu - c``, ``s0^2 = n' S_p n``, and
+``y(tau) ~ N(m0 + tau n.v, s0^2 + tau^2 n' S_a n)``. With ``delta0 = Phi(-m0 / s0)`` and a risk
+``delta > delta0``, the union bound gives ``P(y(0) >= 0 and y(tau) >= 0) >= 1 - delta`` when
+``m0 + tau n.v >= z sqrt(s0^2 + tau^2 n' S_a n)``, ``z = Phi^-1(1 - delta + delta0)``: on a
+ray ``v = t v_max e`` one linear inequality in ``t``. Several conditions certify a piece when
+any one of them holds (each with the piece's whole risk); their normals depend on the beliefs
+only, never on the command.
+
+Per wall (``delta = 1 - eta``) a velocity is accepted if either
+
+* the support line holds: ``n`` the unit vector from the segment's closest point to ``mu``,
+  ``c = max(n.a, n.b) + R``, risk ``delta``; or
+* the decomposition holds: the capsule lies in the two end discs and the rectangle
+  ``0 < xi < L, |zeta| < R`` (wall coordinates ``xi`` along ``b - a`` from ``a``, ``zeta``
+  across); the rectangle is avoided when one of ``zeta >= R``, ``zeta <= -R``, ``xi <= 0``,
+  ``xi >= L`` holds at both ends of the horizon; an end disc (a static obstacle: no velocity,
+  no covariance of its own) when one of its tangent half-planes holds, the normals a fan of
+  ``FAN`` directions within ``arccos(R / d)`` of the direction from its centre to ``mu`` (``d``
+  the distance), which are the tangents that can hold ``mu``.
+
+The risk of the decomposition is split by a rule fixed in advance: an end disc the ego cannot
+reach except with probability at most ``REACH_SHARE delta`` (its a-priori bound) is charged
+that bound; the rest of ``delta`` is split equally between the rectangle and the end discs
+within reach. The a-priori bound of a shape: every point of the path is within
+``|p - mu| + tau (v_max + |eps|)`` of ``mu``, and a 2D Gaussian of largest variance
+``lambda`` exceeds a norm ``r`` with probability at most ``exp(-r^2 / (2 lambda))``; splitting
+``r = dist(mu, shape) - R - tau v_max`` in proportion to the two deviations gives
+``2 exp(-r^2 / (2 (sigma_p + tau sigma_a)^2))``. A wall or disc out of reach in this sense
+constrains nothing and is reported with its a-priori bound. A disc obstacle is certified by
+its fan of tangents at risk ``delta``.
+
+Close to a shape (the mean within its grown radius, or ``delta0 >= delta`` on the support line,
+the fan's middle normal for a disc) nothing certifies the horizon: only velocities that move
+away with probability ``eta``, ``P(n.(v + eps) >= 0) >= eta``, are accepted.
+
+On a ray each condition accepts a half-line of ``t``, so each piece (any of its conditions)
+accepts ``[0, upper] U [lower, 1]`` and rejects at most one open interval ``(upper, lower)``.
+A wall rejects where the support line and one of its pieces both do: at most three open
+intervals per ray. All of them are cut from the neighbours' feasible intervals in one sorted
+sweep.
+"""
+
+from dataclasses import dataclass
+import math
+
+import numpy as np
+from scipy.special import ndtr, ndtri
+
+from .probability import confidence_ellipse_scale
+
+# An end disc whose a-priori bound is at most this share of a wall's risk is out of reach.
+REACH_SHARE = 0.01
+# Tangent normals per disc: fan angles (k / FAN_HALF) arccos(R / d), k = -FAN_HALF..FAN_HALF.
+FAN_HALF = 2
+FAN = 2 * FAN_HALF + 1
+# The support line, the rectangle's four sides, each end disc's fan.
+_PER_WALL = 5 + 2 * FAN
+_RECTANGLE = slice(1, 5)
+_START_FAN = slice(5, 5 + FAN)
+_END_FAN = slice(5 + FAN, 5 + 2 * FAN)
+
+
+def closest_points(point, segments, frames):
+    """
+    Closest point of each segment to POINT, and the distance.
+
+    Parameters
+    ----------
+    point : numpy.ndarray
+        Shape (2,).
+    segments : numpy.ndarray
+        Shape (N, 2, 2).
+    frames : numpy.ndarray
+        ``StaticObstacles.frames`` of the segments, shape (N, 6).
+
+    Returns
+    -------
+    closest : numpy.ndarray
+        Shape (N, 2).
+    distance : numpy.ndarray
+        Shape (N,).
+
+    """
+    along = np.clip(frames[:, 0] * point[0] + frames[:, 1] * point[1], frames[:, 4],
+                    frames[:, 5])
+    closest = segments[:, 0] + (along - frames[:, 4])[:, None] * frames[:, :2]
+    return closest, np.hypot(point[0] - closest[:, 0], point[1] - closest[:, 1])
+
+
+def _below_zero(mean, std):
+    """``P(N(mean, std^2) < 0)``, elementwise; a known value (std 0) gives 0 or 1."""
+    ratio = np.divide(mean, std, out=np.where(mean >= 0.0, np.inf, -np.inf), where=std > 0.0)
+    return ndtr(-ratio)
+
+
+def _quadratic_form(normals, cov):
+    """``n' S n`` for normals (..., 2) and a 2x2 covariance S."""
+    x, y = normals[..., 0], normals[..., 1]
+    return cov[0, 0] * x * x + 2.0 * cov[0, 1] * x * y + cov[1, 1] * y * y
+
+
+def _largest_std(cov):
+    """Square root of the largest eigenvalue of a 2x2 covariance."""
+    half_trace = 0.5 * (cov[0, 0] + cov[1, 1])
+    return math.sqrt(max(half_trace + math.hypot(0.5 * (cov[0, 0] - cov[1, 1]), cov[0, 1]),
+                         0.0))
+
+
+def _reach_bounds(distance, radius, spread, horizon, max_speed):
+    """A-priori bound on the path entering a shape at DISTANCE (of grown RADIUS) within tau."""
+    gap = distance - radius - horizon * max_speed
+    if spread == 0.0:
+        return np.where(gap > 0.0, 0.0, 1.0)
+    return np.where(gap > 0.0, np.minimum(2.0 * np.exp(-0.5 * (gap / spread) ** 2), 1.0), 1.0)
+
+
+_FAN_STEPS = np.arange(-FAN_HALF, FAN_HALF + 1) / FAN_HALF
+
+
+def _fan(centres, radius, mean):
+    """Tangent normals (K, FAN, 2) and offsets (K, FAN) of discs, and their distances (K,)."""
+    offset = mean - centres
+    distance = np.hypot(offset[:, 0], offset[:, 1])
+    heading = np.arctan2(offset[:, 1], offset[:, 0])
+    cosine = np.divide(radius, distance, out=np.ones_like(distance), where=distance > radius)
+    angles = heading[:, None] + np.arccos(cosine)[:, None] * _FAN_STEPS
+    normals = np.stack([np.cos(angles), np.sin(angles)], axis=-1)
+    offsets = (normals[..., 0] * centres[:, :1] + normals[..., 1] * centres[:, 1:]
+               + radius[:, None])
+    return normals, offsets, distance
+
+
+@dataclass(frozen=True)
+class LinearConditions:
+    """
+    Linear conditions ``n.p(t) >= c`` at ``t = 0`` and ``t = tau``, shapes (K, 2) / (K,).
+
+    Attributes
+    ----------
+    normals : numpy.ndarray
+        ``n``, shape (K, 2).
+    mean0, std0, std_tau : numpy.ndarray
+        ``m0``, ``s0`` and ``sqrt(s0^2 + tau^2 n' S_a n)``, shape (K,).
+    start_risk : numpy.ndarray
+        ``delta0 = P(y(0) < 0)``, shape (K,).
+    risks : numpy.ndarray
+        The risk each is planned with, shape (K,); 0: not usable.
+
+    """
+
+    normals: np.ndarray
+    mean0: np.ndarray
+    std0: np.ndarray
+    std_tau: np.ndarray
+    start_risk: np.ndarray
+    risks: np.ndarray
+
+    @classmethod
+    def of(cls, normals, offsets, risks, mean, position_cov, actuation_cov, horizon):
+        """Return the conditions of NORMALS and OFFSETS for the ego's belief."""
+        var0 = np.maximum(_quadratic_form(normals, position_cov), 0.0)
+        mean0 = normals @ mean - offsets
+        std0 = np.sqrt(var0)
+        return cls(normals=normals, mean0=mean0, std0=std0,
+                   std_tau=np.sqrt(var0 + horizon ** 2 * np.maximum(
+                       _quadratic_form(normals, actuation_cov), 0.0)),
+                   start_risk=_below_zero(mean0, std0), risks=risks)
+
+    def accepted(self, directions, horizon, max_speed):
+        """
+        Each condition's accepted ``t`` on each ray: ``[0, upper] U [lower, 1]``, (K, M).
+
+        ``m0 + tau v_max (n.e) t >= z s_tau`` is ``slope t >= bound``.
+        """
+        usable = self.start_risk < self.risks
+        quantile = ndtri(np.where(usable, 1.0 - self.risks + self.start_risk, 0.5))
+        bound = np.where(usable, quantile * self.std_tau - self.mean0, np.inf)
+        return half_lines((horizon * max_speed) * (self.normals @ directions.T),
+                          bound[:, None])
+
+    def failures(self, velocity, horizon):
+        """Union bound on each condition failing at VELOCITY, ``delta0 + P(y(tau) < 0)``."""
+        end = _below_zero(self.mean0 + horizon * (self.normals @ velocity), self.std_tau)
+        return np.minimum(self.start_risk + end, 1.0)
+
+
+def half_lines(slope, bound):
+    """
+    Where ``slope t >= bound`` holds, as ``[0, upper] U [lower, 1]``: (upper, lower).
+
+    ``upper`` is ``-inf`` (``lower`` ``inf``) where that part is empty.
+    """
+    cut = np.divide(bound, slope, out=np.zeros(slope.shape), where=slope != 0.0)
+    upper = np.where(slope < 0.0, cut, np.where((slope == 0.0) & (bound <= 0.0), np.inf,
+                                                -np.inf))
+    return upper, np.where(slope > 0.0, cut, np.inf)
+
+
+@dataclass(frozen=True)
+class WallModel:
+    """
+    One plan's static obstacles as linear conditions (docs/method.md, walls).
+
+    Walls and discs out of reach keep only their a-priori bounds; the others are *near*.
+
+    Attributes
+    ----------
+    mean_position : numpy.ndarray
+        The ego's mean position ``mu``, shape (2,).
+    clearance : float
+        Distance of ``mu`` from the nearest grown shape's surface [m] (``inf``: none).
+    far_bounds : numpy.ndarray
+        A-priori bounds of the walls and discs out of reach, shape (F,).
+    segments, radius, distance : numpy.ndarray
+        The near walls (n, 2, 2), their grown radius ``R`` (n,) and distance from ``mu`` (n,).
+    centres, disc_radius : numpy.ndarray
+        The near disc obstacles (q, 2) and their grown radius (q,).
+    conditions : LinearConditions
+        Per near wall ``5 + 2 FAN`` conditions (the support line, the rectangle's sides, the
+        start's and the end's fans: risk 0 for an end out of reach), wall after wall, then per
+        near disc its fan of tangents: ``n (5 + 2 FAN) + q FAN`` in all.
+    end_bounds : numpy.ndarray
+        A-priori bound charged for each end out of reach (0 within reach), shape (n, 2).
+    close : numpy.ndarray
+        Per near wall then near disc, whether only moving away is accepted, shape (n + q,).
+    away_normals, away_thresholds : numpy.ndarray
+        Per near wall then near disc, the support line's (the fan's middle) normal (n + q, 2) and
+        ``Phi^-1(eta) sqrt(n' S_a n)`` (n + q,).
+    horizon, max_speed : float
+        ``tau`` and ``v_max``.
+
+    """
+
+    mean_position: np.ndarray
+    clearance: float
+    far_bounds: np.ndarray
+    segments: np.ndarray
+    radius: np.ndarray
+    distance: np.ndarray
+    centres: np.ndarray
+    disc_radius: np.ndarray
+    conditions: LinearConditions
+    end_bounds: np.ndarray
+    close: np.ndarray
+    away_normals: np.ndarray
+    away_thresholds: np.ndarray
+    horizon: float
+    max_speed: float
+
+
+def _planning_covariances(ego, config):
+    """Return the position and execution covariances the model plans with, and R's growth."""
+    position_cov = ego.covariance[:2, :2]
+    if config.model == 'prvo':
+        return position_cov, config.actuation_cov, 0.0
+    growth = 0.0
+    if config.model == 'inflate':
+        growth = confidence_ellipse_scale(config.effective_k) * _largest_std(position_cov)
+    return np.zeros((2, 2)), np.zeros((2, 2)), growth
+
+
+def wall_model(obstacles, ego, config):
+    """
+    Build one plan's conditions against OBSTACLES (a ``StaticObstacles``).
+
+    Parameters
+    ----------
+    obstacles : StaticObstacles
+        The walls and discs, world frame.
+    ego : AgentBelief
+        The planning robot (its position mean and covariance, its planning radius).
+    config : PlannerConfig
+        ``obstacle_horizon``, ``max_speed``, ``actuation_cov``, ``safety_margin``, ``model``
+        (``rvo`` and ``inflate`` plan on the means, ``inflate`` with the radius grown by the
+        ``eta`` confidence ellipse) and the probability ``effective_eta`` per obstacle.
+
+    Returns
+    -------
+    WallModel
+
+    """
+    mean = ego.position
+    eta = config.effective_eta
+    delta = 1.0 - eta
+    horizon, max_speed = config.obstacle_horizon, config.max_speed
+    position_cov, actuation_cov, growth = _planning_covariances(ego, config)
+    spread = _largest_std(position_cov) + horizon * _largest_std(actuation_cov)
+    walls = len(obstacles.segments)
+    closest, distance = closest_points(mean, obstacles.segments, obstacles.frames)
+    # Walls, then discs: grown radius and distance of the mean.
+    radius = ego.radius + config.safety_margin + np.concatenate([obstacles.half_widths,
+                                                                 obstacles.disc_radii])
+    distance = np.concatenate([distance, np.hypot(mean[0] - obstacles.disc_centres[:, 0],
+                                                  mean[1] - obstacles.disc_centres[:, 1])])
+    clearance = float(np.min(distance - radius))
+    radius = radius + growth
+    bounds = _reach_bounds(distance, radius, spread, horizon, max_speed)
+    near = bounds > REACH_SHARE * delta
+    near_walls, near_discs = near[:walls], near[walls:]
+    segments, frames = obstacles.segments[near_walls], obstacles.frames[near_walls]
+    closest, centres = closest[near_walls], obstacles.disc_centres[near_discs]
+    wall_radius, disc_radius = radius[:walls][near_walls], radius[walls:][near_discs]
+    wall_distance = distance[:walls][near_walls]
+    count, discs = len(segments), len(centres)
+    across = frames[:, 2:4]
+    support = np.divide(mean - closest, wall_distance[:, None], out=across.copy(),
+                        where=(wall_distance > 0.0)[:, None])
+    fans, fan_offsets, fan_distance = _fan(
+        np.concatenate([segments[:, 0], segments[:, 1], centres]),
+        np.concatenate([wall_radius, wall_radius, disc_radius]), mean)
+    normals = np.empty((count, _PER_WALL, 2))
+    offsets = np.empty((count, _PER_WALL))
+    normals[:, 0] = support
+    normals[:, 1] = across
+    normals[:, 2] = -across
+    normals[:, 3] = -frames[:, :2]
+    normals[:, 4] = frames[:, :2]
+    normals[:, _START_FAN] = fans[:count]
+    normals[:, _END_FAN] = fans[count:2 * count]
+    across_side = np.sum(across * segments[:, 0], axis=1)
+    offsets[:, 0] = np.maximum(np.sum(support * segments[:, 0], axis=1),
+                               np.sum(support * segments[:, 1], axis=1)) + wall_radius
+    offsets[:, 1] = across_side + wall_radius
+    offsets[:, 2] = wall_radius - across_side
+    offsets[:, 3] = -frames[:, 4]
+    offsets[:, 4] = frames[:, 5]
+    offsets[:, _START_FAN] = fan_offsets[:count]
+    offsets[:, _END_FAN] = fan_offsets[count:2 * count]
+    # The decomposition's risk split: ends out of reach are charged their a-priori bound.
+    end_bounds = _reach_bounds(fan_distance[:2 * count].reshape(2, count).T,
+                               wall_radius[:, None], spread, horizon, max_speed)
+    in_reach = end_bounds > REACH_SHARE * delta
+    end_bounds[in_reach] = 0.0
+    share = (delta - end_bounds.sum(axis=1)) / (1.0 + in_reach.sum(axis=1))
+    risks = np.empty((count, _PER_WALL))
+    risks[:, 0] = delta
+    risks[:, _RECTANGLE] = share[:, None]
+    risks[:, _START_FAN] = np.where(in_reach[:, :1], share[:, None], 0.0)
+    risks[:, _END_FAN] = np.where(in_reach[:, 1:], share[:, None], 0.0)
+    if discs:
+        normals = np.concatenate([normals.reshape(-1, 2), fans[2 * count:].reshape(-1, 2)])
+        offsets = np.concatenate([offsets.ravel(), fan_offsets[2 * count:].ravel()])
+        risks = np.concatenate([risks.ravel(), np.full(discs * FAN, delta)])
+    conditions = LinearConditions.of(normals.reshape(-1, 2), offsets.ravel(), risks.ravel(),
+                                     mean, position_cov, actuation_cov, horizon)
+    start_risk = conditions.start_risk
+    close = np.concatenate([wall_distance, fan_distance[2 * count:]]) <= np.concatenate(
+        [wall_radius, disc_radius])
+    close[:count] |= start_risk[:count * _PER_WALL:_PER_WALL] >= delta
+    close[count:] |= start_risk[count * _PER_WALL + FAN_HALF::FAN] >= delta
+    away_normals = np.concatenate([support, fans[2 * count:, FAN_HALF]]) if discs else support
+    return WallModel(
+        mean_position=mean, clearance=clearance, far_bounds=bounds[~near],
+        segments=segments, radius=wall_radius, distance=wall_distance, centres=centres,
+        disc_radius=disc_radius, conditions=conditions, end_bounds=end_bounds, close=close,
+        away_normals=away_normals,
+        away_thresholds=ndtri(eta) * np.sqrt(np.maximum(
+            _quadratic_form(away_normals, actuation_cov), 0.0)),
+        horizon=horizon, max_speed=max_speed)
+
+
+def rejected_intervals(model, directions):
+    """
+    Return the open intervals of ``t`` the obstacles reject on each ray.
+
+    Parameters
+    ----------
+    model : WallModel
+        The obstacles.
+    directions : numpy.ndarray
+        Unit ray directions, shape (M, 2).
+
+    Returns
+    -------
+    upper, lower : numpy.ndarray
+        Shape (K, M): rejected ``(upper, lower)`` (empty where ``upper >= lower``).
+
+    """
+    rays = directions.shape[0]
+    count = len(model.segments)
+    upper, lower = model.conditions.accepted(directions, model.horizon, model.max_speed)
+    split = count * _PER_WALL
+    wall_upper = upper[:split].reshape(count, _PER_WALL, rays)
+    wall_lower = lower[:split].reshape(count, _PER_WALL, rays)
+    pieces_upper = np.stack([wall_upper[:, _RECTANGLE].max(axis=1),
+                             wall_upper[:, _START_FAN].max(axis=1),
+                             wall_upper[:, _END_FAN].max(axis=1)], axis=1)
+    pieces_lower = np.stack([wall_lower[:, _RECTANGLE].min(axis=1),
+                             wall_lower[:, _START_FAN].min(axis=1),
+                             wall_lower[:, _END_FAN].min(axis=1)], axis=1)
+    # An end out of reach rejects nothing; the decomposition rejects where any piece does.
+    pieces_upper[:, 1:][model.end_bounds > 0.0] = np.inf
+    # A wall rejects where the support line and the decomposition both do.
+    wall_upper = np.maximum(wall_upper[:, :1], pieces_upper)
+    wall_lower = np.minimum(wall_lower[:, :1], pieces_lower)
+    disc_upper = upper[split:].reshape(-1, FAN, rays).max(axis=1)
+    disc_lower = lower[split:].reshape(-1, FAN, rays).min(axis=1)
+    if model.close.any():
+        # Close: moving away, v_max (n.e) t >= Phi^-1(eta) sqrt(n' S_a n), and nothing else.
+        away_upper, away_lower = half_lines(
+            model.max_speed * (model.away_normals @ directions.T),
+            model.away_thresholds[:, None])
+        close = model.close[:count]
+        wall_upper[close] = away_upper[:count][close][:, None]
+        wall_lower[close] = away_lower[:count][close][:, None]
+        close = model.close[count:]
+        disc_upper[close] = away_upper[count:][close]
+        disc_lower[close] = away_lower[count:][close]
+    return (np.concatenate([wall_upper.reshape(-1, rays), disc_upper]),
+            np.concatenate([wall_lower.reshape(-1, rays), disc_lower]))
+
+
+def cut_by_walls(gap_ray, lower, upper, wall_ray, wall_upper, wall_lower):
+    """
+    Feasible intervals minus the walls' rejected open intervals, in one sorted sweep.
+
+    The feasible intervals of a ray are disjoint; a point is kept when it lies in one of them
+    and in no rejected interval: with weights 1 for feasible and 2 for rejected intervals, where
+    the running sum is 1.
+
+    Parameters
+    ----------
+    gap_ray, lower, upper : numpy.ndarray
+        Feasible intervals (ray, lower, upper), shape (G,).
+    wall_ray, wall_upper, wall_lower : numpy.ndarray
+        Rejected intervals (ray, start, end), shape (W,).
+
+    Returns
+    -------
+    ray, lower, upper : numpy.ndarray
+        The remaining intervals, ``lower < upper``, sorted by ray and position.
+
+    """
+    keep = (wall_upper < wall_lower) & (wall_lower > 0.0) & (wall_upper < 1.0)
+    wall_ray, wall_upper, wall_lower = wall_ray[keep], wall_upper[keep], wall_lower[keep]
+    rays = np.concatenate([gap_ray, gap_ray, wall_ray, wall_ray])
+    points = np.concatenate([lower, upper, np.maximum(wall_upper, -1.0),
+                             np.minimum(wall_lower, 2.0)])
+    steps = np.concatenate([np.ones(gap_ray.size), -np.ones(gap_ray.size),
+                            np.full(wall_ray.size, 2.0), np.full(wall_ray.size, -2.0)])
+    order = np.lexsort((steps, points, rays))
+    rays, points, level = rays[order], points[order], np.cumsum(steps[order])
+    kept = np.flatnonzero(level[:-1] == 1.0)
+    kept = kept[points[kept] < points[kept + 1]]
+    return rays[kept], points[kept], points[kept + 1]
+
+
+def _segment_distances(points, starts, ends):
+    """Distance of points (K, 1, 2) from segments (starts, ends) (.., N, 2): shape (K, N)."""
+    along = ends - starts
+    length_sq = np.sum(along * along, axis=-1)
+    with np.errstate(divide='ignore', invalid='ignore'):
+        fraction = np.where(length_sq > 0.0,
+                            np.sum((points - starts) * along, axis=-1) / length_sq, 0.0)
+    closest = starts + np.clip(fraction, 0.0, 1.0)[..., None] * along
+    offset = points - closest
+    return np.hypot(offset[..., 0], offset[..., 1])
+
+
+def _cross(first, second):
+    return first[..., 0] * second[..., 1] - first[..., 1] * second[..., 0]
+
+
+def wall_intrusion(model, velocities, period):
+    """
+    How far each command moves into a wall or disc obstacle within one period, shape (K,).
+
+    Per obstacle ``min(d0, R) - d1`` (0 if nowhere), with ``d0`` the distance of ``mu`` and
+    ``d1`` the smallest distance of the path ``mu + t v``, ``t in [0, period]``, from the
+    segment (or disc centre): the overlap the command creates, or adds to an existing one.
+    The largest over the near obstacles (the others are further than ``tau v_max``, which a
+    period cannot cover); 0 for ``v = 0``.
+
+    Parameters
+    ----------
+    model : WallModel
+        The obstacles.
+    velocities : numpy.ndarray
+        Candidate commands, shape (K, 2).
+    period : float
+        How long a command stays in force, seconds.
+
+    """
+    start = model.mean_position
+    # Only a shape within one period's travel of its grown radius can be entered.
+    travel = period * np.max(np.hypot(velocities[:, 0], velocities[:, 1]), initial=0.0)
+    reachable = model.distance < model.radius + travel
+    segments, distance, radius = (model.segments[reachable], model.distance[reachable],
+                                  model.radius[reachable])
+    centres, disc_radius = model.centres, model.disc_radius
+    disc_start = np.hypot(centres[:, 0] - start[0], centres[:, 1] - start[1])
+    reachable = disc_start < disc_radius + travel
+    centres, disc_radius, disc_start = (centres[reachable], disc_radius[reachable],
+                                        disc_start[reachable])
+    path_start = np.broadcast_to(start, velocities.shape)[:, None, :]
+    path_end = (start + period * velocities)[:, None, :]
+    wall_a, wall_b = segments[None, :, 0], segments[None, :, 1]
+    separation = np.minimum.reduce([
+        _segment_distances(path_start, wall_a, wall_b),
+        _segment_distances(path_end, wall_a, wall_b),
+        _segment_distances(wall_a, path_start, path_end),
+        _segment_distances(wall_b, path_start, path_end)])
+    wall_along, path_along = wall_b - wall_a, path_end - path_start
+    crossing = ((_cross(wall_along, path_start - wall_a) * _cross(wall_along, path_end - wall_a)
+                 < 0.0)
+                & (_cross(path_along, wall_a - path_start)
+                   * _cross(path_along, wall_b - path_start) < 0.0))
+    separation = np.where(crossing, 0.0, separation)
+    walls = np.maximum(np.minimum(distance, radius) - separation, 0.0)
+    discs = np.maximum(np.minimum(disc_start, disc_radius)
+                       - _segment_distances(centres[None], path_start, path_end), 0.0)
+    return np.max(np.concatenate([walls, discs], axis=1), axis=1, initial=0.0)
+
+
+def wall_time_to_contact(model, velocities):
+    """
+    How long each command takes to reach the nearest support line, capped at tau, shape (K,).
+
+    Per near wall (and disc) ``max(d - R, 0) / (-n.v)`` while approaching (``n.v < 0``, ``n``
+    the support line's normal, the disc's middle tangent's), else never; the smallest over
+    them, at most ``tau``.
+    """
+    clearance = np.maximum(np.concatenate([model.distance - model.radius,
+                                           np.hypot(*(model.centres - model.mean_position).T)
+                                           - model.disc_radius]), 0.0)
+    approach = -(velocities @ model.away_normals.T)
+    times = np.divide(clearance, approach, out=np.full(approach.shape, np.inf),
+                      where=approach > 0.0)
+    return np.minimum(np.min(times, axis=1, initial=np.inf), model.horizon)
+
+
+def obstacle_probability(model, velocity):
+    """
+    Return the probability certified against the obstacles at VELOCITY: the smallest over them.
+
+    Per near wall the larger of the support line's and the decomposition's union bounds:
+    ``1 - delta0 - P(y(tau) < 0)`` of the support line, and one minus the sum over the pieces
+    of each piece's best condition's (an end out of reach: its a-priori bound); per near disc
+    its best tangent's; per shape out of reach one minus its a-priori bound. Clipped to
+    [0, 1]; 1 without obstacles.
+
+    """
+    failure = model.conditions.failures(velocity, model.horizon)
+    count = len(model.segments)
+    walls = failure[:count * _PER_WALL].reshape(count, _PER_WALL)
+    ends = np.stack([walls[:, _START_FAN].min(axis=1), walls[:, _END_FAN].min(axis=1)], axis=1)
+    ends = np.where(model.end_bounds > 0.0, model.end_bounds, ends)
+    decomposition = walls[:, _RECTANGLE].min(axis=1) + ends.sum(axis=1)
+    risks = np.concatenate([np.minimum(walls[:, 0], decomposition),
+                            failure[count * _PER_WALL:].reshape(-1, FAN).min(axis=1, initial=1.0),
+                            model.far_bounds])
+    return float(np.clip(1.0 - np.max(risks, initial=0.0), 0.0, 1.0))

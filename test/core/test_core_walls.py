@@ -1,0 +1,307 @@
+"""Planning against static obstacles: walls, wall ends, doorways, polygons and discs."""
+
+import dataclasses
+import math
+
+import numpy as np
+import pytest
+from scipy.stats import norm
+
+from prvo_planner.core import AgentBelief, PlannerConfig, plan_velocities, plan_velocity
+from prvo_planner.core.obstacles import StaticObstacles
+from prvo_planner.parameters import ParameterError, check_parameter
+
+HORIZON = 2.0
+EGO_RADIUS = 0.25
+SAMPLES = 4000
+
+
+def obstacles(segments=(), half_widths=None, centres=(), radii=()):
+    segments = np.array(segments, dtype=float).reshape(-1, 2, 2)
+    return StaticObstacles(segments, np.zeros(len(segments)) if half_widths is None
+                           else np.array(half_widths, dtype=float),
+                           np.array(centres, dtype=float).reshape(-1, 2),
+                           np.array(radii, dtype=float))
+
+
+def point_segment_distance(points, start, end):
+    """Distance of POINTS (..., 2) from the segment [START, END] (the test's own geometry)."""
+    along = end - start
+    fraction = np.clip(((points - start) @ along) / (along @ along), 0.0, 1.0)
+    return np.linalg.norm(points - (start + fraction[..., None] * along), axis=-1)
+
+
+def belief(position, velocity, position_std, velocity_std=0.05):
+    cov = np.diag([position_std ** 2] * 2 + [velocity_std ** 2] * 2)
+    return AgentBelief(np.array(position, dtype=float), np.array(velocity, dtype=float), cov,
+                       EGO_RADIUS)
+
+
+def swept_paths(rng, ego, velocity, actuation_cov, steps=101):
+    """Sample paths p + t (v + eps), t in [0, HORIZON]: shape (SAMPLES, steps, 2)."""
+    start = rng.multivariate_normal(ego.position, ego.covariance[:2, :2], SAMPLES)
+    noise = rng.multivariate_normal(np.zeros(2), actuation_cov, SAMPLES)
+    times = np.linspace(0.0, HORIZON, steps)
+    return start[:, None, :] + times[None, :, None] * (velocity + noise)[:, None, :]
+
+
+def avoided(paths, shape, radius):
+    """Per sample, whether the path keeps at least RADIUS from SHAPE (segment or centre)."""
+    if len(shape) == 2 and np.ndim(shape[0]) == 1:
+        distance = point_segment_distance(paths, np.asarray(shape[0]), np.asarray(shape[1]))
+    else:
+        distance = np.linalg.norm(paths - np.asarray(shape), axis=-1)
+    return distance.min(axis=1) >= radius
+
+
+def encounter(seed):
+    """Return a seeded encounter: ego belief, config, StaticObstacles, shapes and radii."""
+    rng = np.random.default_rng(seed)
+    kind = ('wall', 'end', 'door', 'polygon', 'pillar')[seed % 5]
+    distance = rng.uniform(0.9, 2.2)
+    thickness = rng.choice([0.0, 0.1])
+    segments, centres, radii = [], [], []
+    if kind == 'wall':
+        angle = rng.uniform(-0.4, 0.4)
+        along = np.array([-math.sin(angle), math.cos(angle)])
+        middle = np.array([distance, 0.0])
+        segments = [[middle - 5.0 * along, middle + 5.0 * along]]
+    elif kind == 'end':
+        tip = rng.uniform(-0.4, 0.6)
+        segments = [[[distance, tip], [distance, tip + 5.0]]]
+    elif kind == 'door':
+        gap, offset = rng.uniform(0.9, 1.6), rng.uniform(-0.2, 0.2)
+        segments = [[[distance, -5.0], [distance, offset - 0.5 * gap]],
+                    [[distance, offset + 0.5 * gap], [distance, 5.0]]]
+    elif kind == 'polygon':
+        side, offset = rng.uniform(0.4, 1.2), rng.uniform(-0.5, 0.5)
+        corners = np.array([[distance, offset - side / 2], [distance + side, offset - side / 2],
+                            [distance + side, offset + side / 2], [distance, offset + side / 2]])
+        segments = [[corners[i], corners[(i + 1) % 4]] for i in range(4)]
+    else:
+        centres, radii = [[distance + 0.3, rng.uniform(-0.4, 0.4)]], [rng.uniform(0.1, 0.4)]
+    half = 0.5 * thickness if kind != 'pillar' else 0.0
+    static = obstacles(segments, [half] * len(segments), centres, radii)
+    ego = belief([0.0, 0.0], [rng.uniform(0.2, 0.8), rng.uniform(-0.2, 0.2)],
+                 rng.uniform(0.03, 0.12))
+    actuation_std = rng.uniform(0.03, 0.12)
+    config = PlannerConfig(eta=float(rng.choice([0.8, 0.9])), max_speed=1.0,
+                           actuation_cov=actuation_std ** 2 * np.eye(2),
+                           obstacle_horizon=HORIZON, seed=seed)
+    shapes = ([(np.array(segment[0]), np.array(segment[1])) for segment in segments]
+              + [np.array(centre) for centre in centres])
+    grown = [EGO_RADIUS + half] * len(segments) + [EGO_RADIUS + radius for radius in radii]
+    return ego, config, static, shapes, grown, kind
+
+
+@pytest.mark.parametrize('seed', range(25))
+def test_executed_paths_avoid_every_obstacle_with_the_stated_probability(seed):
+    ego, config, static, shapes, grown, kind = encounter(seed)
+    v_pref = np.array([1.0, 0.0])
+    result = plan_velocity(ego, [], v_pref, config, obstacles=static)
+    rng = np.random.default_rng(1000 + seed)
+    paths = swept_paths(rng, ego, result.velocity, config.actuation_cov)
+    stated = result.obstacle_probability
+    tolerance = 4.0 * math.sqrt(max(stated * (1.0 - stated), 1e-4) / SAMPLES)
+    for shape, radius in zip(shapes, grown, strict=True):
+        measured = avoided(paths, shape, radius).mean()
+        assert measured >= stated - tolerance, (kind, measured, stated)
+    # Started well clear of everything, the plan is certified at eta.
+    assert result.feasible and stated >= config.eta, (kind, result)
+
+
+def test_most_encounters_keep_moving():
+    speeds = []
+    for seed in range(25):
+        ego, config, static, *_ = encounter(seed)
+        speeds.append(np.linalg.norm(plan_velocity(ego, [], [1.0, 0.0], config,
+                                                   obstacles=static).velocity))
+    assert np.median(speeds) > 0.2
+
+
+def test_speed_towards_a_long_wall_is_the_support_line_quantile():
+    """The fastest certified speed straight at a long wall, from the Gaussian quantile."""
+    position_std, actuation_std, eta, distance = 0.08, 0.1, 0.8, 1.5
+    ego = belief([0.0, 0.0], [0.5, 0.0], position_std)
+    config = PlannerConfig(eta=eta, actuation_cov=actuation_std ** 2 * np.eye(2),
+                           obstacle_horizon=HORIZON)
+    wall = obstacles([[[distance, -20.0], [distance, 20.0]]])
+    result = plan_velocity(ego, [], [1.0, 0.0], config, obstacles=wall)
+    mean0 = distance - EGO_RADIUS
+    start_risk = norm.cdf(-mean0 / position_std)
+    quantile = norm.ppf(eta + start_risk)
+    spread = math.hypot(position_std, HORIZON * actuation_std)
+    expected = (mean0 - quantile * spread) / HORIZON
+    assert 0.1 < expected < 0.9
+    assert result.velocity == pytest.approx([expected, 0.0], abs=1e-7)
+    assert result.obstacle_probability == pytest.approx(eta, abs=1e-6)
+    assert result.obstacle_clearance == pytest.approx(mean0)
+
+
+def test_means_only_model_plans_the_deterministic_wall():
+    ego = belief([0.0, 0.0], [0.5, 0.0], 0.1)
+    config = PlannerConfig(model='rvo', actuation_cov=0.01 * np.eye(2), obstacle_horizon=HORIZON)
+    wall = obstacles([[[1.5, -20.0], [1.5, 20.0]]])
+    result = plan_velocity(ego, [], [1.0, 0.0], config, obstacles=wall)
+    assert result.velocity == pytest.approx([(1.5 - EGO_RADIUS) / HORIZON, 0.0], abs=1e-7)
+
+
+def closed_loop(start, goal, static, steps, position_std=0.02, actuation_std=0.02):
+    """Noise-free execution of the plans; return the positions (steps + 1, 2)."""
+    config = PlannerConfig(actuation_cov=actuation_std ** 2 * np.eye(2), seed=0,
+                           obstacle_horizon=HORIZON)
+    position, velocity = np.array(start, dtype=float), np.zeros(2)
+    positions = [position]
+    for _ in range(steps):
+        to_goal = np.asarray(goal) - position
+        v_pref = to_goal * min(1.0, np.linalg.norm(to_goal)) / max(np.linalg.norm(to_goal),
+                                                                   1e-9)
+        result = plan_velocity(belief(position, velocity, position_std), [], v_pref, config,
+                               obstacles=static)
+        velocity = result.velocity
+        position = position + 0.1 * velocity
+        positions.append(position)
+    return np.array(positions)
+
+
+def test_a_robot_heading_into_a_wall_stops_before_it():
+    wall = obstacles([[[1.5, -20.0], [1.5, 20.0]]])
+    positions = closed_loop([0.0, 0.0], [4.0, 0.0], wall, 80)
+    distance = point_segment_distance(positions, np.array([1.5, -20.0]), np.array([1.5, 20.0]))
+    assert distance.min() >= EGO_RADIUS
+    # It came close and stopped there.
+    assert distance[-1] < EGO_RADIUS + 0.5
+    assert np.linalg.norm(positions[-1] - positions[-2]) < 0.01
+
+
+def test_a_robot_passes_through_a_doorway_wide_enough():
+    door = obstacles([[[0.0, -6.0], [0.0, -0.6]], [[0.0, 0.6], [0.0, 6.0]]], [0.05, 0.05])
+    positions = closed_loop([-3.0, 0.1], [3.0, 0.0], door, 120)
+    for start, end in door.segments:
+        distance = point_segment_distance(positions, start, end)
+        assert distance.min() >= EGO_RADIUS + 0.05
+    assert np.linalg.norm(positions[-1] - [3.0, 0.0]) < 0.2
+
+
+def test_a_robot_deflects_around_a_pillar():
+    pillar = obstacles(centres=[[1.5, 0.05]], radii=[0.3])
+    positions = closed_loop([0.0, 0.0], [3.0, 0.0], pillar, 100)
+    assert np.linalg.norm(positions - [1.5, 0.05], axis=1).min() >= EGO_RADIUS + 0.3
+    assert np.linalg.norm(positions[-1] - [3.0, 0.0]) < 0.2
+
+
+@pytest.mark.parametrize('seed', range(8))
+def test_the_fallback_never_drives_deeper_into_a_wall(seed):
+    rng = np.random.default_rng(seed)
+    depth = rng.uniform(0.02, 0.2)
+    wall = obstacles([[[0.0, -5.0], [0.0, 5.0]], [[-3.0, 1.0], [3.0, 1.0]]])
+    position = np.array([-(EGO_RADIUS - depth), rng.uniform(-0.5, 0.5)])
+    into = np.array([1.0, rng.uniform(-1.0, 1.0)])
+    ego = belief(position, 0.5 * into, 0.05)
+    neighbour = belief(position + [-0.8, rng.uniform(-0.3, 0.3)], [0.8, 0.0], 0.05)
+    config = PlannerConfig(actuation_cov=0.05 ** 2 * np.eye(2), seed=seed,
+                           obstacle_horizon=HORIZON)
+    result = plan_velocity(ego, [neighbour], into, config, obstacles=wall)
+    path = position + np.linspace(0.0, config.control_period, 51)[:, None] * result.velocity
+    for start, end in wall.segments:
+        before = point_segment_distance(position, start, end)
+        along = point_segment_distance(path, start, end)
+        assert along.min() >= min(before, EGO_RADIUS) - 1e-9
+    assert not result.feasible
+
+
+def test_close_to_a_wall_only_velocities_moving_away_are_accepted():
+    wall = obstacles([[[0.0, -5.0], [0.0, 5.0]]])
+    ego = belief([-EGO_RADIUS - 0.03, 0.0], [0.0, 0.0], 0.05)
+    config = PlannerConfig(actuation_cov=0.05 ** 2 * np.eye(2), obstacle_horizon=HORIZON)
+    result = plan_velocity(ego, [], [0.3, 1.0], config, obstacles=wall)
+    # Away from the wall (-x) with probability eta: -v_x >= Phi^-1(eta) std_a.
+    assert -result.velocity[0] >= norm.ppf(config.eta) * 0.05 - 1e-9
+    assert result.candidates_feasible > 0
+
+
+def test_without_obstacles_plans_are_unchanged_bit_for_bit():
+    rng = np.random.default_rng(5)
+    config = PlannerConfig(actuation_cov=0.01 * np.eye(2), seed=3)
+    ego = belief([0.0, 0.0], [0.4, 0.1], 0.05)
+    neighbours = [belief(rng.uniform(-3.0, 3.0, 2), rng.uniform(-1.0, 1.0, 2), 0.05)
+                  for _ in range(4)]
+    plain = plan_velocity(ego, neighbours, [1.0, 0.0], config)
+    for static in (None, StaticObstacles.empty()):
+        other = plan_velocity(ego, neighbours, [1.0, 0.0], config, obstacles=static)
+        assert dataclasses.astuple(other).__repr__() == dataclasses.astuple(plain).__repr__()
+    assert (plain.obstacle_clearance, plain.obstacle_probability) == (math.inf, 1.0)
+
+
+def test_a_team_with_obstacles_plans_as_each_robot_alone():
+    rng = np.random.default_rng(2)
+    config = PlannerConfig(actuation_cov=0.01 * np.eye(2), seed=1)
+    wall = obstacles([[[2.0, -3.0], [2.0, -0.5]], [[2.0, 0.6], [2.0, 3.0]]], [0.05, 0.05])
+    egos = [belief(rng.uniform(-1.0, 1.0, 2), rng.uniform(-0.5, 0.5, 2), 0.05)
+            for _ in range(4)]
+    neighbours = [egos[:i] + egos[i + 1:] for i in range(4)]
+    per_robot = [wall, None, wall, obstacles(centres=[[0.0, 2.0]], radii=[0.5])]
+    v_prefs = [np.array([1.0, 0.0])] * 4
+    team = plan_velocities(egos, neighbours, v_prefs, config, obstacles=per_robot)
+    for index in range(4):
+        alone = plan_velocity(egos[index], neighbours[index], v_prefs[index], config,
+                              obstacles=per_robot[index])
+        assert repr(dataclasses.astuple(team[index])) == repr(dataclasses.astuple(alone))
+
+
+def test_clearance_is_the_distance_from_the_nearest_grown_shape():
+    static = obstacles([[[1.0, -1.0], [1.0, 1.0]]], [0.05], [[-2.0, 0.0]], [0.5])
+    result = plan_velocity(belief([0.2, 0.3], [0.0, 0.0], 0.05), [], [0.0, 0.0],
+                           PlannerConfig(safety_margin=0.1), obstacles=static)
+    assert result.obstacle_clearance == pytest.approx(0.8 - EGO_RADIUS - 0.05 - 0.1)
+
+
+@pytest.mark.parametrize(('call', 'message'), [
+    (lambda: plan_velocity(belief([0, 0], [0, 0], 0.1), [], [1, 0], PlannerConfig(),
+                           obstacles='wall'), 'obstacles must be StaticObstacles'),
+    (lambda: plan_velocity(belief([0, 0], [0, 0], 0.1), [], [1, 0], PlannerConfig(model='mc'),
+                           obstacles=obstacles([[[1, 0], [1, 1]]])), "model='mc'"),
+    (lambda: PlannerConfig(obstacle_horizon=0.0), 'obstacle_horizon'),
+    (lambda: PlannerConfig(obstacle_horizon=math.inf), 'obstacle_horizon'),
+    (lambda: obstacles([[[1, 0], [1, 0]]]), 'two equal ends'),
+    (lambda: check_parameter('obstacle_horizon', 0.2), 'obstacle_horizon'),
+])
+def test_bad_inputs_give_one_line_errors(call, message):
+    with pytest.raises((ValueError, ParameterError)) as error:
+        call()
+    assert message in str(error.value)
+    assert '\n' not in str(error.value)
+
+
+@pytest.mark.parametrize('options', [
+    {'certificate': 'certified'}, {'model': 'inflate'}, {'model': 'rvo'}, {'method': 'taylor'},
+    {'risk': 'joint'}, {'inertia': 0.5, 'passing_bias': 0.1, 'progress_weight': 0.5}])
+def test_every_mode_keeps_the_walls(options):
+    """Among neighbours, in every planner mode, a feasible plan keeps its obstacle bound."""
+    rng = np.random.default_rng(11)
+    door = obstacles([[[1.5, -6.0], [1.5, -0.7]], [[1.5, 0.7], [1.5, 6.0]]], [0.05, 0.05])
+    config = PlannerConfig(actuation_cov=0.05 ** 2 * np.eye(2), seed=4,
+                           obstacle_horizon=HORIZON, **options)
+    for _ in range(5):
+        ego = belief([0.0, rng.uniform(-0.3, 0.3)], [0.5, 0.0], 0.05)
+        neighbours = [belief([rng.uniform(2.0, 4.0), rng.uniform(-2.0, 2.0)], [-0.5, 0.0], 0.05)
+                      for _ in range(3)]
+        result = plan_velocity(ego, neighbours, [1.0, 0.0], config, obstacles=door,
+                               previous=np.array([0.5, 0.0]))
+        if result.feasible:
+            assert result.obstacle_probability >= config.effective_eta - 1e-9
+        path = ego.position + np.linspace(0.0, HORIZON, 41)[:, None] * result.velocity
+        for start, end in door.segments:
+            assert point_segment_distance(path, start, end).min() >= EGO_RADIUS + 0.05 - 1e-9
+
+
+def test_acceleration_limits_and_walls_together():
+    from prvo_planner.core import VelocityLimits
+    wall = obstacles([[[1.0, -5.0], [1.0, 5.0]]])
+    ego = belief([0.0, 0.0], [0.8, 0.0], 0.05)
+    config = PlannerConfig(actuation_cov=0.05 ** 2 * np.eye(2), obstacle_horizon=HORIZON)
+    limits = VelocityLimits(current=np.array([0.8, 0.0]), max_change=0.2)
+    result = plan_velocity(ego, [], [1.0, 0.0], config, limits=limits, obstacles=wall)
+    assert np.linalg.norm(result.velocity - [0.8, 0.0]) <= 0.2 + 1e-9
+    # Braking as hard as allowed: nothing reachable is certified, and nothing moves deeper.
+    assert result.velocity[0] <= 0.8 - 0.2 + 1e-6
