@@ -115,8 +115,8 @@ def _not_empty(value):
 
 _SPECS = (
     # eta 0.95 by the certified bound: the shipped scenarios free of contacts over 10 seeds with
-    # more clearance than Cantelli's 0.8 (which certifies about 0.99) and no slower; certified
-    # 0.8 touched in parked_large, 0.9 came within 9 mm (docs/results.md).
+    # more clearance than Cantelli's 0.8 (which certifies about 0.99) at about its time to goal;
+    # certified 0.8 touched in parked_large, 0.9 came within 9 mm (docs/results.md).
     ParameterSpec('eta', FLOAT, 0.95, 'Required probability that the RVO condition holds for '
                   'each neighbour, in (0, 1).', (0.0, 1.0), rule=_open_unit_interval),
     ParameterSpec('k', FLOAT, -1.0, 'Surrogate margin k >= 0 (mean - k std >= 0); wins over '
