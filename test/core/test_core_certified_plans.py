@@ -118,6 +118,28 @@ def test_a_shortfall_restores_cantelli_margin_for_that_neighbour():
     assert certified.eta_bound >= cantelli.eta_bound >= 0.9 - 1e-12
 
 
+def test_a_neighbour_cantelli_already_certifies_is_not_certified_again():
+    # Head-on at 3 m at eta 0.95, and a second robot 6 m behind, driving away: the choice
+    # (with the smaller search margin) falls short of Cantelli's k for the first, not for the
+    # second, whose bound stays Cantelli's; both meet eta, and by sampling.
+    ego, first = head_on(3.0, 0.05)
+    second = AgentBelief([-6.0, 0.0], [-0.8, 0.0], 0.0025 * np.eye(4), 0.3)
+    actuation = 0.0025 * np.eye(2)
+    config = PlannerConfig(eta=0.95, actuation_cov=actuation, certificate='certified')
+    result = plan_velocity(ego, [first, second], [1.0, 0.0], config)
+    assert result.feasible and result.bound_kinds == ('certified', 'cantelli')
+    assert result.achieved_k < config.effective_k
+    rng = np.random.default_rng(11)
+    for neighbour, bound in zip((first, second), result.neighbour_bounds, strict=True):
+        assert bound >= 0.95 - 1e-12
+        probability = holds(rng, ego, neighbour, result.velocity, actuation, config)
+        assert probability >= bound - tolerance(bound), (probability, bound)
+    # Alone with the first, the plan is the same: the second robot constrains nothing here.
+    alone = plan_velocity(ego, [first], [1.0, 0.0], config)
+    np.testing.assert_array_equal(alone.velocity, result.velocity)
+    assert alone.neighbour_bounds[0] == result.neighbour_bounds[0]
+
+
 def test_the_default_mode_reports_cantelli_bounds_per_neighbour():
     rng = np.random.default_rng(3)
     ego, first = random_two_robot_encounter(rng)

@@ -29,8 +29,10 @@ from prvo_planner.planner_node import _PARAMETERS
 
 def test_defaults_give_a_valid_configuration():
     config = planner_config_from(DEFAULTS)
-    # eta 0.8 is k = 2 by Cantelli: eta = k^2 / (1 + k^2).
-    assert config.effective_k == pytest.approx(2.0)
+    # eta 0.95, met by the certified Gaussian bound; Cantelli's k (eta = k^2 / (1 + k^2)) is
+    # sqrt(19), where a velocity's certificate falls short.
+    assert config.eta == 0.95 and config.certificate == 'certified'
+    assert config.effective_k == pytest.approx(math.sqrt(19.0))
     assert config.model == 'prvo' and config.method == 'exact'
 
 
@@ -49,8 +51,8 @@ def test_invalid_values_are_rejected_by_name(name, value, named):
 
 
 def test_the_certificate_parameter_reaches_the_configuration():
-    assert planner_config_from(DEFAULTS).certificate == 'cantelli'
-    assert planner_config_from(dict(DEFAULTS, certificate='certified')).certificate == 'certified'
+    assert planner_config_from(DEFAULTS).certificate == 'certified'
+    assert planner_config_from(dict(DEFAULTS, certificate='cantelli')).certificate == 'cantelli'
 
 
 def test_k_wins_over_eta_and_actuation_noise_becomes_a_covariance():
@@ -226,7 +228,7 @@ def test_descriptors_state_the_specs_types_and_ranges():
     """The node declares exactly the specified parameters, with their ROS types and ranges."""
     assert list(_PARAMETERS) == list(PARAMETERS)
     default, eta = _PARAMETERS['eta']
-    assert default == 0.8 and eta.type == Parameter.Type.DOUBLE.value
+    assert default == 0.95 and eta.type == Parameter.Type.DOUBLE.value
     assert (eta.floating_point_range[0].from_value, eta.floating_point_range[0].to_value) == (
         0.0, 1.0)
     _, directions = _PARAMETERS['num_directions']

@@ -6,7 +6,8 @@ import math
 import numpy as np
 import pytest
 
-from prvo_sim import bench_crowds
+from prvo_planner.parameters import DEFAULTS
+from prvo_sim import bench_crowds, bench_team
 from prvo_sim.bench_crowds import (
     arrival_times,
     contact_count,
@@ -15,6 +16,9 @@ from prvo_sim.bench_crowds import (
     random_team_document,
     run_row,
 )
+from prvo_sim.engine import InProcessTeam, StepRecord
+from prvo_sim.runner.session import planner_values
+from prvo_sim.scenario import find_scenario, load_scenario
 
 
 def test_random_teams_are_seeded_within_their_ranges_and_spaced():
@@ -86,10 +90,13 @@ def test_circles_repeat_over_consecutive_seeds():
                        for count, radius in ((8, 4), (24, 6)) for offset in range(3)]
     # Each seed's scenario is a file of its own; the team keeps its seed.
     assert len({document['name'] for _, document, _ in runs}) == len(runs)
-    assert runs[-1][1] == random_team_document(0)
+    # Every document plans with the planner's defaults of eta, certificate and risk.
+    defaults = {name: DEFAULTS[name] for name in ('eta', 'certificate', 'risk')}
+    assert runs[-1][1] == {**random_team_document(0), 'planner': defaults}
     single = bench_crowds.planned_runs(bench_crowds.build_parser().parse_args(
         ['--circles', '8', '--teams', '0', '--no-fallback-circle']))
-    assert single == [('circle8 r=4', bench_crowds.crowd_circle_document(8, 4.0), 'prvo')]
+    assert single == [('circle8 r=4', {**bench_crowds.crowd_circle_document(8, 4.0),
+                                       'planner': defaults}, 'prvo')]
 
 
 def test_a_bad_seed_count_is_refused_with_its_value(capsys):
@@ -97,17 +104,140 @@ def test_a_bad_seed_count_is_refused_with_its_value(capsys):
     assert '--seeds: 0 is not a count' in capsys.readouterr().err
 
 
-def test_eta_applies_to_circles_and_teams_not_the_fallback_circle(capsys):
+def test_eta_certificate_and_risk_apply_to_circles_and_teams_not_the_fallback_circle(capsys):
     runs = bench_crowds.planned_runs(bench_crowds.build_parser().parse_args(
-        ['--circles', '24', '--teams', '1', '--eta', '0.6']))
-    circle, team, fallback = runs
-    assert circle[0] == 'circle24 r=6 eta 0.6' and circle[1]['planner']['eta'] == 0.6
-    assert team[0] == 'team0 N=14 eta 0.6' and team[1]['planner']['eta'] == 0.6
-    # Everything else of the documents is as without --eta.
-    circle[1]['planner']['eta'] = 0.8
-    assert circle[1] == bench_crowds.crowd_circle_document(24, 6.0)
+        ['--circles', '24', '--teams', '1', '--sweep', '1', '--eta', '0.6', '--certificate',
+         'cantelli', '--risk', 'joint']))
+    circle, team, sweep, fallback = runs
+    chosen = {'eta': 0.6, 'certificate': 'cantelli', 'risk': 'joint'}
+    assert circle[0] == 'circle24 r=6 eta 0.6 cantelli joint' and circle[1]['planner'] == chosen
+    assert team[0] == 'team0 N=14 eta 0.6 cantelli joint' and team[1]['planner'] == chosen
+    assert sweep[1]['planner'] == chosen
+    # Everything else of the documents is as without the options.
+    assert circle[1] == {**bench_crowds.crowd_circle_document(24, 6.0), 'planner': chosen}
     assert fallback[2] == 'rvo' and fallback[1] == bench_crowds.crowd_circle_document(
         20, 5.0, noise_std=0.0)
     for bad in ('1.0', '0', '-0.2'):
         assert bench_crowds.main(['--eta', bad, '--no-peers']) == 2
         assert f'--eta: {float(bad)} is not a probability in (0, 1)' in capsys.readouterr().err
+
+
+class _StandingTeam:
+    """A team whose robots made no plan: what the monitor reads of a team, nothing more."""
+
+    def __init__(self, count):
+        self.last_commands = (None,) * count
+
+
+def _steps(positions, commands, dt=0.5):
+    """StepRecords of positions (T, N, 2) and commands (T, N, 2), DT apart."""
+    velocities = np.zeros_like(positions)
+    return [StepRecord(time=index * dt, states=np.concatenate([positions[index],
+                                                               velocities[index]], axis=1),
+                       commands=commands[index], plan_ms=np.zeros(positions.shape[1]),
+                       contacts=()) for index in range(positions.shape[0])]
+
+
+def _two_robot_scenario(tmp_path):
+    document = {'name': 'stall', 'seed': 1, 'dt': 0.5, 'duration': 60.0, 'goal_tolerance': 0.2,
+                'robots': [{'name': 'mover', 'start': [0.0, 0.0], 'goal': [20.0, 0.0],
+                            'radius': 0.3, 'max_speed': 1.0},
+                           {'name': 'dancer', 'start': [0.0, 5.0], 'goal': [10.0, 5.0],
+                            'radius': 0.3, 'max_speed': 1.0}]}
+    return bench_team.write_scenario(document, tmp_path / 'stall.yaml')
+
+
+def test_the_stall_monitor_reports_a_robot_that_gains_too_little_once_per_stall(tmp_path):
+    scenario = _two_robot_scenario(tmp_path)
+    times = np.arange(0.0, 40.01, 0.5)
+    # The mover drives at 1 m/s to its goal. The dancer drives at 1 m/s for 5 s, then goes back
+    # and forth by 0.2 m every step (its command flipping) until t = 20 s, then drives on.
+    mover = np.stack([np.minimum(times, 20.0), 0.0 * times], axis=1)
+    dancer_x = np.where(times <= 5.0, times, np.where(
+        times <= 20.0, 5.0 + 0.2 * (np.round((times - 5.0) / 0.5) % 2),
+        np.minimum(5.0 + (times - 20.0), 10.0)))
+    dancer = np.stack([dancer_x, 5.0 + 0.0 * times], axis=1)
+    positions = np.stack([mover, dancer], axis=1)
+    flips = np.where(np.round(times / 0.5) % 2 == 0, 0.4, -0.4)
+    commands = np.stack([np.stack([0.0 * times + 1.0, 0.0 * times], axis=1),
+                         np.stack([np.where((times > 5.0) & (times <= 20.0), flips, 1.0),
+                                   0.0 * times], axis=1)], axis=1)
+    monitor = bench_crowds.StallMonitor(scenario)
+    team = _StandingTeam(2)
+    for step in _steps(positions, commands):
+        monitor(team, step)
+    assert [stall['robot'] for stall in monitor.stalls] == ['dancer']
+    stall = monitor.stalls[0]
+    # The window 4.5 -> 14.5 s gains 0.7 m (x from 4.5 to 5.2 m); 5 -> 15 s none (5 to 5 m).
+    assert stall['time_s'] == 15.0
+    assert stall['position'] == [5.0, 5.0] and stall['distance_to_goal_m'] == 5.0
+    assert stall['gained_m'] == 0.0
+    # The window's 21 commands: 1 m/s at t = 5 s, then 20 alternating: 20 reversals.
+    assert stall['command_reversals'] == 20
+    assert stall['binding'] == []
+    # Once it drives on again the stall is over; it is not reported again.
+    assert not monitor.stalled
+
+
+def test_a_robot_at_its_goal_does_not_stall_nor_one_stepping_aside_from_it(tmp_path):
+    scenario = _two_robot_scenario(tmp_path)
+    times = np.arange(0.0, 30.01, 0.5)
+    goals = np.array([[20.0, 0.0], [10.0, 5.0]])
+    positions = np.array(np.broadcast_to(goals, (times.size, 2, 2)) + np.array([0.1, 0.0]))
+    # The second steps 0.25 m off its goal from t = 5 to 14 s (for a passer-by), then returns.
+    positions[(times >= 5.0) & (times < 14.0), 1, 1] += 0.25
+    monitor = bench_crowds.StallMonitor(scenario)
+    for step in _steps(positions, np.zeros((times.size, 2, 2))):
+        monitor(_StandingTeam(2), step)
+    assert monitor.stalls == []
+
+
+def test_a_robot_lingering_short_of_its_goal_stalls(tmp_path):
+    # 0.4 m from its goal it need not gain 0.5 m, only reach the tolerance: it does not.
+    scenario = _two_robot_scenario(tmp_path)
+    times = np.arange(0.0, 30.01, 0.5)
+    goals = np.array([[20.0, 0.0], [10.0, 5.0]])
+    positions = np.array(np.broadcast_to(goals, (times.size, 2, 2)))
+    positions[:, 1, 0] -= np.maximum(0.4 - 0.01 * times, 0.3)
+    monitor = bench_crowds.StallMonitor(scenario)
+    for step in _steps(positions, np.zeros((times.size, 2, 2))):
+        monitor(_StandingTeam(2), step)
+    assert [(stall['robot'], stall['time_s']) for stall in monitor.stalls] == [('dancer', 10.0)]
+
+
+def test_binding_constraints_name_the_neighbours_nearest_their_limits():
+    scenario = load_scenario(find_scenario('crossing4'))
+    team = InProcessTeam(scenario, [planner_values(robot, scenario, 'prvo', None)
+                                    for robot in scenario.robots])
+    for _ in range(30):
+        step = team.do_step()
+    binding = bench_crowds.binding_constraints(team, 0)
+    names = [robot.name for robot in scenario.robots]
+    assert binding and len(binding) <= bench_crowds.BINDING_COUNT
+    bounds = [item['bound'] for item in binding]
+    assert bounds == sorted(bounds)
+    result = team.last_commands[0].result
+    assert bounds[0] == round(float(min(result.neighbour_bounds)), 4)
+    radii = {robot.name: robot.radius for robot in scenario.robots}
+    for item in binding:
+        other = names.index(item['neighbour'])
+        assert other != 0
+        # Between the beliefs' means: within the noise of the ground truth's gap.
+        truth = (np.hypot(*(step.states[0, :2] - step.states[other, :2]))
+                 - radii[names[0]] - radii[item['neighbour']])
+        assert abs(item['gap_m'] - truth) < 0.3, (item, truth)
+
+
+def test_sweep_teams_are_seeded_heterogeneous_teams_of_6_to_20():
+    sizes = set()
+    for index in range(50):
+        document = bench_crowds.sweep_team_document(index)
+        assert document == bench_crowds.sweep_team_document(index)
+        count = len(document['robots'])
+        assert 6 <= count <= 20
+        sizes.add(count)
+        # The random team of that size and index, under the sweep's seed and name.
+        assert document['robots'] == random_team_document(
+            index, count, bench_crowds.SWEEP_SEED)['robots']
+    assert len({bench_crowds.sweep_team_document(index)['name'] for index in range(50)}) == 50
+    assert len(sizes) >= 10

@@ -47,3 +47,9 @@ def test_an_unknown_scenario_is_one_line_and_exit_2(capsys):
     assert main(['no_such_scenario']) == 2
     error = capsys.readouterr().err.strip()
     assert error.count('\n') == 0 and 'no_such_scenario' in error, error
+
+
+def test_a_bad_eta_is_one_line_and_exit_2(capsys):
+    assert main(['circle8', '--eta', '1.5', '--certificate', 'certified']) == 2
+    error = capsys.readouterr().err.strip()
+    assert error.count('\n') == 0 and '--eta: 1.5' in error, error

@@ -10,12 +10,15 @@ from rosbags.highlevel import AnyReader
 from prvo_sim import run_scenario
 from prvo_sim.scenario import find_scenario, load_scenario
 
-# u_trap for a few seconds: the robot inside the U drives into its closed side.
+# u_trap for a few seconds: the robot inside the U drives into its closed side (its planner,
+# listening for a map elsewhere, has none).
 SHORT = 4.0
 
 
 def short_u_trap(tmp_path):
-    text = find_scenario('u_trap').read_text().replace('duration: 60.0', f'duration: {SHORT}')
+    text = find_scenario('u_trap').read_text().replace(
+        'duration: 60.0', f'duration: {SHORT}').replace(
+        '  eta: 0.8\n', '  eta: 0.8\n  map_topic: /unheard\n')
     path = tmp_path / 'u_trap_short.yaml'
     path.write_text(text)
     return path

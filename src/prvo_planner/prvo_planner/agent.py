@@ -7,6 +7,10 @@ neighbours' measurements of the stamp it plans for, applies the goal logic and p
 its stamped announcements (`AnnouncedValues`, `NeighbourAnnouncement`). It never reads a clock:
 every call that needs the time of day takes `now`, monotonic seconds of the caller's choosing.
 The planner node wraps it in ROS endpoints; an in-process engine can feed it step by step.
+
+Given an occupancy grid (`set_map`), the agent plans against the obstacles of the grid near it
+and, heading for its goal, follows a carrot on the shortest route there instead of the straight
+line.
 """
 
 import dataclasses
@@ -16,6 +20,8 @@ import numpy as np
 
 from prvo_planner.core import AgentBelief, VelocityLimits, plan_velocity
 from prvo_planner.core.beliefs import validated_share
+from prvo_planner.maps import ObstacleIndex, grid_obstacles, occupied_cells
+from prvo_planner.path_following import carrot, closest_on_path
 from prvo_planner.preferred import (
     GOAL,
     PATH,
@@ -25,6 +31,7 @@ from prvo_planner.preferred import (
     PathFollower,
     path_preferred_velocity,
 )
+from prvo_planner.route import RouteMap, path_length
 from prvo_planner.tracking import TrackingModel, tracking_command
 from prvo_planner.tracks import TrackTable, fuse
 
@@ -134,6 +141,60 @@ def preferred_velocity(position, goal, max_speed, approach_time, goal_tolerance,
     return offset * (speed / distance), False
 
 
+def route_preferred_velocity(position, goal, route, segment, lookahead, max_speed,
+                             approach_time, goal_tolerance, max_acceleration=math.inf,
+                             in_sight=None, shortest_lookahead=0.0):
+    """Return (v_pref (2,), arrived, segment, remaining): toward the carrot on a route.
+
+    ROUTE (K, 2) ends at GOAL; SEGMENT is the robot's progress along it (see
+    `path_following.carrot`). The direction is the carrot's, LOOKAHEAD [m] ahead on the route,
+    or half as far, and so on, until IN_SIGHT(position, carrot) (if given) holds or the
+    lookahead is SHORTEST_LOOKAHEAD: a carrot beyond a corner would pull the robot into the
+    corner. A carrot in sight moves on to the farthest waypoint beyond it still in sight: a
+    carrot close ahead turns the robot back to its route at every push aside, and in a crowd
+    that fights the sidesteps of the avoidance (with the goal in sight the robot heads for it,
+    as without a map). The speed slows over the last stretch as `preferred_velocity` does, by the
+    REMAINING length [m] of the way: from the robot to its closest point on the route, then
+    along the route.
+    """
+    if float(np.hypot(*(goal - position))) <= goal_tolerance:
+        return np.zeros(2), True, segment, 0.0
+    target, reached = carrot(route, position, lookahead, segment)
+    if in_sight is not None:
+        if in_sight(position, target):
+            target = _farthest_in_sight(route, position, target, reached, lookahead, in_sight)
+        while lookahead > shortest_lookahead and not in_sight(position, target):
+            lookahead *= 0.5
+            target, reached = carrot(route, position, lookahead, segment)
+    segment = reached
+    segment, closest = closest_on_path(route, position, segment)
+    remaining = float(np.hypot(*(closest - position)))
+    if segment + 1 < len(route):
+        remaining += float(np.hypot(*(route[segment + 1] - closest))) + path_length(
+            route[segment + 1:])
+    offset = target - position
+    distance = float(np.hypot(*offset))
+    if distance == 0.0:
+        return np.zeros(2), False, segment, remaining
+    speed = min(max_speed, remaining / approach_time,
+                math.sqrt(2.0 * max_acceleration * remaining))
+    return offset * (speed / distance), False, segment, remaining
+
+
+def _farthest_in_sight(route, position, target, segment, lookahead, in_sight):
+    """Return the last waypoint of ROUTE beyond TARGET, in order, still IN_SIGHT; else TARGET.
+
+    The waypoints after SEGMENT at least LOOKAHEAD from POSITION are those beyond the carrot.
+    """
+    for waypoint in route[segment + 1:]:
+        if float(np.hypot(*(waypoint - position))) < lookahead:
+            continue
+        if not in_sight(position, waypoint):
+            break
+        target = waypoint
+    return target
+
+
 def goal_horizon(distance_to_goal, max_speed, approach_time, time_horizon):
     """Return the time horizon of one plan [s]: no longer than the way to the goal takes.
 
@@ -192,6 +253,11 @@ class AgentSettings:
     lookahead_time: float = 1.5
     stop_pub_timeout: float = 2.0
     state_timeout: float = 1.0
+    obstacle_distance: float = 3.0
+    unknown_is_occupied: bool = True
+    lookahead_distance: float = 1.0
+    route_margin: float = 0.3
+    wait_for_map: bool = False
 
     @classmethod
     def from_parameters(cls, values):
@@ -225,6 +291,12 @@ class AgentSettings:
         return TrackingModel(max_speed, self.max_angular_speed, self.max_acceleration,
                              self.max_angular_acceleration, self.tracking_horizon,
                              self.tracking_error)
+
+
+# Command.route_status: no map (or no goal), a way to the goal found, no way reaches the goal.
+ROUTE_NONE = 'none'
+ROUTE_FOUND = 'ok'
+ROUTE_UNREACHABLE = 'unreachable'
 
 
 @dataclasses.dataclass(frozen=True)
@@ -263,7 +335,9 @@ class Command:
     the goal since the robot set off for it. `tally` is the agent's `PlanTally` with this plan.
     In the velocity mode `upstream` is the `UpstreamCommand` answered, `passed_through` whether
     it goes on unchanged (nothing constrained it) and `published` whether the answer is sent
-    (`FilterGate`).
+    (`FilterGate`). `route` (K, 2) is the way to the goal the plan followed (None without a map
+    or a way) and `route_status` ROUTE_NONE (no map, no goal or another preferred source),
+    ROUTE_FOUND or ROUTE_UNREACHABLE (the robot holds its place).
     """
 
     stamp: float
@@ -281,6 +355,8 @@ class Command:
     upstream: object = None
     passed_through: bool = False
     published: bool = True
+    route: np.ndarray = None
+    route_status: str = ROUTE_NONE
 
     def announcement_values(self):
         """Return {'neighbour.<robot>.radius': m, 'neighbour.<robot>.avoidance_share': a}."""
@@ -300,7 +376,9 @@ class PlanRequest:
     goal while nobody comes). `arrival` as in `Command`. `unplanned` is the velocity (2,)
     commanded without a plan (model 'none', or an upstream command passed through), None when
     there is none; `upstream` the `UpstreamCommand` answered (velocity mode) and `passed_through`
-    whether it goes on unchanged.
+    whether it goes on unchanged. `obstacles` are the `StaticObstacles` of its map near it,
+    passed as `plan_velocity(*problem, obstacles=obstacles)`, None without a map or with
+    nothing near; `route` and `route_status` as in `Command`.
     """
 
     stamp: float
@@ -313,6 +391,9 @@ class PlanRequest:
     unplanned: np.ndarray = None
     upstream: object = None
     passed_through: bool = False
+    obstacles: object = None
+    route: np.ndarray = None
+    route_status: str = ROUTE_NONE
 
 
 class PlannerAgent:
@@ -387,6 +468,15 @@ class PlannerAgent:
         self._upstream_answered = None
         self._own_received_at = None
         self._gate = FilterGate(settings.stop_pub_timeout)
+        # The map (set_map) and what the agent made of it; the route to the goal in force.
+        self._grid = None
+        self._map_built_for = None
+        self._obstacle_index = None
+        self._route_map = None
+        self._route_tree = None
+        self._route = None
+        self._route_segment = 0
+        self._route_status = ROUTE_NONE
 
     @property
     def pending_stamp(self):
@@ -408,6 +498,7 @@ class PlannerAgent:
         A GOAL other than the current one is taken as by `set_goal`; None keeps no goal.
         """
         self.config, self.settings = config, settings
+        self._build_map()
         if goal is None:
             self.goal = None
         elif self.goal is None or not np.array_equal(self.goal, goal):
@@ -644,11 +735,31 @@ class PlannerAgent:
             return path_preferred_velocity(
                 position, self._path, lookahead, max_speed, settings.approach_time,
                 settings.goal_tolerance, settings.max_acceleration)
+        self._route_status = ROUTE_NONE
+        if self._route_map is not None and self.goal is not None:
+            return self._route_preference(position)
         v_pref, arrived = preferred_velocity(
             position, self.goal, max_speed, settings.approach_time, settings.goal_tolerance,
             settings.max_acceleration)
         return v_pref, arrived, (
             math.inf if self.goal is None else float(np.hypot(*(self.goal - position))))
+
+    def _route_preference(self, position):
+        """Return (v_pref, arrived, the way left [m]) along the route to the goal on the map.
+
+        No way reaching the goal: the robot holds its place (and keeps avoiding whoever comes).
+        """
+        settings = self.settings
+        route = self._route_at(position)
+        if route is None:
+            self._route_status = ROUTE_UNREACHABLE
+            return np.zeros(2), False, math.inf
+        self._route_status = ROUTE_FOUND
+        v_pref, arrived, self._route_segment, remaining = route_preferred_velocity(
+            position, self.goal, route, self._route_segment, settings.lookahead_distance,
+            self.config.max_speed, settings.approach_time, settings.goal_tolerance,
+            settings.max_acceleration, self._route_map.in_sight, self._route_map.resolution)
+        return v_pref, arrived, remaining
 
     def _problem(self, own, stamp, tracks, announcements, v_pref, horizon):
         """Return the argument tuple of `plan_velocity` for the plan of STAMP."""
@@ -687,10 +798,15 @@ class PlannerAgent:
         """Whether a listed neighbour has not been heard in full yet and may still turn up.
 
         In full: its odometry, its footprint and its share. Announcements travel apart from
-        odometry; without this, a team's first plans would depend on which came first.
+        odometry; without this, a team's first plans would depend on which came first. With
+        `wait_for_map`, the map is waited for likewise.
         """
-        if (self.listed_neighbours is None or self._first_own_at is None
+        if (self._first_own_at is None
                 or now - self._first_own_at > self.settings.neighbor_timeout):
+            return False
+        if self.settings.wait_for_map and self._grid is None:
+            return True
+        if self.listed_neighbours is None:
             return False
         return any(robot not in self._neighbour_tracks or robot not in self._announced_radius
                    or robot not in self._announced_share for robot in self.listed_neighbours)
@@ -708,7 +824,10 @@ class PlannerAgent:
         Raises RuntimeError when no own measurement is pending.
         """
         request = self.plan_request()
-        result = None if request.problem is None else plan_velocity(*request.problem)
+        result = None
+        if request.problem is not None:
+            result = (plan_velocity(*request.problem) if request.obstacles is None
+                      else plan_velocity(*request.problem, obstacles=request.obstacles))
         return self.complete(request, result)
 
     def plan_request(self):
@@ -725,6 +844,8 @@ class PlannerAgent:
         own = self._own_track.belief_at(stamp)
         max_speed = self.config.max_speed
         v_pref, self.arrived, distance_to_goal = self._preference(own)
+        route_status = self._route_status
+        route = self._route if route_status == ROUTE_FOUND else None
         upstream, self._upstream = self._upstream, None
         arrival = self._arrival(own.mean[:2])
         names = tuple(self._neighbour_names())
@@ -749,11 +870,80 @@ class PlannerAgent:
                 distance_to_goal, max_speed, self.settings.approach_time,
                 self.config.time_horizon)
             problem = self._problem(own, stamp, tracks, announcements, v_pref, horizon)
-            if self.arrived and nobody_comes(problem):
+            if (self.arrived or route_status == ROUTE_UNREACHABLE) and nobody_comes(problem):
                 problem = None
+        obstacles = None if self._obstacle_index is None else self._obstacle_index.near(
+            own.mean[:2], self.settings.obstacle_distance)
+        if obstacles is not None and len(obstacles) == 0:
+            # Nothing near: the plan of an empty plane.
+            obstacles = None
         return PlanRequest(stamp=stamp, own=own, neighbours=neighbour_beliefs,
                            neighbour_names=names, announcements=announcements,
-                           problem=problem, arrival=arrival)
+                           problem=problem, arrival=arrival, obstacles=obstacles, route=route,
+                           route_status=route_status)
+
+    # Map and route -----------------------------------------------------------------------------
+
+    @property
+    def grid_map(self):
+        """The `GridMap` the agent plans with, None without one."""
+        return self._grid
+
+    def set_map(self, grid):
+        """Plan with the occupancy grid GRID (a `maps.GridMap`) from now on; None: no map.
+
+        The way to the goal is searched again on a map that differs from the one in force.
+        """
+        if grid is not None and self._grid is not None and (
+                grid.resolution == self._grid.resolution
+                and np.array_equal(grid.origin, self._grid.origin)
+                and np.array_equal(grid.cells, self._grid.cells)):
+            return
+        self._grid = grid
+        self._map_built_for = None
+        self._build_map()
+
+    def goal_blocked(self, goal):
+        """Whether GOAL (2,) lies in an obstacle of the map, or off it (False without a map)."""
+        return self._route_map is not None and self._route_map.blocked(goal)
+
+    def _build_map(self):
+        """Make the obstacles and the route graph of the map for the settings in force."""
+        settings = self.settings
+        # The route's cells keep the clearance the planner keeps from a wall of no thickness.
+        built_for = (settings.unknown_is_occupied, settings.obstacle_distance,
+                     settings.planning_radius + self.config.safety_margin, settings.route_margin)
+        if self._grid is None:
+            self._obstacle_index = self._route_map = None
+        elif built_for != self._map_built_for:
+            occupied = occupied_cells(self._grid, settings.unknown_is_occupied)
+            self._obstacle_index = ObstacleIndex(
+                grid_obstacles(self._grid, settings.unknown_is_occupied),
+                settings.obstacle_distance)
+            self._route_map = RouteMap(occupied, self._grid.resolution, self._grid.origin,
+                                       built_for[2], settings.route_margin)
+        else:
+            return
+        self._map_built_for = None if self._grid is None else built_for
+        self._route_tree = self._route = None
+
+    def _route_at(self, position):
+        """Return the route in force from POSITION to the goal, None if no way reaches it.
+
+        The shortest paths to a goal are searched once per goal and map; the route is taken
+        anew from them when the robot strayed farther than the lookahead from it.
+        """
+        if self._route_tree is None or not np.array_equal(self._route_tree.goal, self.goal):
+            self._route_tree = self._route_map.tree_to(self.goal)
+            self._route = None
+        if self._route is not None:
+            _, closest = closest_on_path(self._route, position, self._route_segment)
+            if float(np.hypot(*(closest - position))) > self.settings.lookahead_distance:
+                self._route = None
+        if self._route is None:
+            self._route = self._route_tree.route_from(position)
+            self._route_segment = 0
+        return self._route
 
     def _arrival(self, position):
         """Return whether arriving now is this goal's first arrival; track the departures."""
@@ -802,7 +992,8 @@ class PlannerAgent:
                        neighbour_names=request.neighbour_names,
                        announcements=request.announcements, drive=drive,
                        arrival=request.arrival, tally=self.tally, upstream=request.upstream,
-                       passed_through=request.passed_through, published=published)
+                       passed_through=request.passed_through, published=published,
+                       route=request.route, route_status=request.route_status)
 
     def _period(self, request):
         """Return the time [s] the command for REQUEST will be in force (0 before any)."""

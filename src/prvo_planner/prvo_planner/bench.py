@@ -32,6 +32,7 @@ NEIGHBOURS = (1, 5, 10, 20, 50)
 DIRECTIONS = (16, 64, 128)
 VARIANTS = (
     ('prvo-exact', {'model': 'prvo', 'method': 'exact'}),
+    ('prvo-certified', {'model': 'prvo', 'method': 'exact', 'certificate': 'certified'}),
     ('prvo-taylor', {'model': 'prvo', 'method': 'taylor'}),
     ('rvo', {'model': 'rvo'}),
     ('inflate', {'model': 'inflate'}),

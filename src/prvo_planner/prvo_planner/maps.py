@@ -4,11 +4,17 @@ Occupancy grids, ROS-free: the map as the planner and the simulator both hold it
 The grid follows ``nav_msgs/OccupancyGrid``: row-major cells, row 0 at the bottom (smallest y),
 ``origin`` the world position of cell (0, 0)'s outer corner, values 0-100 (occupancy
 probability in percent) or -1 (unknown).
+
+The planner sees a grid as obstacles: the exact boundary between its occupied and free cells,
+merged into maximal straight segments (``grid_obstacles``), kept in uniform buckets
+(``ObstacleIndex``) so that finding those near a robot costs little on a large map.
 """
 
 from dataclasses import dataclass
 
 import numpy as np
+
+from prvo_planner.core.obstacles import StaticObstacles
 
 UNKNOWN = -1
 OCCUPIED = 100
@@ -62,3 +68,228 @@ class GridMap:
     def shape(self):
         """Return (height, width) in cells."""
         return self.cells.shape
+
+
+# A cell holding at least this occupancy [%] is occupied: map_server's default occupied_thresh
+# (0.65), so that a map it serves in 'scale' mode reads as it does in 'trinary' mode (0, 100).
+OCCUPIED_THRESHOLD = 65
+
+
+def occupied_cells(grid, unknown_is_occupied=True):
+    """
+    Return which cells of a grid are obstacles.
+
+    A cell is occupied when its value is at least ``OCCUPIED_THRESHOLD`` (65 %), or when it is
+    unknown (-1) and ``unknown_is_occupied``; every other cell (0-64) is free.
+
+    Parameters
+    ----------
+    grid : GridMap
+        The map.
+    unknown_is_occupied : bool
+        Whether unknown cells are obstacles.
+
+    Returns
+    -------
+    numpy.ndarray
+        Shape (height, width), bool.
+
+    """
+    cells = grid.cells
+    occupied = cells >= OCCUPIED_THRESHOLD
+    if unknown_is_occupied:
+        occupied |= cells == UNKNOWN
+    return occupied
+
+
+def _runs(edges):
+    """
+    Return the maximal runs of True along the rows of EDGES (L, C), bool.
+
+    Returns (line, first, end): the line index of each run, its first index and one past its
+    last, each shape (R,), lines in order, runs in order along each line.
+    """
+    lines, length = edges.shape
+    padded = np.zeros((lines, length + 2), dtype=bool)
+    padded[:, 1:-1] = edges
+    change = np.diff(padded.astype(np.int8), axis=1)
+    start_lines, firsts = np.nonzero(change == 1)
+    _, ends = np.nonzero(change == -1)
+    return start_lines, firsts, ends
+
+
+def boundary_segments(occupied, resolution, origin):
+    """
+    Return the exact boundary between occupied and free cells as segments.
+
+    Every cell edge with an occupied cell on one side and a free one on the other is part of
+    the boundary; the map's outside counts as occupied, so the border of free cells is too.
+    Collinear edges that touch are merged into one maximal segment. Horizontal segments come
+    first (by row line, then x), then vertical ones (by column line, then y).
+
+    Parameters
+    ----------
+    occupied : numpy.ndarray
+        Shape (height, width), bool: ``occupied[row, column]``, row 0 at the smallest y.
+    resolution : float
+        Cell edge [m].
+    origin : array_like
+        Shape (2,): world position of cell (0, 0)'s lower-left corner [m].
+
+    Returns
+    -------
+    numpy.ndarray
+        Shape (N, 2, 2): ``[[ax, ay], [bx, by]]`` [m], ``a`` the end of smaller coordinate.
+
+    """
+    occupied = np.asarray(occupied, dtype=bool)
+    origin = np.asarray(origin, dtype=float)
+    padded = np.pad(occupied, 1, constant_values=True)
+    # Horizontal line j (y = origin_y + j * resolution, j = 0..height) separates rows j - 1
+    # and j; vertical line i likewise columns i - 1 and i.
+    horizontal = padded[:-1, 1:-1] != padded[1:, 1:-1]
+    vertical = padded[1:-1, :-1] != padded[1:-1, 1:]
+    lines, firsts, ends = _runs(horizontal)
+    along_x = np.stack([
+        np.stack([origin[0] + firsts * resolution, origin[1] + lines * resolution], axis=1),
+        np.stack([origin[0] + ends * resolution, origin[1] + lines * resolution], axis=1)],
+        axis=1)
+    lines, firsts, ends = _runs(vertical.T)
+    along_y = np.stack([
+        np.stack([origin[0] + lines * resolution, origin[1] + firsts * resolution], axis=1),
+        np.stack([origin[0] + lines * resolution, origin[1] + ends * resolution], axis=1)],
+        axis=1)
+    return np.concatenate([along_x.reshape(-1, 2, 2), along_y.reshape(-1, 2, 2)])
+
+
+def grid_obstacles(grid, unknown_is_occupied=True):
+    """
+    Return the obstacles of a grid: its occupied cells' exact boundary, walls of no thickness.
+
+    Parameters
+    ----------
+    grid : GridMap
+        The map.
+    unknown_is_occupied : bool
+        Whether unknown cells are obstacles (see ``occupied_cells``).
+
+    Returns
+    -------
+    StaticObstacles
+        The segments of ``boundary_segments``, half-widths 0, no discs.
+
+    """
+    segments = boundary_segments(occupied_cells(grid, unknown_is_occupied), grid.resolution,
+                                 grid.origin)
+    return StaticObstacles(segments, np.zeros(len(segments)), np.zeros((0, 2)), np.zeros(0))
+
+
+def _point_segment_distances(point, starts, ends):
+    """Return the distances (N,) from POINT (2,) to the segments from STARTS to ENDS (N, 2)."""
+    steps = ends - starts
+    lengths_squared = np.einsum('ij,ij->i', steps, steps)
+    fractions = np.clip(np.einsum('ij,ij->i', point - starts, steps) / lengths_squared, 0.0, 1.0)
+    return np.linalg.norm(starts + fractions[:, None] * steps - point, axis=1)
+
+
+# The most buckets an ObstacleIndex makes.
+MAX_BUCKETS = 1 << 18
+
+
+class ObstacleIndex:
+    """
+    Static obstacles in uniform square buckets, to find those near a position quickly.
+
+    Each shape goes into every bucket its bounding box overlaps; a query looks at the buckets
+    the query's square overlaps and keeps the shapes truly within the distance. The cost of a
+    query grows with the shapes nearby, not with the size of the map.
+
+    Parameters
+    ----------
+    obstacles : StaticObstacles
+        Every obstacle.
+    bucket_size : float
+        Edge of a bucket [m], positive: about the usual query distance. Larger where the
+        obstacles' extent would need more than ``MAX_BUCKETS`` buckets.
+
+    """
+
+    def __init__(self, obstacles, bucket_size):
+        bucket_size = float(bucket_size)
+        if not (np.isfinite(bucket_size) and bucket_size > 0.0):
+            raise ValueError(f'bucket_size must be a positive number of metres, got '
+                             f'{bucket_size!r}')
+        self.obstacles = obstacles
+        segments = obstacles.segments
+        reach = obstacles.half_widths
+        lows = np.concatenate([segments.min(axis=1) - reach[:, None],
+                               obstacles.disc_centres - obstacles.disc_radii[:, None]])
+        highs = np.concatenate([segments.max(axis=1) + reach[:, None],
+                                obstacles.disc_centres + obstacles.disc_radii[:, None]])
+        self._corner = lows.min(axis=0) if len(lows) else np.zeros(2)
+        extent = (highs.max(axis=0) - self._corner) if len(lows) else np.zeros(2)
+        # Few enough buckets for any distance asked for: memory stays bounded.
+        self.bucket_size = max(bucket_size, float(np.sqrt(np.prod(extent + bucket_size)
+                                                          / MAX_BUCKETS)))
+        first = self._bucket_of(lows)
+        last = self._bucket_of(highs)
+        self._buckets_shape = (last.max(axis=0) + 1) if len(lows) else np.ones(2, dtype=int)
+        shapes, buckets = [], []
+        for shape, (low, high) in enumerate(zip(first, last, strict=True)):
+            columns, rows = np.meshgrid(np.arange(low[0], high[0] + 1),
+                                        np.arange(low[1], high[1] + 1))
+            flat = (rows * self._buckets_shape[0] + columns).ravel()
+            buckets.append(flat)
+            shapes.append(np.full(len(flat), shape))
+        buckets = np.concatenate(buckets) if buckets else np.zeros(0, dtype=int)
+        shapes = np.concatenate(shapes) if shapes else np.zeros(0, dtype=int)
+        order = np.argsort(buckets, kind='stable')
+        # Bucket b holds the shapes self._members[self._offsets[b]:self._offsets[b + 1]].
+        self._members = shapes[order]
+        self._offsets = np.searchsorted(
+            buckets[order], np.arange(int(np.prod(self._buckets_shape)) + 1))
+
+    def _bucket_of(self, points):
+        """Return the (column, row) bucket indices (P, 2) of POINTS (P, 2), unclipped."""
+        return np.floor((points - self._corner) / self.bucket_size).astype(int)
+
+    def near(self, position, distance):
+        """
+        Return the obstacles within a distance of a position.
+
+        Parameters
+        ----------
+        position : array_like
+            Shape (2,) [m].
+        distance : float
+            Largest distance [m] from ``position`` to a shape's surface (a segment's capsule of
+            its half-width, a disc's rim) for the shape to count.
+
+        Returns
+        -------
+        StaticObstacles
+            Those shapes, segments and discs each in the order of ``obstacles``.
+
+        """
+        position = np.asarray(position, dtype=float)
+        obstacles = self.obstacles
+        low = np.maximum(self._bucket_of((position - distance)[None])[0], 0)
+        high = np.minimum(self._bucket_of((position + distance)[None])[0],
+                          self._buckets_shape - 1)
+        if (low > high).any():
+            return StaticObstacles.empty()
+        rows = np.arange(low[1], high[1] + 1)
+        starts = self._offsets[rows * self._buckets_shape[0] + low[0]]
+        stops = self._offsets[rows * self._buckets_shape[0] + high[0] + 1]
+        candidates = np.unique(np.concatenate(
+            [self._members[start:stop] for start, stop in zip(starts, stops, strict=True)]))
+        count = len(obstacles.segments)
+        segments = candidates[candidates < count]
+        discs = candidates[candidates >= count] - count
+        chosen = obstacles.segments[segments]
+        segments = segments[_point_segment_distances(position, chosen[:, 0], chosen[:, 1])
+                            - obstacles.half_widths[segments] <= distance]
+        discs = discs[np.linalg.norm(obstacles.disc_centres[discs] - position, axis=1)
+                      - obstacles.disc_radii[discs] <= distance]
+        return StaticObstacles(obstacles.segments[segments], obstacles.half_widths[segments],
+                               obstacles.disc_centres[discs], obstacles.disc_radii[discs])

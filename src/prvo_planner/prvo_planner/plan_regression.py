@@ -57,7 +57,9 @@ def cases(count=PLAN_COUNT, seed=SEED):
             method=['exact', 'taylor'][index % 2], model=model,
             risk=['pairwise', 'joint'][(index // 2) % 2], mc_samples=200, seed=index,
             inertia=float(rng.choice([0.0, 0.5])), passing_bias=float(rng.choice([0.0, 0.1])),
-            receding_gate=bool(index % 7))
+            receding_gate=bool(index % 7),
+            # The paper's bound: the plans these cases were captured with.
+            certificate='cantelli')
         previous = rng.normal(size=2) * 0.5 if index % 3 else None
         yield ego, neighbours, rng.normal(size=2), config, previous
 

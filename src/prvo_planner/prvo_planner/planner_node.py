@@ -6,7 +6,9 @@ Run one per robot, in the robot's namespace:
 
 The node is a thin shell around `prvo_planner.agent.PlannerAgent`: it declares parameters,
 converts messages through prvo_msgs_util, feeds the agent, waits at most `sync_timeout` for
-neighbours and publishes the agent's commands and its announcements (footprint, share).
+neighbours and publishes the agent's commands and its announcements (footprint, share). With
+an occupancy grid on `map_topic` (latched, as map_server publishes it) it plans against the
+grid's obstacles and, heading for a goal, publishes its route there on `<robot>/plan`.
 """
 
 import dataclasses
@@ -14,7 +16,7 @@ import sys
 import time
 
 from geometry_msgs.msg import PointStamped, PoseStamped, Twist, TwistStamped
-from nav_msgs.msg import Odometry, Path
+from nav_msgs.msg import OccupancyGrid, Odometry, Path
 from rcl_interfaces.msg import SetParametersResult
 import rclpy
 from rclpy.clock import Clock, ClockType
@@ -28,7 +30,10 @@ from prvo_msgs_util import (
     CMD_VEL_QOS,
     GOAL_POSE,
     GOAL_QOS,
+    MAP_QOS,
     ODOM_LATEST_QOS,
+    PLAN,
+    PLAN_QOS,
     Announcer,
     CommandsAfterAnnouncements,
     MessageFault,
@@ -39,7 +44,9 @@ from prvo_msgs_util import (
     freeze_startup_objects,
     hold_stop_signals,
     ignore_stop_signals,
+    make_path,
     make_point_stamped,
+    occupancy_grid_to_parts,
     parameter_descriptor,
     path_to_waypoints,
     pose_stamped_to_goal,
@@ -56,7 +63,8 @@ from prvo_msgs_util import (
     twist_components,
     world_to_body,
 )
-from prvo_planner.agent import AgentSettings, PlannerAgent
+from prvo_planner.agent import ROUTE_UNREACHABLE, AgentSettings, PlannerAgent
+from prvo_planner.maps import GridMap
 from prvo_planner.parameters import (
     PARAMETERS,
     ParameterError,
@@ -135,7 +143,8 @@ class PlannerNode(Node):
         self._qos_watch.watch(
             self._cmd_vel_publisher, self._reporter.diagnostics_publisher,
             self._reporter.marker_publisher, self._announcer.footprint_publisher,
-            self._announcer.share_publisher, own_odometry, *self._source_endpoints())
+            self._announcer.share_publisher, own_odometry, *self._source_endpoints(),
+            *self._map_endpoints())
 
         # Wall-clock timers: under use_sim_time sim time waits for us and would never fire them.
         self._sync_timer = self.create_timer(
@@ -296,6 +305,11 @@ class PlannerNode(Node):
             self._warnings.warn(
                 'goal', f'ignoring goal on {robot_topic(self._robot, GOAL_POSE)}: {fault}')
             return
+        if self._agent.goal_blocked(goal):
+            self._warnings.warn(
+                'goal', f'ignoring goal on {robot_topic(self._robot, GOAL_POSE)}: '
+                f'{goal.tolist()} lies in an obstacle of the map, or off it')
+            return
         # Through the parameter: `goal` shows the goal in force, and other changes keep it. The
         # parameter's rules hold: pose_stamped_to_goal checked the same coordinate bound.
         self.set_parameters([Parameter('goal', Parameter.Type.DOUBLE_ARRAY, goal.tolist())])
@@ -360,6 +374,50 @@ class PlannerNode(Node):
         # The agent keeps the neighbour's last valid announcement, else its default.
         self._warnings.warn((topic, 'announcement'), f'ignoring announcement on {topic}: {error}')
 
+    # Map and route ----------------------------------------------------------------------------
+
+    def _map_endpoints(self):
+        """Subscribe the map (QoS as map_server's), advertise the route; return both."""
+        self._map_topic = self._values['map_topic']
+        # The route published last (None: an empty path), to publish a route once per change.
+        self._published_route = None
+        self._plan_publisher = self.create_publisher(
+            Path, PLAN, PLAN_QOS, event_callbacks=quiet_publisher_events())
+        subscription = self.create_subscription(
+            OccupancyGrid, self._map_topic, self._on_map, MAP_QOS,
+            event_callbacks=quiet_subscription_events())
+        return subscription, self._plan_publisher
+
+    @quiet_after_shutdown
+    def _on_map(self, msg):
+        try:
+            grid = GridMap(*occupancy_grid_to_parts(msg, expected_frame=self._values['frame_id']))
+        except (MessageFault, ValueError) as fault:
+            # Values sit in parentheses at the end: the text before them names the fault.
+            self._warnings.warn((self._map_topic, str(fault).split('(')[0]),
+                                f'ignoring map on {self._map_topic} (keeping the map in force): '
+                                f'{fault}')
+            return
+        self._agent.set_map(grid)
+        height, width = grid.shape
+        self.get_logger().info(
+            f'map {width} x {height} cells of {grid.resolution:g} m from {self._map_topic}')
+        if self._agent.ready(time.monotonic()):
+            # A plan waiting for the map (wait_for_map) goes ahead now.
+            self._plan()
+
+    def _publish_route(self, command):
+        """Publish COMMAND's route on <robot>/plan where it changed; warn while none is found."""
+        if command.route_status == ROUTE_UNREACHABLE:
+            self._warnings.warn('route', f'no way on the map reaches the goal '
+                                f'{self._agent.goal.tolist()}: holding the place')
+        if command.route is self._published_route:
+            return
+        self._published_route = command.route
+        self._plan_publisher.publish(make_path(
+            command.stamp, () if command.route is None else command.route,
+            self._values['frame_id']))
+
     # Neighbours -------------------------------------------------------------------------------
 
     @quiet_after_shutdown
@@ -414,6 +472,7 @@ class PlannerNode(Node):
                 self._agent.path.last_carrot is not None):
             self._lookahead_publisher.publish(make_point_stamped(
                 command.stamp, self._agent.path.last_carrot, self._values['frame_id']))
+        self._publish_route(command)
         result = command.result
         if result is not None and not result.feasible:
             self._warnings.warn(

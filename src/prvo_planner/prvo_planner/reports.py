@@ -50,6 +50,8 @@ def plan_status(robot, command, plan_time_ms, model, planning_radius):
     certified ('none' without one). `obstacle_clearance` [m] is the mean's distance from the
     nearest static obstacle grown by the planning radius (inf without obstacles) and
     `obstacle_probability` the probability certified against static obstacles (1 without).
+    `route` is the way to the goal: 'none' without a map, 'ok' or 'unreachable' (the robot
+    holds its place).
     """
     result = command.result
     feasible = True if result is None else bool(result.feasible)
@@ -65,6 +67,7 @@ def plan_status(robot, command, plan_time_ms, model, planning_radius):
         {'achieved_k': achieved_k, 'eta_bound': eta_bound, 'feasible': feasible,
          'neighbours_tracked': len(command.neighbours), 'plan_time_ms': plan_time_ms,
          'arrived': command.arrived, 'model': model, 'planning_radius': planning_radius,
+         'route': command.route_status,
          'certificate': 'cantelli' if result is None else result.certificate,
          'min_certified_probability': _or_none(min(certified, default=None)),
          'obstacle_clearance': math.inf if result is None else result.obstacle_clearance,

@@ -1,7 +1,9 @@
 """Crowd benchmark: does every robot arrive, how soon, and how close do robots come.
 
     python -m prvo_sim.bench_crowds [--circles 8 16 24 48] [--seeds 1] [--teams 4]
-                                    [--method prvo] [--eta 0.8] [--json PATH] [--out DIR]
+                                    [--sweep 50] [--method prvo] [--eta ETA]
+                                    [--certificate cantelli|certified] [--risk pairwise|joint]
+                                    [--json PATH] [--out DIR]
 
 Runs on the in-process engine, to completion or the scenario's duration:
 
@@ -12,25 +14,30 @@ Runs on the in-process engine, to completion or the scenario's duration:
   0.2-0.45 m, speeds 0.6-1.2 m/s, starts and goals in a square of half-side 1 + 0.45 N m, every
   two starts (and every two goals, and each robot's start and goal) at least 0.4 of the
   half-side apart;
+* with `--sweep S`, the first S teams of the sweep (`sweep_team_document`): random teams as
+  above, of 6-20 robots each (a seeded size);
 * the noise-free 20-robot circle (radius 5 m) with `--method rvo`, the deterministic baseline
   whose only recourse in a crowd is the fallback;
 * beside them, on the same circles without noise, ir-sim's sampled RVO
   (`irsim.lib.algorithm.rvo`) and RVO2's ORCA (`pyrvo`) when they are importable; neither is a
   dependency of prvo, and their rows say so when absent.
 
-`--eta` sets the circles' and teams' collision-avoidance probability (default: the scenarios'
-0.8), to see what the guarantee costs in time. Per run it prints one Markdown row: arrivals,
-makespan (the last robot's arrival) and its ratio to the straight-line time (the longest
-start-to-goal distance over max speed), the mean time to goal over the mean straight-line time,
-the paths' length (each up to its arrival) over the straight lines', the minimum
-surface-to-surface separation, contacts, and the fraction of planned robot-steps without a
-feasible velocity.
+The circles and teams plan with the planner's default `eta`, `certificate` and `risk`;
+`--eta`, `--certificate` and `--risk` set them, to see what the guarantee costs in time. Per
+run it prints one Markdown row: arrivals, makespan (the last robot's arrival) and its ratio to
+the straight-line time (the longest start-to-goal distance over max speed), the mean time to
+goal over the mean straight-line time, the paths' length (each up to its arrival) over the
+straight lines', the minimum surface-to-surface separation, contacts, the fraction of planned
+robot-steps without a feasible velocity, and the stalls (`StallMonitor`: a robot that gains
+less than 0.5 m toward its goal in 10 s), each also printed with its time, position, command
+reversals and binding constraints.
 
 Exit codes: 0 every robot of the circles and teams arrived, 1 one did not, 2 bad input, 130
 when interrupted.
 """
 
 import argparse
+import collections
 import json
 import math
 import pathlib
@@ -38,6 +45,9 @@ import sys
 
 import numpy as np
 
+from prvo_planner.core.config import CERTIFICATES, RISKS
+from prvo_planner.core.encounter import build_encounter
+from prvo_planner.parameters import DEFAULTS
 from prvo_sim.bench_engine import run_team, table
 from prvo_sim.bench_team import DT, GOAL_TOLERANCE, NOISE_STD, circle_document, write_scenario
 
@@ -51,6 +61,13 @@ TEAM_SPEEDS = (0.6, 1.2)  # m/s
 TEAM_HALF_SIDE = (1.0, 0.45)  # m: 1 + 0.45 N
 TEAM_SPACING = 0.4  # of the half-side
 TEAM_DURATION = 90.0  # s
+SWEEP_SEED = 4242
+SWEEP_SIZES = (6, 20)  # robots, both included
+STALL_WINDOW = 10.0  # s of sim time
+STALL_PROGRESS = 0.5  # m toward the goal a robot gains within STALL_WINDOW, or it stalls
+BINDING_COUNT = 3  # neighbours reported per stall: those whose conditions are nearest failing
+# What the circles and teams plan with unless the command line says otherwise.
+PLANNER_DEFAULTS = {name: DEFAULTS[name] for name in ('eta', 'certificate', 'risk')}
 FALLBACK_CIRCLE = (20, 5.0)  # robots, radius [m]: noise-free, --method rvo
 APPROACH_TIME = 0.5  # s: the peers slow down near the goal as the planner does (its default)
 PEER_TIME_HORIZON = 5.0  # s: the planner's default
@@ -105,9 +122,107 @@ def random_team_document(index, count=TEAM_SIZE, seed=TEAM_SEED):
         'goal_tolerance': GOAL_TOLERANCE,
         'noise': {'position_std': NOISE_STD, 'velocity_std': NOISE_STD,
                   'actuation_std': NOISE_STD},
-        'planner': {'eta': 0.8},
         'robots': robots,
     }
+
+
+def sweep_team_document(index, seed=SWEEP_SEED):
+    """Return random team INDEX of the sweep: `random_team_document` of a seeded size."""
+    count = int(np.random.default_rng([seed, index]).integers(SWEEP_SIZES[0],
+                                                              SWEEP_SIZES[1] + 1))
+    document = random_team_document(index, count, seed)
+    document['name'] = f'sweep_team{index}'
+    return document
+
+
+class StallMonitor:
+    """Finds robots that gain less than STALL_PROGRESS m toward their goals in STALL_WINDOW s.
+
+    Called after every step (`run_team`'s observer). A robot that stayed farther than the goal
+    tolerance from its goal over the last STALL_WINDOW seconds and whose distance to it fell by
+    less than STALL_PROGRESS (or, from closer, by less than the way left to the tolerance) over
+    them stalls; each stall is reported once, when first seen: it lasts until the robot has come
+    STALL_PROGRESS closer to its goal than it was then, or arrives. A robot at its goal that
+    steps aside for a passing neighbour and comes back does not stall: it was within the
+    tolerance during the window. A report holds the time, the robot's position and distance to
+    its goal, how often its command reversed (turned by more than 90 degrees from one step to the
+    next) within the window, its mean command, and the binding constraints of its last plan:
+    the BINDING_COUNT neighbours whose bounds at the chosen velocity are lowest, with their
+    surface-to-surface gaps.
+    """
+
+    def __init__(self, scenario):
+        self.names = [robot.name for robot in scenario.robots]
+        self.goals = np.array([robot.goal for robot in scenario.robots])
+        self.tolerance = scenario.goal_tolerance
+        self.planned = [index for index, robot in enumerate(scenario.robots)
+                        if robot.scripted is None]
+        self.history = collections.deque()  # (time, distances (N,), commands (N, 2))
+        self.stalled = {}  # robot -> its distance to its goal when its stall was reported
+        self.stalls = []
+
+    def __call__(self, team, step):
+        """Take STEP of TEAM; record the stalls it shows."""
+        distances = np.linalg.norm(step.states[:, :2] - self.goals, axis=1)
+        self.history.append((step.time, distances, step.commands))
+        # Keep the latest entry at least a window old as the window's start.
+        while len(self.history) > 1 and self.history[1][0] <= step.time - STALL_WINDOW + 1e-9:
+            self.history.popleft()
+        then, before, _ = self.history[0]
+        if step.time - then < STALL_WINDOW - 1e-9:
+            return
+        gained = before - distances
+        needed = np.minimum(STALL_PROGRESS, before - self.tolerance)
+        away = np.all([entry[1] > self.tolerance for entry in self.history], axis=0)
+        for robot in self.planned:
+            if robot in self.stalled:
+                if (distances[robot] <= self.tolerance
+                        or distances[robot] <= self.stalled[robot] - STALL_PROGRESS):
+                    del self.stalled[robot]
+            elif gained[robot] < needed[robot] and away[robot]:
+                self.stalled[robot] = distances[robot]
+                self.stalls.append(self.report(team, step, robot, distances[robot],
+                                               gained[robot]))
+
+    def report(self, team, step, robot, distance, gained):
+        """Return the record of ROBOT's stall seen at STEP."""
+        commands = np.array([commands[robot] for _, _, commands in self.history])
+        turns = np.einsum('ij,ij->i', commands[1:], commands[:-1])
+        record = {'robot': self.names[robot], 'time_s': round(float(step.time), 2),
+                  'position': [round(float(value), 3) for value in step.states[robot, :2]],
+                  'distance_to_goal_m': round(float(distance), 3),
+                  'gained_m': round(float(gained), 3),
+                  'command_reversals': int((turns < 0.0).sum()),
+                  'mean_command': [round(float(value), 3) for value in commands.mean(axis=0)],
+                  'binding': binding_constraints(team, robot)}
+        return record
+
+
+def binding_constraints(team, robot):
+    """Return ROBOT's last plan's BINDING_COUNT neighbours with the lowest bounds, lowest first.
+
+    Each as {neighbour, gap_m (mean surface-to-surface), bound, kind}; [] when the robot did not
+    plan (it stood at its goal with nobody coming) or nobody was near.
+    """
+    command = team.last_commands[robot]
+    if command is None or command.result is None:
+        return []
+    request = team.last_requests[[index for index, agent in enumerate(team.agents)
+                                  if agent is not None].index(robot)]
+    ego, neighbours, _, config = request.problem[:4]
+    encounter = build_encounter(ego, neighbours, config)
+    # The encounter keeps the neighbours within reach, in order: match them by position.
+    offsets = np.array([ego.position - neighbour.position for neighbour in neighbours])
+    rows = [int(np.argmin(np.linalg.norm(offsets - origin[:2], axis=1)))
+            for origin in encounter.origin]
+    result = command.result
+    order = np.argsort(result.neighbour_bounds, kind='stable')[:BINDING_COUNT]
+    return [{'neighbour': request.neighbour_names[rows[row]],
+             'gap_m': round(float(np.hypot(*encounter.origin[row, :2])
+                                  - encounter.combined_radius[row]), 3),
+             'bound': round(float(result.neighbour_bounds[row]), 4),
+             'kind': result.bound_kinds[row], 'feasible': bool(result.feasible)}
+            for row in order]
 
 
 def arrival_times(times, positions, goals, tolerance):
@@ -170,8 +285,9 @@ def run_row(label, planner, times, positions, starts, goals, radii, max_speeds, 
 
 
 def prvo_run(label, scenario, method):
-    """Run SCENARIO on the in-process engine with METHOD; return its row."""
-    _, steps = run_team(scenario, method)
+    """Run SCENARIO on the in-process engine with METHOD; return its row, with its stalls."""
+    monitor = StallMonitor(scenario)
+    _, steps = run_team(scenario, method, observer=monitor)
     robots = scenario.robots
     times = np.array([step.time for step in steps])
     states = np.array([step.states for step in steps])
@@ -185,6 +301,8 @@ def prvo_run(label, scenario, method):
     row['contacts'] = contact_count(states[:, :, :2], radii)
     row['infeasible_fraction'] = round(float((moving & ~feasible).sum() / max(moving.sum(), 1)),
                                        4)
+    row['stalls'] = len(monitor.stalls)
+    row['stall_reports'] = monitor.stalls
     return row
 
 
@@ -272,7 +390,7 @@ COLUMNS = (('run', 'run'), ('planner', 'planner'), ('arrived', 'arrived'),
            ('makespan_s', 'makespan s'), ('makespan_ratio', 'makespan / straight'),
            ('mean_time_ratio', 'mean time / straight'), ('path_ratio', 'path / straight'),
            ('min_separation_m', 'min separation m'), ('contacts', 'contacts'),
-           ('infeasible_fraction', 'infeasible steps'))
+           ('infeasible_fraction', 'infeasible steps'), ('stalls', 'stalls'))
 
 
 def build_parser():
@@ -287,11 +405,20 @@ def build_parser():
                              '(default: 1)')
     parser.add_argument('--teams', type=int, default=DEFAULT_TEAMS,
                         help=f'random teams of {TEAM_SIZE} robots (default: {DEFAULT_TEAMS})')
+    parser.add_argument('--sweep', type=int, default=0,
+                        help=f'also the first SWEEP random teams of {SWEEP_SIZES[0]}-'
+                             f'{SWEEP_SIZES[1]} robots of the sweep (default: 0)')
     parser.add_argument('--method', default='prvo', choices=('prvo', 'rvo', 'inflate'),
                         help='planner variant of the circles and teams (default: prvo)')
     parser.add_argument('--eta', type=float, default=None,
                         help="collision-avoidance probability of the circles and teams, in "
-                             "(0, 1) (default: the scenarios' 0.8)")
+                             "(0, 1) (default: the planner's)")
+    parser.add_argument('--certificate', default=None, choices=CERTIFICATES,
+                        help="bound the circles' and teams' planners meet eta by (default: the "
+                             "planner's)")
+    parser.add_argument('--risk', default=None, choices=RISKS,
+                        help="risk allocation of the circles and teams (default: the "
+                             "planner's)")
     parser.add_argument('--no-fallback-circle', action='store_true',
                         help='skip the noise-free 20-robot circle with --method rvo')
     parser.add_argument('--no-peers', action='store_true',
@@ -318,15 +445,33 @@ def planned_runs(options):
             runs.append((label, document, options.method))
     runs += [(f'team{index} N={TEAM_SIZE}', random_team_document(index), options.method)
              for index in range(options.teams)]
-    if options.eta is not None:
-        for index, (label, document, method) in enumerate(runs):
-            document['planner'] = {**document.get('planner', {}), 'eta': options.eta}
-            runs[index] = (f'{label} eta {options.eta:g}', document, method)
+    for index in range(options.sweep):
+        document = sweep_team_document(index)
+        runs.append((f'sweep{index} N={len(document["robots"])}', document, options.method))
+    chosen = {name: getattr(options, name) for name in ('eta', 'certificate', 'risk')
+              if getattr(options, name) is not None}
+    for index, (label, document, method) in enumerate(runs):
+        # The circles' documents hold circle8's eta: the planner's defaults replace it.
+        document['planner'] = {**document.get('planner', {}), **PLANNER_DEFAULTS, **chosen}
+        runs[index] = (' '.join([label, *(f'{name} {value:g}' if name == 'eta'
+                                          else str(value) for name, value in chosen.items())]),
+                       document, method)
     if not options.no_fallback_circle:
         count, radius = FALLBACK_CIRCLE
         runs.append((f'circle{count} r={radius:g} noise-free',
                      crowd_circle_document(count, radius, noise_std=0.0), 'rvo'))
     return runs
+
+
+def stall_text(stall):
+    """Return one line describing a StallMonitor record."""
+    binding = ', '.join(f"{item['neighbour']} gap {item['gap_m']:.2f} m bound {item['bound']:.3f}"
+                        f" ({item['kind']})" for item in stall['binding']) or 'none'
+    return (f"{stall['robot']} at t = {stall['time_s']:.1f} s at "
+            f"({stall['position'][0]:.2f}, {stall['position'][1]:.2f}), "
+            f"{stall['distance_to_goal_m']:.2f} m from its goal, gained {stall['gained_m']:.2f} m "
+            f"in {STALL_WINDOW:g} s, {stall['command_reversals']} command reversals, binding: "
+            f'{binding}')
 
 
 def main(argv=None):
@@ -341,9 +486,11 @@ def main(argv=None):
         print(f'bench_crowds: error: --seeds: {options.seeds} is not a count (at least 1)',
               file=sys.stderr)
         return 2
-    if options.teams < 0:
-        print(f'bench_crowds: error: --teams: {options.teams} is negative', file=sys.stderr)
-        return 2
+    for name in ('teams', 'sweep'):
+        if getattr(options, name) < 0:
+            print(f'bench_crowds: error: --{name}: {getattr(options, name)} is negative',
+                  file=sys.stderr)
+            return 2
     if options.eta is not None and not 0.0 < options.eta < 1.0:
         print(f'bench_crowds: error: --eta: {options.eta} is not a probability in (0, 1)',
               file=sys.stderr)
@@ -354,7 +501,9 @@ def main(argv=None):
             scenario = write_scenario(document, options.out / f'{document["name"]}.yaml')
             rows.append(prvo_run(label, scenario, method))
             print(f'{label} ({method}): {rows[-1]["arrived"]}/{rows[-1]["robots"]} arrived, '
-                  f'{rows[-1]["contacts"]} contacts', flush=True)
+                  f'{rows[-1]["contacts"]} contacts, {rows[-1]["stalls"]} stalls', flush=True)
+            for stall in rows[-1]['stall_reports']:
+                print(f'  stall: {stall_text(stall)}', flush=True)
         for peer in () if options.no_peers else PEERS:
             for count in options.circles:
                 row = peer_run(peer, count, circle_radius_of(count))

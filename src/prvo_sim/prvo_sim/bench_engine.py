@@ -41,8 +41,11 @@ PEER_SPEED = 1.0  # m/s, the circle's max speed
 PEER_APPROACH_DISTANCE = 1.0  # m: the peer's preferred speed slows linearly over the last metre
 
 
-def run_team(scenario, method='prvo'):
-    """Run SCENARIO on the in-process engine to its end (planner METHOD); return (row, steps)."""
+def run_team(scenario, method='prvo', observer=None):
+    """Run SCENARIO on the in-process engine to its end (planner METHOD); return (row, steps).
+
+    OBSERVER, if given, is called as observer(team, step) after every step.
+    """
     values = [planner_values(robot, scenario, method, None) for robot in scenario.robots]
     team = InProcessTeam(scenario, values)
     goals = team.world.goals
@@ -51,6 +54,8 @@ def run_team(scenario, method='prvo'):
     while not team.finished:
         step = team.do_step()
         steps.append(step)
+        if observer is not None:
+            observer(team, step)
         arrived = np.linalg.norm(step.states[:, :2] - goals, axis=1) <= scenario.goal_tolerance
         settled_since = settled(arrived, step.time, settled_since)
         if settled_since is not None and step.time - settled_since >= SETTLE_TIME:

@@ -41,6 +41,7 @@ NOISE_STD = 0.05
 ROBOT_RADIUS = 0.3
 MAX_SPEED = 1.0
 ETA = 0.8
+CERTIFICATE = 'cantelli'
 CIRCLE8_RADIUS = 4.0
 # Arc between neighbours on the start circle beyond which it grows: 16 robots get 6 m.
 MIN_ARC_SPACING = 2.35
@@ -87,7 +88,7 @@ def circle_document(team_size, duration=None, radius=None):
         'seed': SEED, 'dt': DT, 'duration': float(duration), 'goal_tolerance': GOAL_TOLERANCE,
         'noise': {'position_std': NOISE_STD, 'velocity_std': NOISE_STD,
                   'actuation_std': NOISE_STD},
-        'planner': {'eta': ETA},
+        'planner': {'eta': ETA, 'certificate': CERTIFICATE},
         'robots': robots,
     }
 

@@ -1,9 +1,10 @@
 """Whether the planners' beliefs are as uncertain as they claim, against the simulator's truth.
 
-`python -m prvo_sim.calibration SCENARIO [--seeds 7 8 ...] [--method prvo] [--json PATH]`
-runs SCENARIO on the in-process engine. At every plan it compares each belief a planner holds,
-its own and each neighbour's, with the ground truth of that stamp: the normalised estimation
-error squared `e' P^-1 e` of the position and of the velocity. Each has 2 degrees of freedom:
+`python -m prvo_sim.calibration SCENARIO [--seeds 7 8 ...] [--method prvo] [--eta ETA]
+[--certificate cantelli|certified] [--json PATH]` runs SCENARIO on the in-process engine. At
+every plan it compares each belief a planner holds, its own and each neighbour's, with the
+ground truth of that stamp: the normalised estimation error squared `e' P^-1 e` of the position
+and of the velocity. Each has 2 degrees of freedom:
 when the covariances are right its mean is 2 and 5% of the values exceed 5.99 (the 95% ellipse).
 A larger mean is an overconfident tracker, and the chance constraint's probability is stated
 over beliefs that understate the error. Rows: own beliefs, planned neighbours, scripted
@@ -17,6 +18,7 @@ import sys
 
 import numpy as np
 
+from prvo_planner.core.config import CERTIFICATES
 from prvo_sim.engine import InProcessTeam
 from prvo_sim.runner.session import planner_values
 from prvo_sim.scenario import ScenarioError, find_scenario, load_scenario
@@ -33,10 +35,15 @@ def squared_errors(belief, truth):
                  for part in (slice(0, 2), slice(2, 4)))
 
 
-def run_seed(scenario, method):
-    """Run SCENARIO until every planned robot has arrived; return {kind: [(pos, vel), ...]}."""
+def run_seed(scenario, method, eta=None, certificate=None):
+    """Run SCENARIO until every planned robot has arrived; return {kind: [(pos, vel), ...]}.
+
+    ETA and CERTIFICATE, if given, replace every planner's.
+    """
+    chosen = {} if certificate is None else {'certificate': certificate}
     values = [None if robot.scripted is not None
-              else planner_values(robot, scenario, method, None) for robot in scenario.robots]
+              else {**planner_values(robot, scenario, method, eta), **chosen}
+              for robot in scenario.robots]
     team = InProcessTeam(scenario, values)
     index_of = {name: index for index, name in enumerate(team.world.names)}
     scripted = {robot.name for robot in scenario.robots if robot.scripted is not None}
@@ -75,6 +82,11 @@ def build_parser():
                         help='noise seeds, one run each (default: 7)')
     parser.add_argument('--method', default='prvo', choices=('prvo', 'rvo', 'inflate', 'mc'),
                         help='planner model (default: prvo)')
+    parser.add_argument('--eta', type=float, default=None,
+                        help="every planner's eta, in (0, 1) (default: the scenario's)")
+    parser.add_argument('--certificate', choices=CERTIFICATES, default=None,
+                        help="every planner's bound (default: the scenario's, else the "
+                             "planner's)")
     parser.add_argument('--json', type=pathlib.Path, help='also write the rows to this file')
     return parser
 
@@ -82,11 +94,16 @@ def build_parser():
 def main(argv=None):
     """Print the calibration table of a scenario; exit 2 on a bad scenario."""
     options = build_parser().parse_args(argv)
+    if options.eta is not None and not 0.0 < options.eta < 1.0:
+        print(f'calibration: --eta: {options.eta} is not a probability in (0, 1)',
+              file=sys.stderr)
+        return 2
     errors = {kind: [] for kind in KINDS}
     try:
         path = find_scenario(options.scenario)
         for seed in options.seeds:
-            for kind, values in run_seed(load_scenario(path, seed), options.method).items():
+            for kind, values in run_seed(load_scenario(path, seed), options.method,
+                                         options.eta, options.certificate).items():
                 errors[kind] += values
     except ScenarioError as error:
         print(f'calibration: {error}', file=sys.stderr)

@@ -19,10 +19,13 @@ import numpy as np
 from rclpy.serialization import deserialize_message, serialize_message
 
 from prvo_msgs_util import (
+    MAP,
     WORLD_FRAME,
     AnnouncementChanges,
     announcement_stamp,
     body_to_world,
+    make_occupancy_grid,
+    occupancy_grid_to_parts,
     radius_of_footprint,
     serialized_odometry_to_measurement,
     share_of,
@@ -36,6 +39,7 @@ from prvo_planner.agent import (
     PlannerAgent,
 )
 from prvo_planner.core import plan_velocities
+from prvo_planner.maps import GridMap
 from prvo_planner.parameters import planner_config_from
 from prvo_planner.preferred import UpstreamCommand
 from prvo_planner.tracks import TrackTable
@@ -102,10 +106,14 @@ class InProcessTeam:
         robot, which has no planner (the world moves it).
     seed : int or None
         Noise seed; None uses the scenario's.
+    grid_map : prvo_planner.maps.GridMap or None
+        The map on /map, given to the planners that listen there (`map_topic`) as a planner
+        node receives it (through the message); None: the world's own, as the simulator
+        publishes it (no map for a world without walls, obstacles or map file).
 
     """
 
-    def __init__(self, scenario, planner_values, seed=None):
+    def __init__(self, scenario, planner_values, seed=None, grid_map=None):
         if len(planner_values) != len(scenario.robots):
             raise ValueError(f'planner_values has {len(planner_values)} entries for '
                              f'{len(scenario.robots)} robots')
@@ -128,6 +136,10 @@ class InProcessTeam:
             self.agents.append(agent_of(robot.name, values, table))
         self._planned = [(index, agent) for index, agent in enumerate(self.agents)
                          if agent is not None]
+        if grid_map is None:
+            grid_map = self.world.static_world.grid
+        if grid_map is not None:
+            self._give_map(grid_map, planner_values)
         # The Nav2 stand-ins of the robots driven upstream (their planners filter), by index.
         self._upstreams = {index: upstream_of(robot, scenario)
                            for index, robot in enumerate(scenario.robots)
@@ -146,6 +158,15 @@ class InProcessTeam:
             for index, robot in enumerate(scenario.robots) if robot.scripted is not None}
         self._announcement_changes = [AnnouncementChanges(name) for name in self.world.names]
         self._announce()
+
+    def _give_map(self, grid_map, planner_values):
+        """Give GRID_MAP to every agent whose node listens on /map, through the message."""
+        received = _received(make_occupancy_grid(
+            0.0, grid_map.cells, grid_map.resolution, grid_map.origin, WORLD_FRAME))
+        grid = GridMap(*occupancy_grid_to_parts(received, expected_frame=WORLD_FRAME))
+        for index, agent in self._planned:
+            if planner_values[index]['map_topic'] == MAP:
+                agent.set_map(grid)
 
     def _announce(self):
         """Give every agent what each other robot announces now, where it changed.
@@ -217,7 +238,12 @@ class InProcessTeam:
         results = [None] * len(requests)
         if moving:
             problems = [requests[index].problem for index in moving]
-            solved = plan_velocities(*(list(column) for column in zip(*problems, strict=True)))
+            columns = [list(column) for column in zip(*problems, strict=True)]
+            obstacles = [requests[index].obstacles for index in moving]
+            # As each agent plans alone: with the obstacles of its map near it, if it has one.
+            solved = (plan_velocities(*columns, obstacles=obstacles)
+                      if any(near is not None for near in obstacles)
+                      else plan_velocities(*columns))
             for index, result in zip(moving, solved, strict=True):
                 results[index] = result
         yaws = world.yaws_at(world.step_count)

@@ -1,12 +1,15 @@
 """Reproduce the PRVO paper's section 6 (and a little more); write a Markdown report.
 
     experiments --out results/paper [--seeds 10] [--quick]
+    experiments --out DIR --methods-only --variants certificates   # the bound's table alone
 
 Items 1, 3 and 4 (Cantelli validation, the ego-noise ablation, time-scaling intervals against
 radius enlargement) use the planning core directly. Item 2 (deviation against k) and item 5
 (methods over the shipped scenarios, one run per scenario, method and seed) run the team loop
 on the in-process engine: the same world and planners as the ROS lockstep run, without
-processes. Item 5 also measures the exact-against-Taylor error of the ray solver.
+processes. Item 5 also measures the exact-against-Taylor error of the ray solver. Its rows are
+the methods (`--variants methods`) or the bounds a velocity meets eta by (`--variants
+certificates`: Cantelli's at 0.8, the certified Gaussian bound at 0.8, 0.9, 0.95 and 0.99).
 """
 
 import argparse
@@ -19,6 +22,7 @@ import sys
 import time
 
 import numpy as np
+import yaml
 
 from prvo_planner import encounters
 from prvo_planner.agent import preferred_velocity
@@ -44,11 +48,18 @@ VALIDATION_KS = (1.0, 1.5)
 DEVIATION_KS = (0.5, 1.0, 1.5, 2.0, 3.0)
 CONFIDENCE_LEVELS = (0.68, 0.80)
 SCENARIOS = ('circle8', 'crossing4', 'headon2', 'parked_large', 'mixed12')
-# (label, runner method, eta); eta None leaves the scenario's (rvo ignores it).
-METHOD_VARIANTS = (('prvo eta 0.5', 'prvo', 0.5), ('prvo eta 0.8', 'prvo', 0.8),
-                   ('prvo eta 0.9', 'prvo', 0.9), ('rvo', 'rvo', None),
-                   ('inflate eta 0.8', 'inflate', 0.8),
-                   ('prvo-no-ego eta 0.8', 'prvo-no-ego', 0.8))
+# (label, runner method, eta, certificate); eta None leaves the scenario's (rvo ignores it),
+# certificate None the planner's default (only prvo certifies).
+METHOD_VARIANTS = (('prvo eta 0.5', 'prvo', 0.5, 'cantelli'),
+                   ('prvo eta 0.8', 'prvo', 0.8, 'cantelli'),
+                   ('prvo eta 0.9', 'prvo', 0.9, 'cantelli'), ('rvo', 'rvo', None, None),
+                   ('inflate eta 0.8', 'inflate', 0.8, None),
+                   ('prvo-no-ego eta 0.8', 'prvo-no-ego', 0.8, 'cantelli'))
+# The choice of the default: Cantelli's bound at the old default against the certified bound.
+CERTIFICATE_VARIANTS = (('prvo cantelli eta 0.8', 'prvo', 0.8, 'cantelli'),
+                        *((f'prvo certified eta {eta:g}', 'prvo', eta, 'certified')
+                          for eta in (0.8, 0.9, 0.95, 0.99)))
+VARIANT_SETS = {'methods': METHOD_VARIANTS, 'certificates': CERTIFICATE_VARIANTS}
 # The ablation also under actuation-dominated noise (position, velocity, actuation std).
 ACTUATION_DOMINATED = (0.02, 0.02, 0.2)
 QUICK_SCENARIOS = ('headon2',)
@@ -311,13 +322,30 @@ def taylor_against_exact(count, seed):
             'taylor_ms': float(np.median(times['taylor']))}
 
 
+def scenario_with_certificate(scenario_path, certificate, out_dir):
+    """Return the path of a copy of SCENARIO_PATH whose planners certify with CERTIFICATE.
+
+    The copy, in OUT_DIR, keeps the file's name; the runner's command line has no option for
+    the bound, a scenario's planner block does.
+    """
+    document = yaml.safe_load(pathlib.Path(scenario_path).read_text())
+    document['planner'] = {**(document.get('planner') or {}), 'certificate': certificate}
+    path = out_dir / f'{scenario_path.stem}.yaml'
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(yaml.safe_dump(document, sort_keys=False, default_flow_style=None))
+    return path
+
+
 def run_method_table(out_dir, scenarios, variants, seeds, timeout):
     """Run the scenario runner for every scenario and variant; return the table rows."""
     rows = []
     for scenario_name in scenarios:
-        scenario_path = find_scenario(scenario_name)
-        for label, method, eta in variants:
+        for label, method, eta, certificate in variants:
             run_dir = out_dir / 'runs' / scenario_name / label.replace(' ', '_')
+            scenario_path = find_scenario(scenario_name)
+            if certificate is not None:
+                scenario_path = scenario_with_certificate(scenario_path, certificate,
+                                                          out_dir / 'scenarios' / certificate)
             command = [sys.executable, '-m', 'prvo_sim.run_scenario', str(scenario_path),
                        '--out', str(run_dir), '--method', method, '--seeds', str(seeds),
                        '--engine', 'inprocess', '--quiet', '--timeout', str(timeout),
@@ -354,6 +382,34 @@ def _stat(summary, key, digits=2):
 
 def _intervals_text(intervals):
     return ' ∪ '.join(f'[{low:.2f}, {high:.2f}]' for low, high in intervals) or 'empty'
+
+
+def methods_lines(results):
+    """Return the Markdown lines of item 5's table."""
+    if not results['methods']:
+        return ['Skipped (`--skip-runs`).']
+    lines = [f"{results['seeds']} seed(s) per cell, through the scenario runner's "
+             'in-process engine (the trajectories of a ROS lockstep run; mean ± std over '
+             'seeds):', '',
+             '| scenario | method | runs (failed) | collisions (total) | success rate | '
+             'mean time to goal [s] | min separation [m] |', '|---|---|---|---|---|---|---|']
+    for row in results['methods']:
+        summary = row['summary']
+        lines.append(f"| {row['scenario']} | {row['method']} | {row['runs']} "
+                     f"({row['failed']}) | {_stat(summary, 'collisions')} "
+                     f"({row['collisions_total']}) | {_stat(summary, 'success_rate')} | "
+                     f"{_stat(summary, 'mean_time_to_goal', 1)} | "
+                     f"{_stat(summary, 'min_separation')} |")
+    return lines
+
+
+def write_methods_report(path, results):
+    """Write the Markdown report of the methods table alone (--methods-only)."""
+    lines = ['# PRVO: methods over the shipped scenarios', '',
+             f"Generated by `python -m prvo_sim.experiments --methods-only --variants "
+             f"{results['variants']}`; {results['wall_time']:.0f} s of wall time.", '',
+             *methods_lines(results), '']
+    path.write_text('\n'.join(lines))
 
 
 def write_report(path, results):
@@ -414,22 +470,7 @@ def write_report(path, results):
                      f"{_intervals_text(row['surrogate'])} | "
                      f"{_intervals_text(row['inflated'])} | "
                      f"{_intervals_text(row['surrogate_full'])} |")
-    lines += ['', '## 5. Methods over the shipped scenarios', '']
-    if results['methods']:
-        lines += [f"{results['seeds']} seed(s) per cell, through the scenario runner's "
-                  'in-process engine (the trajectories of a ROS lockstep run; mean ± std over '
-                  'seeds):', '',
-                  '| scenario | method | runs (failed) | collisions (total) | success rate | '
-                  'mean time to goal [s] | min separation [m] |', '|---|---|---|---|---|---|---|']
-        for row in results['methods']:
-            summary = row['summary']
-            lines.append(f"| {row['scenario']} | {row['method']} | {row['runs']} "
-                         f"({row['failed']}) | {_stat(summary, 'collisions')} "
-                         f"({row['collisions_total']}) | {_stat(summary, 'success_rate')} | "
-                         f"{_stat(summary, 'mean_time_to_goal', 1)} | "
-                         f"{_stat(summary, 'min_separation')} |")
-    else:
-        lines.append('Skipped (`--skip-runs`).')
+    lines += ['', '## 5. Methods over the shipped scenarios', '', *methods_lines(results)]
     taylor = results['taylor']
     lines += ['', '### Exact against Taylor ray solver', '',
               f"{taylor['encounters']} random encounters (1-3 noisy neighbours, k in {{1, 2}}): "
@@ -441,6 +482,16 @@ def write_report(path, results):
     path.write_text('\n'.join(lines))
 
 
+def methods_table(options, out_dir):
+    """Run item 5's table as OPTIONS ask; return {'seeds', 'variants', 'methods': rows}."""
+    seeds = 1 if options.quick else options.seeds
+    variants = QUICK_VARIANTS if options.quick else VARIANT_SETS[options.variants]
+    return {'seeds': seeds, 'variants': options.variants,
+            'methods': run_method_table(out_dir, QUICK_SCENARIOS if options.quick
+                                        else options.scenarios, variants, seeds,
+                                        timeout=300.0)}
+
+
 def build_parser():
     """Return the command-line parser of the experiments."""
     parser = argparse.ArgumentParser(prog='experiments', description=__doc__.split('\n')[0])
@@ -450,6 +501,14 @@ def build_parser():
     parser.add_argument('--quick', action='store_true',
                         help='smoke test: 1 seed, headon2 with prvo and rvo, fewer samples')
     parser.add_argument('--skip-runs', action='store_true', help='leave out the ROS runs')
+    parser.add_argument('--variants', choices=tuple(VARIANT_SETS), default='methods',
+                        help='rows of the methods table: the methods (default) or the '
+                             "certificates (Cantelli's bound at eta 0.8, the certified bound "
+                             'at 0.8, 0.9, 0.95 and 0.99)')
+    parser.add_argument('--scenarios', nargs='+', choices=SCENARIOS, default=list(SCENARIOS),
+                        help='shipped scenarios of the methods table (default: all)')
+    parser.add_argument('--methods-only', action='store_true',
+                        help='run only the methods table (item 5, without the Taylor check)')
     parser.add_argument('--seed', type=int, default=5, help='seed of the ROS-free parts')
     return parser
 
@@ -461,9 +520,20 @@ def main(argv=None):
         print(f'experiments: error: --seeds: {options.seeds} is not a positive count',
               file=sys.stderr)
         return 2
+    if options.methods_only and options.skip_runs:
+        print('experiments: error: --methods-only and --skip-runs leave nothing to do',
+              file=sys.stderr)
+        return 2
     started = time.monotonic()
     out_dir = options.out
     out_dir.mkdir(parents=True, exist_ok=True)
+    if options.methods_only:
+        results = methods_table(options, out_dir)
+        results['wall_time'] = time.monotonic() - started
+        (out_dir / 'methods.json').write_text(json.dumps(results, indent=1) + '\n')
+        write_methods_report(out_dir / 'report.md', results)
+        print(f"report: {out_dir / 'report.md'} ({results['wall_time']:.0f} s)")
+        return 0
     scenario = load_scenario(find_scenario('paper3'))
     samples = 4000 if options.quick else 20000
     rng = np.random.default_rng(options.seed)
@@ -498,10 +568,8 @@ def main(argv=None):
     results['intervals'] = time_scaling_table(results['table_noise'])
 
     print('5. Methods over the scenarios, and exact against Taylor', flush=True)
-    results['seeds'] = 1 if options.quick else options.seeds
-    results['methods'] = [] if options.skip_runs else run_method_table(
-        out_dir, QUICK_SCENARIOS if options.quick else SCENARIOS,
-        QUICK_VARIANTS if options.quick else METHOD_VARIANTS, results['seeds'], timeout=300.0)
+    results.update({} if options.skip_runs else methods_table(options, out_dir))
+    results.setdefault('methods', [])
     results['taylor'] = taylor_against_exact(100 if options.quick else 1000, options.seed)
 
     results['wall_time'] = time.monotonic() - started

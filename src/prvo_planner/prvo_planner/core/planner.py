@@ -432,7 +432,7 @@ def _solve_sorted(plans):
     """Plan robots of one structure, sorted by shape; return their results in order."""
     search = _ray_search(plans)
     choice = (_certified_choice(search) if _certifies(plans[0])
-              else _choose(search, search.rows.margins, False))
+              else _choose(search, search.rows.margins))
     return [_result(plan, choice.velocities[robot], int(choice.candidates_feasible[robot]),
                     *(values[search.pair_starts[robot]:search.pair_starts[robot]
                              + search.pair_counts[robot]]
@@ -501,8 +501,12 @@ def _ray_search(plans):
                    pair_horizons=pair_horizons)
 
 
-def _choose(search, margins, certify):
-    """Choose every robot's velocity with MARGINS (P, C) per link; CERTIFY: certify it too."""
+def _choose(search, margins, required=None, certify=None):
+    """Choose every robot's velocity with MARGINS (P, C) per link.
+
+    With REQUIRED, each pair's probability (P,), the robots marked in CERTIFY (R,) have their
+    choices certified against it (:func:`_certified_bounds`); the others get Cantelli's bounds.
+    """
     plans, directions, ray_starts = search.plans, search.directions, search.ray_starts
     first = plans[0]
     rows = replace(search.rows, margins=margins)
@@ -533,40 +537,47 @@ def _choose(search, margins, certify):
                     * ray_counts[pair_robot])
     achieved = _achieved(plans, search.means, search.variances, chosen_links, pair_robot,
                          chosen_t, velocities, search.pair_horizons)
-    bounds, certified = (_certified_bounds(search, velocities, achieved) if certify
+    bounds, certified = (_certified_bounds(search, velocities, achieved, required, certify)
+                         if required is not None
                          else (eta_from_k(np.maximum(achieved, 0.0)),
                                np.zeros(achieved.shape, dtype=bool)))
     return _Choice(velocities=velocities, candidates_feasible=candidates_feasible,
                    achieved=achieved, bounds=bounds, certified=certified)
 
 
-def _certified_bounds(search, velocities, achieved):
+def _certified_bounds(search, velocities, achieved, required, certify):
     """
     Per neighbour, a lower bound on the probability of its accepted condition, and its kind.
 
-    At each robot's velocity the certified bounds on ``P(f >= 0)`` and (where the gate counts)
-    ``P(g >= 0)`` are computed for all its neighbours in one batched call each; Cantelli's
-    bound of the ACHIEVED margin covers the horizon pair (and is the floor). The condition
-    holds if any alternative does, so the largest is a bound; it is certified where it is a
-    Gaussian one. The calls are per robot: numpy's vectorised transcendental functions round a
-    value by its place in the batch, and a robot's plan must not depend on its companions.
+    Cantelli's bound of the ACHIEVED margin covers the horizon pair and is the floor. Where it
+    falls short of the REQUIRED probability, for the robots marked in CERTIFY, the certified
+    bound on ``P(f >= 0)`` at the robot's velocity is computed, and where that too falls short
+    and the gate counts, the one on ``P(g >= 0)``: a neighbour Cantelli already certifies costs
+    nothing (most of a crowd's are far). The condition holds if any alternative does, so the
+    largest is a bound; it is certified where it is a Gaussian one. The calls are per robot:
+    numpy's vectorised transcendental functions round a value by its place in the batch, and a
+    robot's plan must not depend on its companions.
     """
-    gaussian = np.empty(achieved.shape)
-    for robot, plan in enumerate(search.plans):
+    cantelli = eta_from_k(np.maximum(achieved, 0.0))
+    gaussian = np.zeros(achieved.shape)
+    for robot in np.flatnonzero(certify):
+        plan = search.plans[robot]
         pairs = slice(search.pair_starts[robot],
                       search.pair_starts[robot] + search.pair_counts[robot])
+        short = cantelli[pairs] < required[pairs]
+        if not short.any():
+            continue
         encounter = plan.encounter
-        mean = encounter.origin.copy()
-        mean[:, 2:] += encounter.lead[:, None] * velocities[robot]
-        # A view: the receding bounds are written into GAUSSIAN.
-        robot_bounds = gaussian[pairs]
-        robot_bounds[...] = rvo_certificate(mean, plan.cov, plan.radius).probability
-        enabled = plan.layout.receding_enabled
-        if enabled.any():
-            robot_bounds[enabled] = np.maximum(
-                robot_bounds[enabled],
-                receding_certificate(mean[enabled], plan.cov[enabled]).probability)
-    cantelli = eta_from_k(np.maximum(achieved, 0.0))
+        mean = encounter.origin[short]
+        mean[:, 2:] += encounter.lead[short, None] * velocities[robot]
+        cov = plan.cov[short]
+        bounds = rvo_certificate(mean, cov, plan.radius[short]).probability
+        gate = plan.layout.receding_enabled[short] & (bounds < required[pairs][short])
+        if gate.any():
+            bounds[gate] = np.maximum(bounds[gate],
+                                      receding_certificate(mean[gate], cov[gate]).probability)
+        # A view: the bounds are written into GAUSSIAN.
+        gaussian[pairs][short] = bounds
     return np.maximum(gaussian, cantelli), gaussian > cantelli
 
 
@@ -586,18 +597,20 @@ def _certified_choice(search):
     columns = 1 + plans[0].layout.has_receding
     margins = cantelli.copy()
     margins[:, :columns] = search_margin(required)[link_pair, None]
-    choice = _choose(search, margins, True)
+    choice = _choose(search, margins, required, np.ones(len(plans), dtype=bool))
     retry = (choice.candidates_feasible > 0) & _any_per_robot(search, choice.bounds < required)
     if not retry.any():
         return choice
     short = (choice.bounds < required) & retry[pair_robot]
     margins = np.where(short[link_pair, None], cantelli, margins)
-    choice = _merged(choice, _choose(search, margins, True), retry, retry[pair_robot])
+    choice = _merged(choice, _choose(search, margins, required, retry), retry,
+                     retry[pair_robot])
     retry &= ((choice.candidates_feasible == 0)
               | _any_per_robot(search, choice.bounds < required))
     if not retry.any():
         return choice
-    return _merged(choice, _choose(search, cantelli, True), retry, retry[pair_robot])
+    return _merged(choice, _choose(search, cantelli, required, retry), retry,
+                   retry[pair_robot])
 
 
 def _any_per_robot(search, flags):

@@ -14,6 +14,7 @@ import time
 
 import numpy as np
 
+from prvo_planner.parameters import DEFAULTS as PLANNER_DEFAULTS
 from prvo_sim.runner.outputs import Ending, RunResult, write_outputs
 from prvo_sim.runner.processes import (
     INTERRUPTS,
@@ -29,7 +30,7 @@ METHODS = ('prvo', 'rvo', 'inflate', 'prvo-no-ego', 'none')
 MODEL_OF_METHOD = {'prvo': 'prvo', 'rvo': 'rvo', 'inflate': 'inflate', 'prvo-no-ego': 'prvo',
                    'none': 'none'}
 ENGINES = ('ros', 'inprocess')
-DEFAULT_ETA = 0.8
+DEFAULT_ETA = PLANNER_DEFAULTS['eta']
 SIM_NODE = 'prvo_sim'
 PLANNER_NODE = 'planner'
 STAND_IN_NODE = 'nav2_stand_in'
@@ -120,6 +121,12 @@ def runner_planner_values(robot, scenario, method, eta, mode='lockstep'):
     for key, value in robot.planner.items():
         if key not in RUNNER_PARAMETERS:
             values[key] = value
+    from prvo_planner.parameters import DEFAULTS
+
+    if scenario.static_world.grid is not None and (
+            values.get('map_topic', DEFAULTS['map_topic']) == DEFAULTS['map_topic']):
+        # The planner's first plan is on the map the simulator publishes, as in-process.
+        values.setdefault('wait_for_map', True)
     return values
 
 

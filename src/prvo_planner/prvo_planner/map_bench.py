@@ -1,0 +1,109 @@
+"""
+Benchmark of the map pieces: a grid's obstacles, the index near a robot, routes.
+
+Usage: ``python -m prvo_planner.map_bench [--json PATH] [--sizes 20 40 100]
+[--resolution 0.05]``. Each size is a seeded office of that many metres square: 4 m rooms
+joined by 1 m doors, 0.1 m walls, boxes of furniture. Times are process CPU time (insensitive to
+other processes sharing the cores), the best of three: once per map (segments, index, route
+graph), once per goal (the shortest paths to it from every cell), per plan (the obstacles
+within 3 m; a route from a new position).
+"""
+
+import argparse
+import json
+import sys
+import time
+
+import numpy as np
+
+from prvo_planner.maps import GridMap, ObstacleIndex, grid_obstacles, occupied_cells
+from prvo_planner.route import RouteMap
+
+ROOM = 4.0
+DOOR = 1.0
+WALL = 0.1
+QUERY_DISTANCE = 3.0
+CLEARANCE = 0.3
+QUERIES = 200
+
+
+def office(size, resolution, seed=0):
+    """Return the seeded office GridMap SIZE [m] square, cells of RESOLUTION [m]."""
+    rng = np.random.default_rng(seed)
+    count = int(round(size / resolution))
+    cells = np.zeros((count, count), dtype=np.int8)
+    room, door = int(round(ROOM / resolution)), int(round(DOOR / resolution))
+    wall = max(1, int(round(WALL / resolution)))
+    for line in range(room, count, room):
+        cells[line:line + wall, :] = 100
+        cells[:, line:line + wall] = 100
+        for start in range(0, count, room):
+            opening = start + int(rng.integers(wall, room - door - wall))
+            cells[line:line + wall, opening:opening + door] = 0
+            cells[opening:opening + door, line:line + wall] = 0
+    for _ in range(int(size * size / 8.0)):
+        row, column = rng.integers(0, count - 10, size=2)
+        height, width = rng.integers(2, 10, size=2)
+        cells[row:row + height, column:column + width] = 100
+    return GridMap(cells, resolution, [0.0, 0.0])
+
+
+def cpu_ms(work, repeats=3):
+    """Return (best CPU time [ms] of REPEATS calls of WORK, its last value)."""
+    best, value = np.inf, None
+    for _ in range(repeats):
+        started = time.process_time()
+        value = work()
+        best = min(best, time.process_time() - started)
+    return best * 1e3, value
+
+
+def bench_map(size, resolution):
+    """Return the row of one office map."""
+    grid = office(size, resolution)
+    segments_ms, obstacles = cpu_ms(lambda: grid_obstacles(grid))
+    index_ms, index = cpu_ms(lambda: ObstacleIndex(obstacles, QUERY_DISTANCE))
+    positions = np.random.default_rng(1).uniform(0.5, size - 0.5, size=(QUERIES, 2))
+    started = time.process_time()
+    found = [len(index.near(position, QUERY_DISTANCE)) for position in positions]
+    near_us = (time.process_time() - started) / QUERIES * 1e6
+    occupied = occupied_cells(grid)
+    route_map_ms, route_map = cpu_ms(
+        lambda: RouteMap(occupied, grid.resolution, grid.origin, CLEARANCE), repeats=1)
+    tree_ms, tree = cpu_ms(lambda: route_map.tree_to([size - 1.5, size - 1.5]), repeats=1)
+    started = time.process_time()
+    routes = [tree.route_from(position) for position in positions[:20]]
+    route_ms = (time.process_time() - started) / 20 * 1e3
+    return {'size_m': size, 'resolution_m': resolution, 'cells': int(grid.cells.size),
+            'segments': len(obstacles.segments), 'segments_ms': segments_ms,
+            'index_ms': index_ms, 'near_us': near_us, 'near_found': float(np.mean(found)),
+            'route_map_ms': route_map_ms, 'tree_ms': tree_ms, 'route_from_ms': route_ms,
+            'routes_found': sum(route is not None for route in routes)}
+
+
+def main(argv=None):
+    """Print the table (and write JSON if asked)."""
+    parser = argparse.ArgumentParser(description=__doc__.strip().splitlines()[0])
+    parser.add_argument('--sizes', type=float, nargs='+', default=[20.0, 40.0, 100.0])
+    parser.add_argument('--resolution', type=float, default=0.05)
+    parser.add_argument('--json', help='write the rows to this file')
+    arguments = parser.parse_args(argv)
+    print('| map | cells | segments | segments [ms] | index [ms] | near 3 m [us] (found) | '
+          'route graph [ms] | paths to a goal [ms] | route from [ms] |')
+    print('|---|---|---|---|---|---|---|---|---|')
+    rows = []
+    for size in arguments.sizes:
+        row = bench_map(size, arguments.resolution)
+        rows.append(row)
+        print(f"| {size:g} m at {arguments.resolution:g} m | {row['cells']} | "
+              f"{row['segments']} | {row['segments_ms']:.1f} | {row['index_ms']:.1f} | "
+              f"{row['near_us']:.0f} ({row['near_found']:.0f}) | {row['route_map_ms']:.0f} | "
+              f"{row['tree_ms']:.0f} | {row['route_from_ms']:.2f} |", flush=True)
+    if arguments.json:
+        with open(arguments.json, 'w') as output:
+            json.dump(rows, output, indent=2)
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())

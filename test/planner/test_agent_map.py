@@ -1,0 +1,245 @@
+"""The agent with a map: it goes round a wall, plans against what is near, holds if it must."""
+
+import dataclasses
+import inspect
+
+import numpy as np
+import pytest
+
+from prvo_planner import agent as agent_module
+from prvo_planner.agent import (
+    ROUTE_FOUND,
+    ROUTE_NONE,
+    ROUTE_UNREACHABLE,
+    AgentSettings,
+    PlannerAgent,
+    route_preferred_velocity,
+)
+from prvo_planner.core import PlannerConfig, plan_velocity
+from prvo_planner.maps import GridMap
+from prvo_planner.route import path_length
+
+SETTINGS = AgentSettings(radius=0.3, goal_tolerance=0.15, obstacle_distance=1.5,
+                         lookahead_distance=0.8)
+CONFIG = PlannerConfig(eta=0.8, max_speed=1.0, actuation_cov=0.0025 * np.eye(2))
+RESOLUTION = 0.1
+# Does the core take the map's obstacles yet? Until it does, the agent's calls are checked and
+# passed on without them.
+CORE_TAKES_OBSTACLES = 'obstacles' in inspect.signature(plan_velocity).parameters
+
+
+@dataclasses.dataclass(frozen=True)
+class Measurement:
+    """The fields of prvo_msgs_util.OdometryMeasurement the agent reads."""
+
+    stamp: float
+    position: np.ndarray
+    velocity: np.ndarray
+    covariance: np.ndarray
+    yaw: float = 0.0
+
+
+def walled_room():
+    """Return an 8 m x 6 m room split at y = 3 m by a wall open only at x > 6 m."""
+    cells = np.zeros((60, 80), dtype=np.int8)
+    cells[29:31, :60] = 100
+    cells[0, 70] = -1
+    return GridMap(cells, RESOLUTION, [0.0, 0.0])
+
+
+def in_obstacle(grid, position):
+    column, row = np.floor((position - grid.origin) / grid.resolution).astype(int)
+    height, width = grid.cells.shape
+    return not (0 <= row < height and 0 <= column < width) or grid.cells[row, column] != 0
+
+
+def distance_to_segment(point, a, b):
+    """Return the distance from POINT to the segment [A, B], computed by the test."""
+    ab = b - a
+    t = min(max(float((point - a) @ ab) / float(ab @ ab), 0.0), 1.0)
+    return float(np.linalg.norm(a + t * ab - point))
+
+
+@pytest.fixture
+def planned_obstacles(monkeypatch):
+    """Record what the agent gives the core: (ego position, obstacles) per plan."""
+    seen = []
+
+    def recording(*problem, obstacles=None):
+        if problem[3].model != 'rvo':
+            # Not the check whether anybody comes to a robot standing still.
+            seen.append((problem[0].position, obstacles))
+        if CORE_TAKES_OBSTACLES:
+            return plan_velocity(*problem, obstacles=obstacles)
+        return plan_velocity(*problem)
+
+    monkeypatch.setattr(agent_module, 'plan_velocity', recording)
+    return seen
+
+
+def drive(agent, start, steps, dt=0.1, t0=0.0):
+    """Move a noise-free robot by its commands from T0; return its positions, last command."""
+    position, velocity = np.array(start, dtype=float), np.zeros(2)
+    positions, command = [position], None
+    for step in range(steps):
+        agent.receive_own(Measurement(round(t0 + step * dt, 9), position, velocity,
+                                      1e-4 * np.eye(4)), 0.0)
+        command = agent.plan()
+        velocity = command.velocity
+        position = position + dt * velocity
+        positions.append(position)
+        if command.arrived:
+            break
+    return np.array(positions), command
+
+
+def stand(agent, position, steps, dt=0.1, t0=0.0):
+    """Measure the robot at POSITION, standing, STEPS times from T0; return the last command."""
+    for step in range(steps):
+        agent.receive_own(Measurement(round(t0 + step * dt, 9), np.array(position, dtype=float),
+                                      np.zeros(2), 1e-4 * np.eye(4)), 0.0)
+        command = agent.plan()
+    return command
+
+
+def test_a_goal_behind_a_wall_is_reached_by_the_way_around(planned_obstacles):
+    grid = walled_room()
+    goal = np.array([2.0, 4.5])
+    agent = PlannerAgent('self', CONFIG, SETTINGS, goal)
+    agent.set_map(grid)
+    positions, command = drive(agent, [2.0, 1.5], 400)
+    assert command.arrived and np.linalg.norm(positions[-1] - goal) <= SETTINGS.goal_tolerance
+    assert not any(in_obstacle(grid, position) for position in positions)
+    # Heading for carrots in sight, it keeps clear of the wall's end even before the planner
+    # plans against the wall.
+    wall_end = [np.array([6.0, 2.9]), np.array([6.0, 3.1])]
+    assert min(distance_to_segment(position, *wall_end) for position in positions) > 0.2
+    # It went round the wall's end at x = 6 m.
+    assert positions[:, 0].max() > 6.0
+    assert planned_obstacles
+    for position, obstacles in planned_obstacles:
+        for segment in () if obstacles is None else obstacles.segments:
+            assert distance_to_segment(position, *segment) <= SETTINGS.obstacle_distance
+    # Beside the wall the wall's faces count.
+    beside = [obstacles for position, obstacles in planned_obstacles if 1.8 < position[1] < 4.2]
+    assert beside and all(obstacles is not None and len(obstacles) > 0 for obstacles in beside)
+
+
+
+def test_without_a_map_the_robot_heads_straight_and_plans_without_obstacles(planned_obstacles):
+    agent = PlannerAgent('self', CONFIG, SETTINGS, np.array([2.0, 4.5]))
+    agent.receive_own(Measurement(0.0, np.array([2.0, 1.5]), np.zeros(2), 1e-4 * np.eye(4)), 0.0)
+    command = agent.plan()
+    assert command.route is None and command.route_status == ROUTE_NONE
+    assert planned_obstacles[-1][1] is None
+    np.testing.assert_allclose(command.velocity / np.linalg.norm(command.velocity), [0.0, 1.0],
+                               atol=0.05)
+
+
+def test_far_from_every_obstacle_the_plan_is_that_of_an_empty_plane(planned_obstacles):
+    for position in ([5.0, 5.0], [1.0, 5.0]):
+        agent = PlannerAgent('self', CONFIG, SETTINGS, np.array([6.0, 4.0]))
+        agent.set_map(GridMap(np.zeros((100, 100), dtype=np.int8), RESOLUTION, [0.0, 0.0]))
+        stand(agent, position, 1)
+    assert planned_obstacles[0][1] is None
+    assert len(planned_obstacles[1][1].segments) == 1
+
+
+def test_a_goal_no_way_reaches_is_reported_and_the_robot_holds(planned_obstacles):
+    grid = walled_room()
+    closed = np.array(grid.cells)
+    closed[29:31, :] = 100
+    agent = PlannerAgent('self', CONFIG, SETTINGS, np.array([2.0, 4.5]))
+    agent.set_map(GridMap(closed, RESOLUTION, grid.origin))
+    positions, command = drive(agent, [2.0, 1.5], 5)
+    assert command.route_status == ROUTE_UNREACHABLE and command.route is None
+    assert not command.arrived
+    np.testing.assert_array_equal(positions[-1], [2.0, 1.5])
+    # The map opens: a way is found.
+    agent.set_map(grid)
+    _, command = drive(agent, positions[-1], 1, t0=1.0)
+    assert command.route_status == ROUTE_FOUND
+    assert agent.goal_blocked([3.0, 3.0]) and agent.goal_blocked([-1.0, 3.0])
+    assert not agent.goal_blocked([2.0, 4.5])
+
+
+def test_the_route_is_taken_anew_for_a_new_goal_or_when_the_robot_strays(planned_obstacles):
+    agent = PlannerAgent('self', CONFIG, SETTINGS, np.array([2.0, 4.5]))
+    agent.set_map(walled_room())
+    _, first = drive(agent, [2.0, 1.5], 1)
+    # The same map again (a map server publishing it anew) changes nothing.
+    agent.set_map(walled_room())
+    _, same = drive(agent, [2.3, 1.5], 1, t0=0.1)
+    assert same.route is first.route
+    strayed = stand(agent, [2.0, 0.4], 20, t0=0.2)
+    assert strayed.route is not first.route
+    # Taken from where the robot was when it strayed farther than the lookahead.
+    assert strayed.route[0][1] < first.route[0][1] - SETTINGS.lookahead_distance + RESOLUTION
+    agent.set_goal(np.array([7.0, 1.0]))
+    new_goal = stand(agent, [2.0, 0.4], 1, t0=3.0)
+    np.testing.assert_array_equal(new_goal.route[-1], [7.0, 1.0])
+    assert path_length(new_goal.route) < 1.1 * np.linalg.norm(new_goal.route[0] - [7.0, 1.0])
+
+
+def test_unknown_cells_block_the_way_unless_the_settings_say_otherwise(planned_obstacles):
+    grid = walled_room()
+    unknown = np.array(grid.cells)
+    unknown[29:31, 60:] = -1
+    agent = PlannerAgent('self', CONFIG, SETTINGS, np.array([2.0, 4.5]))
+    agent.set_map(GridMap(unknown, RESOLUTION, grid.origin))
+    assert stand(agent, [2.0, 1.5], 1).route_status == ROUTE_UNREACHABLE
+    agent.reconfigure(CONFIG, dataclasses.replace(SETTINGS, unknown_is_occupied=False),
+                      agent.goal)
+    assert stand(agent, [2.0, 1.5], 1, t0=0.1).route_status == ROUTE_FOUND
+
+
+def test_a_robot_in_a_u_shaped_trap_leaves_it_by_its_opening(planned_obstacles):
+    cells = np.zeros((80, 80), dtype=np.int8)
+    cells[20:62, 50:52] = 100      # the U's bottom, between the robot and its goal
+    cells[20:22, 20:52] = 100      # its arms, open to the left
+    cells[60:62, 20:52] = 100
+    grid = GridMap(cells, RESOLUTION, [0.0, 0.0])
+    goal = np.array([7.0, 4.0])
+    agent = PlannerAgent('self', CONFIG, SETTINGS, goal)
+    agent.set_map(grid)
+    positions, command = drive(agent, [4.0, 4.0], 600)
+    assert command.arrived and np.linalg.norm(positions[-1] - goal) <= SETTINGS.goal_tolerance
+    assert not any(in_obstacle(grid, position) for position in positions)
+    assert positions[:, 0].min() < 2.0
+
+
+def test_with_wait_for_map_the_first_plan_waits_for_the_map_as_long_as_for_neighbours():
+    settings = dataclasses.replace(SETTINGS, wait_for_map=True, neighbor_timeout=2.0)
+    agent = PlannerAgent('self', CONFIG, settings, np.array([2.0, 4.5]))
+    agent.receive_own(Measurement(0.0, np.array([2.0, 1.5]), np.zeros(2), 1e-4 * np.eye(4)),
+                      10.0)
+    assert agent.awaiting_listed(10.5) and not agent.ready(10.5)
+    # Not for ever: after neighbor_timeout the robot plans without.
+    assert not agent.awaiting_listed(12.5) and agent.ready(12.5)
+    agent.set_map(walled_room())
+    assert not agent.awaiting_listed(10.5) and agent.ready(10.5)
+    without = PlannerAgent('self', CONFIG, SETTINGS, np.array([2.0, 4.5]))
+    without.receive_own(Measurement(0.0, np.array([2.0, 1.5]), np.zeros(2), 1e-4 * np.eye(4)),
+                        10.0)
+    assert without.ready(10.0)
+
+
+def test_the_carrot_moves_on_to_the_farthest_waypoint_in_sight():
+    route = np.array([[0.0, 0.0], [4.0, 0.0], [4.0, 4.0], [8.0, 4.0]])
+    position = np.array([1.0, 0.5])
+    everything = route_preferred_velocity(position, route[-1], route, 0, 1.0, 1.0, 0.5, 0.2,
+                                          in_sight=lambda a, b: True)[0]
+    np.testing.assert_allclose(everything / np.linalg.norm(everything),
+                               (route[-1] - position) / np.linalg.norm(route[-1] - position))
+    # The corner (4, 0) in sight, the next one not: head for the corner.
+    corner = route_preferred_velocity(position, route[-1], route, 0, 1.0, 1.0, 0.5, 0.2,
+                                      in_sight=lambda a, b: b[1] < 1.0)[0]
+    np.testing.assert_allclose(corner / np.linalg.norm(corner),
+                               (route[1] - position) / np.linalg.norm(route[1] - position))
+    # Nothing in sight beyond the lookahead: the carrot 1 m ahead (the circle meets the route
+    # at x = 1 + sqrt(0.75)).
+    near = route_preferred_velocity(position, route[-1], route, 0, 1.0, 1.0, 0.5, 0.2,
+                                    in_sight=lambda a, b: np.hypot(*(b - a)) <= 1.0 + 1e-9)[0]
+    carrot_point = np.array([1.0 + np.sqrt(0.75), 0.0])
+    np.testing.assert_allclose(near / np.linalg.norm(near),
+                               (carrot_point - position) / np.linalg.norm(carrot_point - position))

@@ -1,0 +1,16 @@
+"""The map benchmark runs and reports every figure (no timing is asserted)."""
+
+import json
+
+from prvo_planner import map_bench
+
+
+def test_the_map_benchmark_writes_a_row_per_map(tmp_path, capsys):
+    output = tmp_path / 'rows.json'
+    assert map_bench.main(['--sizes', '8', '12', '--resolution', '0.1',
+                           '--json', str(output)]) == 0
+    rows = json.loads(output.read_text())
+    assert [row['size_m'] for row in rows] == [8.0, 12.0]
+    assert all(row['segments'] > 0 and row['cells'] == (row['size_m'] * 10) ** 2
+               for row in rows)
+    assert '| 8 m at 0.1 m |' in capsys.readouterr().out
