@@ -40,7 +40,7 @@ def test_set_parameters_rejects_bad_values_with_a_reason(children, ros2_executab
     children.start('planner', [ros2_executable('prvo_planner', 'planner'), '--ros-args',
                                '-r', '__ns:=/robot_0', '-p', 'goal:=[1.0, 0.0]'])
     client = probe.node.create_client(SetParameters, '/robot_0/planner/set_parameters')
-    assert client.wait_for_service(timeout_sec=20.0)
+    assert client.wait_for_service(timeout_sec=60.0)
     refused = _set(probe, client, 'eta', 1.5)
     assert not refused.successful and 'eta' in refused.reason
     refused = _set(probe, client, 'k', -2.0)
@@ -59,8 +59,8 @@ def test_goal_set_as_a_double_array_is_accepted_and_driven_to(children, ros2_exe
                                '-r', '__ns:=/robot_0'])
     setter = probe.node.create_client(SetParameters, '/robot_0/planner/set_parameters')
     getter = probe.node.create_client(GetParameters, '/robot_0/planner/get_parameters')
-    assert setter.wait_for_service(timeout_sec=20.0)
-    assert getter.wait_for_service(timeout_sec=20.0)
+    assert setter.wait_for_service(timeout_sec=60.0)
+    assert getter.wait_for_service(timeout_sec=60.0)
     request = SetParameters.Request(parameters=[Parameter(
         name='goal', value=ParameterValue(type=ParameterType.PARAMETER_DOUBLE_ARRAY,
                                           double_array_value=[2.0, -1.0]))])
