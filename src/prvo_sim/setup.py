@@ -29,7 +29,7 @@ setup(
             'sim = prvo_sim.sim_main:main',
             'run_scenario = prvo_sim.run_scenario:main',
             'prvo-run = prvo_sim.run_scenario:main',
-            'experiments = prvo_sim.experiments:main',
+            'experiments = prvo_sim.bench.experiments:main',
             'nav2_stand_in = prvo_sim.upstream_node:main',
         ],
     },

@@ -12,7 +12,7 @@ import time
 import numpy as np
 import pytest
 
-from prvo_sim import bench_team
+from prvo_sim.bench import team as bench_team
 from prvo_sim.scenario import load_scenario
 
 CIRCLE8 = pathlib.Path(__file__).resolve().parents[2] / 'src/prvo_sim/scenarios/circle8.yaml'

@@ -21,7 +21,7 @@ from runner_testing import (
 )
 import yaml
 
-from prvo_sim.bench_crowds import crowd_circle_document
+from prvo_sim.bench.crowds import crowd_circle_document
 from prvo_sim.runner import inprocess
 from prvo_sim.runner.command_line import build_parser
 from prvo_sim.runner.processes import SHUTDOWN_GRACE, package_command

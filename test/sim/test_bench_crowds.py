@@ -7,8 +7,9 @@ import numpy as np
 import pytest
 
 from prvo_planner.parameters import DEFAULTS
-from prvo_sim import bench_crowds, bench_team
-from prvo_sim.bench_crowds import (
+from prvo_sim.bench import crowds as bench_crowds
+from prvo_sim.bench import team as bench_team
+from prvo_sim.bench.crowds import (
     arrival_times,
     contact_count,
     min_separation,

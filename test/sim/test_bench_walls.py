@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 import yaml
 
-from prvo_sim import bench_walls
-from prvo_sim.bench_walls import (
+from prvo_sim.bench import walls as bench_walls
+from prvo_sim.bench.walls import (
     counter_clockwise,
     disc_polygon,
     peer_world,
@@ -151,7 +151,8 @@ def test_bad_input_is_one_line_and_exit_2(tmp_path, monkeypatch, capsys):
     monkeypatch.setattr(bench_walls, 'peer_importable', lambda peer: True)
     assert bench_walls.main(['--scenarios', 'office', '--peers', 'rvo2-orca']) == 2
     errors = capsys.readouterr().err.splitlines()
-    assert len(errors) == 3 and all(line.startswith('bench_walls: error: ') for line in errors)
+    prefix = 'prvo_sim.bench.walls: error: '
+    assert len(errors) == 3 and all(line.startswith(prefix) for line in errors)
     assert 'map file' in errors[2]
 
 

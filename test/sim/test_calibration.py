@@ -4,7 +4,7 @@ import json
 
 import numpy as np
 
-from prvo_sim.calibration import main
+from prvo_sim.bench.calibration import main
 from prvo_sim.engine import InProcessTeam
 from prvo_sim.runner.session import planner_values
 from prvo_sim.scenario import find_scenario, load_scenario

@@ -2,7 +2,7 @@
 
 import yaml
 
-from prvo_sim import experiments
+from prvo_sim.bench import experiments
 from prvo_sim.scenario import find_scenario, load_scenario
 
 

@@ -23,8 +23,8 @@ from prvo_msgs_util import (
     MARKERS,
     ODOM,
 )
-from prvo_sim.bench_crowds import circle_radius_of, crowd_circle_document
-from prvo_sim.bench_team import write_scenario
+from prvo_sim.bench.crowds import circle_radius_of, crowd_circle_document
+from prvo_sim.bench.team import write_scenario
 from prvo_sim.scenario import (
     PLANNER_MEMORY_MIB,
     RUNNER_MEMORY_MIB,
@@ -363,7 +363,7 @@ def test_team_memory_check_against_available_memory(tmp_path):
 
 @pytest.fixture(scope='module')
 def crowd_circle(tmp_path_factory):
-    """Return a function of (count, duration): that crowd circle (`bench_crowds`), loaded.
+    """Return a function of (count, duration): that crowd circle (`prvo_sim.bench.crowds`), loaded.
 
     Each team is written and loaded once (a large one takes seconds); DURATION [s] replaces its
     duration.

@@ -94,7 +94,7 @@ SET_BY_RUNNER = {
 }
 ENGINES = ('ros', 'inprocess')
 # Resident memory of one process of a run on the ROS engine [MiB], measured by
-# prvo_sim.bench_team (planners 141-149 MiB, simulator 73-81 MiB) and rounded up: an estimate,
+# prvo_sim.bench.team (planners 141-149 MiB, simulator 73-81 MiB) and rounded up: an estimate,
 # not a bound.
 PLANNER_MEMORY_MIB = 150
 SIMULATOR_MEMORY_MIB = 80

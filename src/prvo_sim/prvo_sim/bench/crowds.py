@@ -1,13 +1,13 @@
 """Crowd benchmark: does every robot arrive, how soon, and how close do robots come.
 
-    python -m prvo_sim.bench_crowds [--circles 8 16 24 48] [--seeds 1] [--teams 4]
+    python -m prvo_sim.bench.crowds [--circles 8 16 24 48] [--seeds 1] [--teams 4]
                                     [--sweep 50] [--method prvo] [--eta ETA]
                                     [--certificate cantelli|certified] [--risk pairwise|joint]
                                     [--json PATH] [--out DIR]
 
 Runs on the in-process engine, to completion or the scenario's duration:
 
-* circles of N robots swapping antipodal points under noise 0.05 (`bench_team.circle_document`
+* circles of N robots swapping antipodal points under noise 0.05 (`team.circle_document`
   with the radii of CIRCLE_RADII: 4 m up to 16 robots, 6 m for 24, 7.7 m for 48), each over
   `--seeds` consecutive noise seeds from the scenario's;
 * seeded random heterogeneous teams of TEAM_SIZE robots (`random_team_document`): radii
@@ -48,8 +48,8 @@ import numpy as np
 from prvo_planner.core.config import CERTIFICATES, RISKS
 from prvo_planner.core.encounter import build_encounter
 from prvo_planner.parameters import DEFAULTS
-from prvo_sim.bench_engine import run_team, table
-from prvo_sim.bench_team import DT, GOAL_TOLERANCE, NOISE_STD, circle_document, write_scenario
+from prvo_sim.bench.engine import run_team, table
+from prvo_sim.bench.team import DT, GOAL_TOLERANCE, NOISE_STD, circle_document, write_scenario
 
 CIRCLE_RADII = {8: 4.0, 16: 4.0, 24: 6.0, 48: 7.7}
 DEFAULT_CIRCLES = tuple(CIRCLE_RADII)
@@ -396,7 +396,7 @@ COLUMNS = (('run', 'run'), ('planner', 'planner'), ('arrived', 'arrived'),
 def build_parser():
     """Return the command-line parser of the crowd benchmark."""
     parser = argparse.ArgumentParser(
-        prog='bench_crowds',
+        prog='python -m prvo_sim.bench.crowds',
         description='Crowd benchmark: circles and random heterogeneous teams, in process.')
     parser.add_argument('--circles', type=int, nargs='*', default=list(DEFAULT_CIRCLES),
                         help='circle team sizes (default: 8 16 24 48)')
@@ -479,20 +479,20 @@ def main(argv=None):
     options = build_parser().parse_args(sys.argv[1:] if argv is None else argv)
     for count in options.circles:
         if count < 2:
-            print(f'bench_crowds: error: --circles: {count} is not a team (at least 2)',
+            print(f'prvo_sim.bench.crowds: error: --circles: {count} is not a team (at least 2)',
                   file=sys.stderr)
             return 2
     if options.seeds < 1:
-        print(f'bench_crowds: error: --seeds: {options.seeds} is not a count (at least 1)',
-              file=sys.stderr)
+        print(f'prvo_sim.bench.crowds: error: --seeds: {options.seeds} '
+              'is not a count (at least 1)', file=sys.stderr)
         return 2
     for name in ('teams', 'sweep'):
         if getattr(options, name) < 0:
-            print(f'bench_crowds: error: --{name}: {getattr(options, name)} is negative',
+            print(f'prvo_sim.bench.crowds: error: --{name}: {getattr(options, name)} is negative',
                   file=sys.stderr)
             return 2
     if options.eta is not None and not 0.0 < options.eta < 1.0:
-        print(f'bench_crowds: error: --eta: {options.eta} is not a probability in (0, 1)',
+        print(f'prvo_sim.bench.crowds: error: --eta: {options.eta} is not a probability in (0, 1)',
               file=sys.stderr)
         return 2
     rows, notes = [], []
@@ -512,7 +512,7 @@ def main(argv=None):
                     break
                 rows.append(row)
     except KeyboardInterrupt:
-        print('bench_crowds: interrupted', file=sys.stderr)
+        print('prvo_sim.bench.crowds: interrupted', file=sys.stderr)
         return 130
     print(table(rows, COLUMNS))
     for note in notes:

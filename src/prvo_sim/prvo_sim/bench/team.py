@@ -1,6 +1,6 @@
 """Team benchmark: what a team of 4, 8 or 16 robots costs, in lockstep and in realtime.
 
-    python -m prvo_sim.bench_team [--robots 4 8 16] [--json PATH] [--realtime-seconds S]
+    python -m prvo_sim.bench.team [--robots 4 8 16] [--json PATH] [--realtime-seconds S]
                                   [--out DIR]
 
 For each team size N it writes a circle scenario like circle8 (N robots swapping antipodal
@@ -368,7 +368,7 @@ def bench_team_size(team_size, options, domain_id):
 def build_parser():
     """Return the command-line parser of the team benchmark."""
     parser = run_scenario._ArgumentParser(
-        prog='bench_team',
+        prog='python -m prvo_sim.bench.team',
         description='Benchmark teams of robots: CPU, RSS, lockstep speed, realtime misses.')
     parser.add_argument('--robots', type=int, nargs='+', default=list(DEFAULT_TEAM_SIZES),
                         help='team sizes (default: 4 8 16)')
@@ -432,9 +432,9 @@ def main(argv=None):
     try:
         options = parse_arguments(argv)
     except run_scenario.UsageError as error:
-        print(f'bench_team: error: {error}', file=sys.stderr)
+        print(f'prvo_sim.bench.team: error: {error}', file=sys.stderr)
         return 2
-    return run_scenario.run_interruptibly('bench_team', lambda: run(options))
+    return run_scenario.run_interruptibly('prvo_sim.bench.team', lambda: run(options))
 
 if __name__ == '__main__':
     sys.exit(main())

@@ -1,6 +1,6 @@
 """Whether the planners' beliefs are as uncertain as they claim, against the simulator's truth.
 
-`python -m prvo_sim.calibration SCENARIO [--seeds 7 8 ...] [--method prvo] [--eta ETA]
+`python -m prvo_sim.bench.calibration SCENARIO [--seeds 7 8 ...] [--method prvo] [--eta ETA]
 [--certificate cantelli|certified] [--json PATH]` runs SCENARIO on the in-process engine. At
 every plan it compares each belief a planner holds, its own and each neighbour's, with the
 ground truth of that stamp: the normalised estimation error squared `e' P^-1 e` of the position
@@ -74,7 +74,7 @@ def summary(values):
 def build_parser():
     """Return the command line's parser."""
     parser = argparse.ArgumentParser(
-        prog='python -m prvo_sim.calibration',
+        prog='python -m prvo_sim.bench.calibration',
         description="Normalised estimation errors of the planners' beliefs against the truth "
                     '(in-process engine).')
     parser.add_argument('scenario', help='scenario YAML file (or the name of a shipped one)')
@@ -95,7 +95,7 @@ def main(argv=None):
     """Print the calibration table of a scenario; exit 2 on a bad scenario."""
     options = build_parser().parse_args(argv)
     if options.eta is not None and not 0.0 < options.eta < 1.0:
-        print(f'calibration: --eta: {options.eta} is not a probability in (0, 1)',
+        print(f'prvo_sim.bench.calibration: --eta: {options.eta} is not a probability in (0, 1)',
               file=sys.stderr)
         return 2
     errors = {kind: [] for kind in KINDS}
@@ -106,7 +106,7 @@ def main(argv=None):
                                          options.eta, options.certificate).items():
                 errors[kind] += values
     except ScenarioError as error:
-        print(f'calibration: {error}', file=sys.stderr)
+        print(f'prvo_sim.bench.calibration: {error}', file=sys.stderr)
         return 2
     rows = {kind: summary(values) for kind, values in errors.items() if values}
     print(f'{options.scenario}, {options.method}, seeds {options.seeds} '

@@ -1,6 +1,6 @@
 """Wall benchmark: prvo and its peers on the same worlds of walls and obstacles.
 
-    python -m prvo_sim.bench_walls [--scenarios corridor8 doorway8 pillars12] [--seeds 1]
+    python -m prvo_sim.bench.walls [--scenarios corridor8 doorway8 pillars12] [--seeds 1]
                                    [--methods prvo rvo inflate] [--peers rvo2-orca ...]
                                    [--json PATH]
 
@@ -42,8 +42,8 @@ import time
 import numpy as np
 
 from prvo_planner.parameters import DEFAULTS
-from prvo_sim.bench_crowds import preferred_velocities
-from prvo_sim.bench_engine import run_team, table
+from prvo_sim.bench.crowds import preferred_velocities
+from prvo_sim.bench.engine import run_team, table
 from prvo_sim.metrics import run_metrics, wall_metrics
 from prvo_sim.scenario import NoiseSpec, find_scenario, load_scenario
 
@@ -322,7 +322,7 @@ COLUMNS = (('scenario', 'scenario'), ('planner', 'planner'), ('noise', 'noise'),
 def build_parser():
     """Return the command-line parser of the wall benchmark."""
     parser = argparse.ArgumentParser(
-        prog='bench_walls',
+        prog='python -m prvo_sim.bench.walls',
         description='Wall benchmark: prvo (in process) and its peers on the same wall worlds.')
     parser.add_argument('--scenarios', nargs='+', default=list(DEFAULT_SCENARIOS),
                         help='scenario names or files (default: corridor8 doorway8 pillars12)')
@@ -365,7 +365,7 @@ def main(argv=None):
     """Run the wall benchmark's command line; return the exit code."""
     options = build_parser().parse_args(sys.argv[1:] if argv is None else argv)
     if options.seeds < 1:
-        print(f'bench_walls: error: --seeds: {options.seeds} is not a count (at least 1)',
+        print(f'prvo_sim.bench.walls: error: --seeds: {options.seeds} is not a count (at least 1)',
               file=sys.stderr)
         return 2
     notes = []
@@ -384,14 +384,14 @@ def main(argv=None):
                 peer_world(scenario)
     except ValueError as error:
         # A ScenarioError names the file, the key and the reason.
-        print(f'bench_walls: error: {error}', file=sys.stderr)
+        print(f'prvo_sim.bench.walls: error: {error}', file=sys.stderr)
         return 2
     rows = []
     try:
         for path in paths:
             rows += scenario_rows(path, options, peers)
     except KeyboardInterrupt:
-        print('bench_walls: interrupted', file=sys.stderr)
+        print('prvo_sim.bench.walls: interrupted', file=sys.stderr)
         return 130
     print(table(rows, COLUMNS))
     for note in notes:

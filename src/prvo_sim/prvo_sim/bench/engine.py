@@ -1,9 +1,9 @@
 """Engine benchmark: teams of 8 to 96 robots on the in-process engine, and a peer beside them.
 
-    python -m prvo_sim.bench_engine [--robots 8 16 48 96] [--peer-robots 10 20] [--json PATH]
+    python -m prvo_sim.bench.engine [--robots 8 16 48 96] [--peer-robots 10 20] [--json PATH]
                                     [--out DIR]
 
-For each team size N it runs the team benchmark's circle (`bench_team.circle_document`: N
+For each team size N it runs the team benchmark's circle (`team.circle_document`: N
 robots swapping antipodal points under noise, PRVO at eta 0.8) on the in-process engine to
 completion and prints a Markdown table row: wall time, simulated time, steps, robot-steps per
 wall second, the planners' wall time per robot-step (the team is planned in one call, so each
@@ -29,7 +29,7 @@ import time
 
 import numpy as np
 
-from prvo_sim.bench_team import circle_document, peak_rss_kib, write_scenario
+from prvo_sim.bench.team import circle_document, peak_rss_kib, write_scenario
 from prvo_sim.engine import InProcessTeam
 from prvo_sim.runner.outputs import write_trajectories_csv
 from prvo_sim.runner.session import SETTLE_TIME, planner_values, settled
@@ -77,7 +77,7 @@ def run_team(scenario, method='prvo', observer=None):
 
 
 def peer_circle(count):
-    """Return (starts, goals, radii) of the peer circle: bench_team's, without noise."""
+    """Return (starts, goals, radii) of the peer circle: the team benchmark's, without noise."""
     document = circle_document(count)
     starts = np.array([robot['start'] for robot in document['robots']])
     goals = np.array([robot['goal'] for robot in document['robots']])
@@ -173,7 +173,8 @@ PEER_COLUMNS = (('robots', 'robots'), ('irsim_rvo_ms_mean', 'ir-sim RVO ms, mean
 def build_parser():
     """Return the command-line parser of the engine benchmark."""
     parser = argparse.ArgumentParser(
-        prog='bench_engine', description='Benchmark the in-process engine on circles of robots.')
+        prog='python -m prvo_sim.bench.engine',
+        description='Benchmark the in-process engine on circles of robots.')
     parser.add_argument('--robots', type=int, nargs='+', default=list(DEFAULT_TEAM_SIZES),
                         help='team sizes (default: 8 16 48 96)')
     parser.add_argument('--peer-robots', type=int, nargs='*', default=list(DEFAULT_PEER_SIZES),
@@ -192,7 +193,7 @@ def main(argv=None):
     options = parser.parse_args(sys.argv[1:] if argv is None else argv)
     for count in [*options.robots, *options.peer_robots]:
         if count < 2:
-            print(f'bench_engine: error: --robots: {count} is not a team (at least 2)',
+            print(f'prvo_sim.bench.engine: error: --robots: {count} is not a team (at least 2)',
                   file=sys.stderr)
             return 2
     teams, peers = [], []
@@ -213,7 +214,7 @@ def main(argv=None):
         for count in options.peer_robots:
             peers.append(peer_row(count, options.out))
     except KeyboardInterrupt:
-        print('bench_engine: interrupted', file=sys.stderr)
+        print('prvo_sim.bench.engine: interrupted', file=sys.stderr)
         return 130
     print(table(teams, TEAM_COLUMNS))
     if peers:
