@@ -246,7 +246,7 @@ class AgentSettings:
     # command is the preferred velocity, unplanned.
     preferred_source: str = GOAL
     model: str = 'prvo'
-    lookahead_dist: float = 0.6
+    lookahead_dist: float = 1.0
     use_velocity_scaled_lookahead_dist: bool = False
     min_lookahead_dist: float = 0.3
     max_lookahead_dist: float = 0.9
@@ -255,7 +255,6 @@ class AgentSettings:
     state_timeout: float = 1.0
     obstacle_distance: float = 3.0
     unknown_is_occupied: bool = True
-    lookahead_distance: float = 1.0
     route_margin: float = 0.3
     wait_for_map: bool = False
 
@@ -281,7 +280,7 @@ class AgentSettings:
 
     @property
     def lookahead(self):
-        """Return the `LookaheadSettings` of path following."""
+        """Return the `LookaheadSettings` of following a path, or a goal's route on a map."""
         return LookaheadSettings(self.lookahead_dist, self.use_velocity_scaled_lookahead_dist,
                                  self.min_lookahead_dist, self.max_lookahead_dist,
                                  self.lookahead_time)
@@ -730,33 +729,34 @@ class PlannerAgent:
             velocity = np.zeros(2) if upstream is None else upstream.world_velocity(
                 self._own_yaw, settings.unicycle)
             return velocity, False, math.inf
+        lookahead = settings.lookahead.distance(float(np.hypot(*own.mean[2:])))
         if source == PATH and self._path is not None:
-            lookahead = settings.lookahead.distance(float(np.hypot(*own.mean[2:])))
             return path_preferred_velocity(
                 position, self._path, lookahead, max_speed, settings.approach_time,
                 settings.goal_tolerance, settings.max_acceleration)
         self._route_status = ROUTE_NONE
         if self._route_map is not None and self.goal is not None:
-            return self._route_preference(position)
+            return self._route_preference(position, lookahead)
         v_pref, arrived = preferred_velocity(
             position, self.goal, max_speed, settings.approach_time, settings.goal_tolerance,
             settings.max_acceleration)
         return v_pref, arrived, (
             math.inf if self.goal is None else float(np.hypot(*(self.goal - position))))
 
-    def _route_preference(self, position):
+    def _route_preference(self, position, lookahead):
         """Return (v_pref, arrived, the way left [m]) along the route to the goal on the map.
 
-        No way reaching the goal: the robot holds its place (and keeps avoiding whoever comes).
+        The carrot is LOOKAHEAD [m] ahead. No way reaching the goal: the robot holds its place
+        (and keeps avoiding whoever comes).
         """
         settings = self.settings
-        route = self._route_at(position)
+        route = self._route_at(position, lookahead)
         if route is None:
             self._route_status = ROUTE_UNREACHABLE
             return np.zeros(2), False, math.inf
         self._route_status = ROUTE_FOUND
         v_pref, arrived, self._route_segment, remaining = route_preferred_velocity(
-            position, self.goal, route, self._route_segment, settings.lookahead_distance,
+            position, self.goal, route, self._route_segment, lookahead,
             self.config.max_speed, settings.approach_time, settings.goal_tolerance,
             settings.max_acceleration, self._route_map.in_sight, self._route_map.resolution)
         return v_pref, arrived, remaining
@@ -784,12 +784,13 @@ class PlannerAgent:
         """
         upstream = request.upstream
         if not self.settings.avoids or upstream is None:
-            return dataclasses.replace(request, unplanned=v_pref,
+            return dataclasses.replace(request, unplanned=v_pref, obstacles=None,
                                        passed_through=upstream is not None)
         problem = self._problem(request.own, request.stamp, tracks, request.announcements,
                                 v_pref, self.config.time_horizon)
-        if upstream.is_zero or _unconstrained(problem):
-            return dataclasses.replace(request, unplanned=v_pref, passed_through=True)
+        if upstream.is_zero or _unconstrained(problem, request.obstacles):
+            return dataclasses.replace(request, unplanned=v_pref, obstacles=None,
+                                       passed_through=True)
         return dataclasses.replace(request, problem=problem)
 
     # Planning ---------------------------------------------------------------------------------
@@ -927,18 +928,18 @@ class PlannerAgent:
         self._map_built_for = None if self._grid is None else built_for
         self._route_tree = self._route = None
 
-    def _route_at(self, position):
+    def _route_at(self, position, lookahead):
         """Return the route in force from POSITION to the goal, None if no way reaches it.
 
         The shortest paths to a goal are searched once per goal and map; the route is taken
-        anew from them when the robot strayed farther than the lookahead from it.
+        anew from them when the robot strayed farther than LOOKAHEAD [m] from it.
         """
         if self._route_tree is None or not np.array_equal(self._route_tree.goal, self.goal):
             self._route_tree = self._route_map.tree_to(self.goal)
             self._route = None
         if self._route is not None:
             _, closest = closest_on_path(self._route, position, self._route_segment)
-            if float(np.hypot(*(closest - position))) > self.settings.lookahead_distance:
+            if float(np.hypot(*(closest - position))) > lookahead:
                 self._route = None
         if self._route is None:
             self._route = self._route_tree.route_from(position)
@@ -1039,20 +1040,21 @@ class PlannerAgent:
 
 
 
-def _unconstrained(problem):
+def _unconstrained(problem, obstacles=None):
     """Whether PROBLEM's v_pref meets every constraint: the robot may keep it unchanged.
 
-    PROBLEM is the argument tuple of `plan_velocity`. The plan is made choosing by the distance
-    to v_pref alone and without the robot's limits (the command was made for them upstream);
-    the core keeps a choice a hair inside its feasible interval.
+    PROBLEM is the argument tuple of `plan_velocity`, OBSTACLES the map's obstacles near the
+    robot (None: none). The plan is made choosing by the distance to v_pref alone and without
+    the robot's limits (the command was made for them upstream); the core keeps a choice a hair
+    inside its feasible interval.
     """
     ego, neighbours, v_pref, config = problem[:4]
     if float(np.hypot(*v_pref)) > config.max_speed:
         return False
-    if not neighbours:
+    if not neighbours and obstacles is None:
         return True
     result = plan_velocity(ego, neighbours, v_pref, dataclasses.replace(
-        config, inertia=0.0, passing_bias=0.0, progress_weight=0.0))
+        config, inertia=0.0, passing_bias=0.0, progress_weight=0.0), obstacles=obstacles)
     return result.feasible and float(np.hypot(*(result.velocity - v_pref))) <= _PASSING_SLACK
 
 
