@@ -857,12 +857,17 @@ class PlannerAgent:
             announced.prune(stamp)
         if self._command_stamp is not None and 0.0 < stamp - self._command_stamp:
             self._control_period = stamp - self._command_stamp
+        obstacles = None if self._obstacle_index is None else self._obstacle_index.near(
+            own.mean[:2], self.settings.obstacle_distance)
+        if obstacles is not None and len(obstacles) == 0:
+            # Nothing near: the plan of an empty plane.
+            obstacles = None
         problem = None
         if upstream is not None or not self.settings.avoids:
             return self._unplanned_request(PlanRequest(
                 stamp=stamp, own=own, neighbours=neighbour_beliefs, neighbour_names=names,
-                announcements=announcements, problem=None, arrival=arrival, upstream=upstream),
-                v_pref, tracks)
+                announcements=announcements, problem=None, arrival=arrival, upstream=upstream,
+                obstacles=obstacles), v_pref, tracks)
         if self.goal is not None:
             # At its goal the robot keeps planning, with v_pref = 0: it stands while nobody
             # comes and takes its share of the avoidance when someone does, over the whole
@@ -873,11 +878,6 @@ class PlannerAgent:
             problem = self._problem(own, stamp, tracks, announcements, v_pref, horizon)
             if (self.arrived or route_status == ROUTE_UNREACHABLE) and nobody_comes(problem):
                 problem = None
-        obstacles = None if self._obstacle_index is None else self._obstacle_index.near(
-            own.mean[:2], self.settings.obstacle_distance)
-        if obstacles is not None and len(obstacles) == 0:
-            # Nothing near: the plan of an empty plane.
-            obstacles = None
         return PlanRequest(stamp=stamp, own=own, neighbours=neighbour_beliefs,
                            neighbour_names=names, announcements=announcements,
                            problem=problem, arrival=arrival, obstacles=obstacles, route=route,
