@@ -246,6 +246,7 @@ class AgentSettings:
     # command is the preferred velocity, unplanned.
     preferred_source: str = GOAL
     model: str = 'prvo'
+    wait_for_path: bool = False
     lookahead_dist: float = 1.0
     use_velocity_scaled_lookahead_dist: bool = False
     min_lookahead_dist: float = 0.3
@@ -622,12 +623,15 @@ class PlannerAgent:
     def set_path(self, waypoints):
         """Follow the path WAYPOINTS (K, 2) instead of any before; None or K = 0: stop following.
 
-        The goal becomes the path's last waypoint (none without a path). Raises ValueError
+        The goal becomes the path's last waypoint (none without a path). The path followed
+        again (its sender re-publishes it) keeps the progress along it. Raises ValueError
         naming what is wrong with WAYPOINTS; the path followed then stays.
         """
         if waypoints is None or len(waypoints) == 0:
             self._path, self.goal, self.arrived = None, None, False
             self._previous_velocity = None
+            return
+        if self._path is not None and np.array_equal(self._path.waypoints, waypoints):
             return
         self._path = PathFollower(waypoints)
         self.set_goal(self._path.goal)
@@ -800,12 +804,15 @@ class PlannerAgent:
 
         In full: its odometry, its footprint and its share. Announcements travel apart from
         odometry; without this, a team's first plans would depend on which came first. With
-        `wait_for_map`, the map is waited for likewise.
+        `wait_for_map` the map is waited for likewise, with `wait_for_path` (path mode) a path.
         """
         if (self._first_own_at is None
                 or now - self._first_own_at > self.settings.neighbor_timeout):
             return False
         if self.settings.wait_for_map and self._grid is None:
+            return True
+        if (self.settings.wait_for_path and self.settings.preferred_source == PATH
+                and self._path is None):
             return True
         if self.listed_neighbours is None:
             return False

@@ -130,6 +130,10 @@ _PREFERRED_SOURCE_SPECS = (
     ParameterSpec('path_topic', STRING, 'plan', 'preferred_source path: the nav_msgs/Path (map '
                   'frame) to follow; a new path replaces the old, an empty one cancels.',
                   read_only=True, rule=_topic_name),
+    ParameterSpec('wait_for_path', BOOL, False, 'preferred_source path: plan only once a path '
+                  'has arrived (for at most neighbor_timeout after the first own odometry), as '
+                  'for listed neighbours: a run whose robots follow paths plans its first step '
+                  'on them.'),
     ParameterSpec('lookahead_dist', FLOAT, 1.0, 'Distance [m] of the carrot on the path '
                   "followed: the path of preferred_source path, or with a map a goal's route "
                   '(which is taken anew when the robot strays farther from it).', (0.01, 100.0)),

@@ -327,6 +327,9 @@ class PlannerNode(Node):
         self._announce()
         self.get_logger().info(f'following a path of {len(waypoints)} poses' if len(waypoints)
                                else 'empty path: stopped following')
+        if self._agent.ready(time.monotonic()):
+            # A plan waiting for the path (wait_for_path) goes ahead now.
+            self._plan()
 
     @quiet_after_shutdown
     def _on_upstream(self, msg):
@@ -377,16 +380,20 @@ class PlannerNode(Node):
     # Map and route ----------------------------------------------------------------------------
 
     def _map_endpoints(self):
-        """Subscribe the map (QoS as map_server's), advertise the route; return both."""
+        """Subscribe the map (QoS as map_server's), advertise the route; return them.
+
+        Only a robot heading for a goal has a route of its own: one following a path has the
+        path (on `plan` too, by default), a filter none.
+        """
         self._map_topic = self._values['map_topic']
         # The route published last (None: an empty path), to publish a route once per change.
         self._published_route = None
-        self._plan_publisher = self.create_publisher(
+        self._plan_publisher = None if self._source != GOAL else self.create_publisher(
             Path, PLAN, PLAN_QOS, event_callbacks=quiet_publisher_events())
         subscription = self.create_subscription(
             OccupancyGrid, self._map_topic, self._on_map, MAP_QOS,
             event_callbacks=quiet_subscription_events())
-        return subscription, self._plan_publisher
+        return [subscription] + ([] if self._plan_publisher is None else [self._plan_publisher])
 
     @quiet_after_shutdown
     def _on_map(self, msg):
@@ -408,6 +415,8 @@ class PlannerNode(Node):
 
     def _publish_route(self, command):
         """Publish COMMAND's route on <robot>/plan where it changed; warn while none is found."""
+        if self._plan_publisher is None:
+            return
         if command.route_status == ROUTE_UNREACHABLE:
             self._warnings.warn('route', f'no way on the map reaches the goal '
                                 f'{self._agent.goal.tolist()}: holding the place')
