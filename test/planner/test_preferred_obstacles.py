@@ -20,6 +20,7 @@ RADIUS = 0.3
 # The wall's face toward the robot [m]: cells of x in [2, 2.2) are occupied.
 WALL_FACE = 2.0
 CONFIG = PlannerConfig(eta=0.8, max_speed=1.0, actuation_cov=1e-4 * np.eye(2))
+CERTIFICATES = ('cantelli', 'certified')
 DT = 0.1
 
 
@@ -49,8 +50,9 @@ def _clearance(grid, position):
     return float(np.min(np.linalg.norm(nearest - position, axis=1)))
 
 
-def _agent(source, grid, **settings):
-    agent = PlannerAgent('robot_0', CONFIG, AgentSettings(
+def _agent(source, grid, certificate='cantelli', **settings):
+    config = dataclasses.replace(CONFIG, certificate=certificate)
+    agent = PlannerAgent('robot_0', config, AgentSettings(
         radius=RADIUS, preferred_source=source, goal_tolerance=0.1, **settings))
     if grid is not None:
         agent.set_map(grid)
@@ -74,12 +76,14 @@ def _drive(agent, steps, upstream=None):
     return np.array(positions)
 
 
+@pytest.mark.parametrize('certificate', CERTIFICATES)
 @pytest.mark.parametrize('source', ['velocity', 'path'])
-def test_a_command_into_a_wall_stops_short_of_it_with_the_map(source):
+def test_a_command_into_a_wall_stops_short_of_it_with_the_map(source, certificate):
     grid = _walled_grid()
     upstream = (0.8, 0.0) if source == 'velocity' else None
-    with_map = _agent(source, grid)
-    without_map = _agent(source, None)
+    # A robot alone by a wall: its plans have no neighbour's bound (certified or Cantelli's).
+    with_map = _agent(source, grid, certificate)
+    without_map = _agent(source, None, certificate)
     if source == 'path':
         # Straight through the wall to a point beyond it.
         for agent in (with_map, without_map):
