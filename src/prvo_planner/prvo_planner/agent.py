@@ -20,7 +20,7 @@ import numpy as np
 
 from prvo_planner.core import AgentBelief, VelocityLimits, plan_velocity
 from prvo_planner.core.beliefs import validated_share
-from prvo_planner.maps import ObstacleIndex, grid_obstacles, occupied_cells
+from prvo_planner.maps import GridMap, ObstacleIndex, grid_obstacles, occupied_cells
 from prvo_planner.path_following import carrot, closest_on_path
 from prvo_planner.preferred import (
     GOAL,
@@ -293,6 +293,43 @@ class AgentSettings:
                              self.tracking_error)
 
 
+@dataclasses.dataclass(frozen=True, eq=False)
+class BuiltMap:
+    """What an agent plans with of a map: made once per map and settings, never changed after.
+
+    `built_for` is the `PlannerAgent.map_key` it was made for; `obstacle_index` holds the grid's
+    obstacles (`maps.ObstacleIndex`), `route_map` its route graph (`route.RouteMap`) and
+    `route_tree` the shortest paths on it to `goal` (None without a goal). `build_map` makes it
+    from the grid and the key alone, in any thread: a node builds a large map beside its
+    planning and swaps the result in whole (`PlannerAgent.install_map`), so that no plan ever
+    sees a map half made.
+    """
+
+    grid: GridMap
+    built_for: tuple
+    obstacle_index: ObstacleIndex
+    route_map: RouteMap
+    goal: np.ndarray = None
+    route_tree: object = None
+
+
+def same_grid(grid, other):
+    """Whether the `maps.GridMap`s GRID and OTHER are the same map, cell for cell."""
+    return (grid.resolution == other.resolution and np.array_equal(grid.origin, other.origin)
+            and np.array_equal(grid.cells, other.cells))
+
+
+def build_map(grid, built_for, goal=None):
+    """Return the `BuiltMap` of GRID for the map key BUILT_FOR, with the paths to GOAL (2,)."""
+    unknown_is_occupied, obstacle_distance, clearance, route_margin = built_for
+    route_map = RouteMap(occupied_cells(grid, unknown_is_occupied), grid.resolution,
+                         grid.origin, clearance, route_margin)
+    return BuiltMap(grid, built_for, ObstacleIndex(grid_obstacles(grid, unknown_is_occupied),
+                                                   obstacle_distance),
+                    route_map, None if goal is None else np.array(goal, dtype=float),
+                    None if goal is None else route_map.tree_to(goal))
+
+
 # Command.route_status: no map (or no goal), a way to the goal found, no way reaches the goal.
 ROUTE_NONE = 'none'
 ROUTE_FOUND = 'ok'
@@ -471,6 +508,8 @@ class PlannerAgent:
         # The map (set_map) and what the agent made of it; the route to the goal in force.
         self._grid = None
         self._map_built_for = None
+        # Whether a map that arrived is being built by the caller (`install_map` ends it).
+        self.map_pending = False
         self._obstacle_index = None
         self._route_map = None
         self._route_tree = None
@@ -492,13 +531,17 @@ class PlannerAgent:
         """Return the names of the neighbours tracked now, in the table's order."""
         return [robot for robot in self._neighbour_tracks.names() if robot != self.name]
 
-    def reconfigure(self, config, settings, goal):
+    def reconfigure(self, config, settings, goal, rebuild_map=True):
         """Take new parameters; the plan in progress and the tracks go on.
 
-        A GOAL other than the current one is taken as by `set_goal`; None keeps no goal.
+        A GOAL other than the current one is taken as by `set_goal`; None keeps no goal. The map
+        in force is made anew for settings it was not made for (`map_outdated`), unless
+        REBUILD_MAP is false: the caller then builds it (`build_map`) and installs it, and
+        meanwhile the agent plans with the map made for the settings before.
         """
         self.config, self.settings = config, settings
-        self._build_map()
+        if rebuild_map and self.map_outdated:
+            self.install_map(build_map(self._grid, self.map_key, self.route_goal()))
         if goal is None:
             self.goal = None
         elif self.goal is None or not np.array_equal(self.goal, goal):
@@ -804,10 +847,14 @@ class PlannerAgent:
 
         In full: its odometry, its footprint and its share. Announcements travel apart from
         odometry; without this, a team's first plans would depend on which came first. With
-        `wait_for_map` the map is waited for likewise, with `wait_for_path` (path mode) a path.
+        `wait_for_map` the map is waited for likewise, with `wait_for_path` (path mode) a path;
+        a map that arrived and is being built (`map_pending`) however long that takes.
         """
-        if (self._first_own_at is None
-                or now - self._first_own_at > self.settings.neighbor_timeout):
+        if self._first_own_at is None:
+            return False
+        if self.settings.wait_for_map and self._grid is None and self.map_pending:
+            return True
+        if now - self._first_own_at > self.settings.neighbor_timeout:
             return False
         if self.settings.wait_for_map and self._grid is None:
             return True
@@ -900,40 +947,70 @@ class PlannerAgent:
     def set_map(self, grid):
         """Plan with the occupancy grid GRID (a `maps.GridMap`) from now on; None: no map.
 
-        The way to the goal is searched again on a map that differs from the one in force.
+        The map is built here (`build_map`, with the paths to the goal), unless it is the one in
+        force. The way to the goal is searched again on a map that differs from it.
         """
-        if grid is not None and self._grid is not None and (
-                grid.resolution == self._grid.resolution
-                and np.array_equal(grid.origin, self._grid.origin)
-                and np.array_equal(grid.cells, self._grid.cells)):
+        if grid is not None and self.has_map(grid):
             return
-        self._grid = grid
-        self._map_built_for = None
-        self._build_map()
+        self.install_map(None if grid is None else build_map(grid, self.map_key,
+                                                             self.route_goal()))
+
+    def has_map(self, grid):
+        """Whether GRID (a `maps.GridMap`) is the map in force, cell for cell."""
+        return self._grid is not None and same_grid(grid, self._grid)
+
+    @property
+    def map_key(self):
+        """What a `BuiltMap` depends on besides the grid, for the settings in force."""
+        settings = self.settings
+        # The route's cells keep the clearance the planner keeps from a wall of no thickness.
+        return (settings.unknown_is_occupied, settings.obstacle_distance,
+                settings.planning_radius + self.config.safety_margin, settings.route_margin)
+
+    @property
+    def map_outdated(self):
+        """Whether the map in force was made for other settings than those in force."""
+        return self._grid is not None and self._map_built_for != self.map_key
+
+    def route_goal(self):
+        """Return the goal a map's route is searched to (heading for a goal), else None."""
+        return self.goal if self.settings.preferred_source == GOAL else None
+
+    def install_map(self, built):
+        """Plan with BUILT (a `BuiltMap`) from now on; None: no map.
+
+        Its route tree counts if made for the goal in force; otherwise the next plan searches.
+        A map pending (`map_pending`) is no more.
+        """
+        self.map_pending = False
+        if built is None:
+            self._grid = self._map_built_for = self._obstacle_index = self._route_map = None
+            self._route_tree = None
+        else:
+            self._grid, self._map_built_for = built.grid, built.built_for
+            self._obstacle_index, self._route_map = built.obstacle_index, built.route_map
+            self._route_tree = built.route_tree
+        self._route = None
+
+    @property
+    def route_map(self):
+        """The `route.RouteMap` of the map in force, None without a map."""
+        return self._route_map
+
+    def install_route_tree(self, tree):
+        """Take TREE, the shortest paths to the goal in force searched elsewhere, if it fits.
+
+        It fits if searched on the map in force (`route_map`), to that goal; returns whether.
+        """
+        if (self._route_map is None or tree.route_map is not self._route_map
+                or self.goal is None or not np.array_equal(tree.goal, self.goal)):
+            return False
+        self._route_tree, self._route = tree, None
+        return True
 
     def goal_blocked(self, goal):
         """Whether GOAL (2,) lies in an obstacle of the map, or off it (False without a map)."""
         return self._route_map is not None and self._route_map.blocked(goal)
-
-    def _build_map(self):
-        """Make the obstacles and the route graph of the map for the settings in force."""
-        settings = self.settings
-        # The route's cells keep the clearance the planner keeps from a wall of no thickness.
-        built_for = (settings.unknown_is_occupied, settings.obstacle_distance,
-                     settings.planning_radius + self.config.safety_margin, settings.route_margin)
-        if self._grid is None:
-            self._obstacle_index = self._route_map = None
-        elif built_for != self._map_built_for:
-            occupied = occupied_cells(self._grid, settings.unknown_is_occupied)
-            self._obstacle_index = ObstacleIndex(
-                grid_obstacles(self._grid, settings.unknown_is_occupied),
-                settings.obstacle_distance)
-            self._route_map = RouteMap(occupied, self._grid.resolution, self._grid.origin,
-                                       built_for[2], settings.route_margin)
-        else:
-            return
-        self._map_built_for = None if self._grid is None else built_for
-        self._route_tree = self._route = None
 
     def _route_at(self, position, lookahead):
         """Return the route in force from POSITION to the goal, None if no way reaches it.
