@@ -1,4 +1,8 @@
-"""The plan regression tool: a capture compares equal to itself, and a moved plan is named."""
+"""The plan regression tool: a capture compares equal to itself, and a moved plan is named.
+
+Plans agree within 1e-9 m/s per velocity component and 1e-9 in the achieved k and its bound, with
+the same feasibility and counts: rounding moves none, a real change is named.
+"""
 
 import json
 import math
@@ -15,11 +19,22 @@ def test_a_capture_compares_equal_and_a_moved_plan_is_named(tmp_path, capsys):
     assert {plan[-1] == 0 for plan in captured} == {True, False}
     assert plan_regression.main(['compare', str(path)]) == 0
     assert '0 of 400 plans changed' in capsys.readouterr().out
-    # One velocity component moved by one unit in the last place.
+    # Rounding: one velocity component moved by one unit in the last place, another and a
+    # finite achieved k by less than the tolerance.
+    finite = next(index for index, plan in enumerate(captured) if math.isfinite(plan[3]))
     captured[17][0] = math.nextafter(captured[17][0], math.inf)
+    captured[18][1] += 0.9e-9
+    captured[finite][3] -= 0.9e-9
+    path.write_text(json.dumps(captured))
+    assert plan_regression.main(['compare', str(path)]) == 0
+    capsys.readouterr()
+    # A velocity moved by more than the tolerance, a feasibility flipped, a count changed.
+    captured[20][1] += 2e-9
+    captured[21][2] = not captured[21][2]
+    captured[22][-1] += 1
     path.write_text(json.dumps(captured))
     assert plan_regression.main(['compare', str(path)]) == 1
-    assert '1 of 400 plans changed: [17]' in capsys.readouterr().out
+    assert '3 of 400 plans changed: [20, 21, 22]' in capsys.readouterr().out
 
 
 def test_a_file_that_is_not_a_capture_is_refused_by_name(tmp_path, capsys):
