@@ -22,7 +22,13 @@ import math
 import numpy as np
 
 from .beliefs import AgentBelief, as_finite_array
-from .certificate import receding_certificate, rvo_certificate, search_margin
+from .certificate import (
+    horizon_certificate,
+    horizon_search_margin,
+    receding_certificate,
+    rvo_certificate,
+    search_margin,
+)
 from .choice import (
     INTERIOR,
     CostTerms,
@@ -549,12 +555,13 @@ def _certified_bounds(search, velocities, achieved, required, certify):
     """
     Per neighbour, a lower bound on the probability of its accepted condition, and its kind.
 
-    Cantelli's bound of the ACHIEVED margin covers the horizon pair and is the floor. Where it
-    falls short of the REQUIRED probability, for the robots marked in CERTIFY, the certified
-    bound on ``P(f >= 0)`` at the robot's velocity is computed, and where that too falls short
-    and the gate counts, the one on ``P(g >= 0)``: a neighbour Cantelli already certifies costs
-    nothing (most of a crowd's are far). The condition holds if any alternative does, so the
-    largest is a bound; it is certified where it is a Gaussian one. The calls are per robot:
+    Cantelli's bound of the ACHIEVED margin is the floor. Where it falls short of the REQUIRED
+    probability, for the robots marked in CERTIFY, the certified bound on ``P(f >= 0)`` at the
+    robot's velocity is computed, and where that too falls short and the gate counts, the one on
+    ``P(g >= 0)`` and then, with a finite horizon, the one on the whole condition
+    (:func:`horizon_certificate`): a neighbour Cantelli already certifies costs nothing (most of
+    a crowd's are far). The condition holds if any alternative does, so the largest is a bound;
+    it is certified where it is a Gaussian one. The calls are per robot:
     numpy's vectorised transcendental functions round a value by its place in the batch, and a
     robot's plan must not depend on its companions.
     """
@@ -576,6 +583,11 @@ def _certified_bounds(search, velocities, achieved, required, certify):
         if gate.any():
             bounds[gate] = np.maximum(bounds[gate],
                                       receding_certificate(mean[gate], cov[gate]).probability)
+        horizon = gate & (bounds < required[pairs][short]) & plan.layout.has_horizon
+        if horizon.any():
+            bounds[horizon] = np.maximum(bounds[horizon], horizon_certificate(
+                mean[horizon], cov[horizon], plan.radius[short][horizon],
+                plan.config.time_horizon))
         # A view: the bounds are written into GAUSSIAN.
         gaussian[pairs][short] = bounds
     return np.maximum(gaussian, cantelli), gaussian > cantelli
@@ -586,7 +598,8 @@ def _certified_choice(search):
     Choose velocities that meet each neighbour's probability by a stated bound (section 13).
 
     The f and g conditions are searched with :func:`search_margin` of each neighbour's
-    required probability (the horizon pair keeps Cantelli's ``k'``) and the choice certified.
+    required probability, the horizon pair (where the gate counts, so that its certificate
+    applies) with :func:`horizon_search_margin`, and the choice certified.
     A robot whose choice falls short for some neighbours searches again with Cantelli's margins
     on those neighbours' links; after a second shortfall, with Cantelli's margins everywhere.
     A robot without a feasible velocity keeps its fallback: larger margins accept no more.
@@ -597,6 +610,9 @@ def _certified_choice(search):
     columns = 1 + plans[0].layout.has_receding
     margins = cantelli.copy()
     margins[:, :columns] = search_margin(required)[link_pair, None]
+    if plans[0].layout.has_horizon:
+        gated = np.concatenate([plan.layout.receding_enabled for plan in plans])[link_pair]
+        margins[gated, -2:] = horizon_search_margin(required)[link_pair[gated], None]
     choice = _choose(search, margins, required, np.ones(len(plans), dtype=bool))
     retry = (choice.candidates_feasible > 0) & _any_per_robot(search, choice.bounds < required)
     if not retry.any():
