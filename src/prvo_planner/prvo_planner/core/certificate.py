@@ -165,9 +165,12 @@ def horizon_search_margin(eta):
     Return the margin ``k'`` the horizon pair is searched with to meet ``eta`` by a certificate.
 
     :func:`horizon_certificate` spends ``1 - eta`` on two normal tails, of ``e . r`` and of
-    ``e . (r + tau w)``; with the miss shared evenly each end needs ``Phi^-1((1 + eta) / 2)``
-    standard deviations beyond ``R``, which ``h2``'s ``mean / sd`` meets near the disc. Never above
-    Cantelli's ``k' = sqrt((1 + eta) / (1 - eta))``. Only the search uses it.
+    ``e . p``, ``p = r + tau w``; the first is negligible whenever the robots are apart now, so
+    the far end needs ``(e . mu_p - R) / s_p >= Phi^-1(eta)``. ``h2``'s ``mean / sd`` is about
+    ``(|p| - R) / s_p (|p| + R) / (2 |p|)``, at most ``(|p| - R) / s_p``: searched with
+    ``Phi^-1(eta)`` it accepts only where that end meets ``eta``. Clipped to ``[0, k']`` with
+    Cantelli's ``k' = sqrt((1 + eta) / (1 - eta))``. Only the search uses it: a velocity is kept
+    only if certified.
 
     Parameters
     ----------
@@ -181,7 +184,7 @@ def horizon_search_margin(eta):
 
     """
     eta = np.asarray(eta, dtype=float)
-    return np.minimum(ndtri(0.5 + 0.5 * eta), np.sqrt((1.0 + eta) / (1.0 - eta)))
+    return np.clip(ndtri(eta), 0.0, np.sqrt((1.0 + eta) / (1.0 - eta)))
 
 
 def normal_cdf(x):
