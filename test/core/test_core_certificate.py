@@ -16,6 +16,7 @@ from prvo_planner.core.certificate import (
     MAX_WEDGES,
     METHODS,
     SLACK,
+    horizon_certificate,
     normal_cdf,
     receding_certificate,
     rvo_certificate,
@@ -130,6 +131,34 @@ def sampled_probabilities(rng, case, count):
     return np.mean(f >= 0.0), np.mean(np.sum(r * w, axis=1) >= 0.0)
 
 
+def sampled_condition(rng, case, count, horizon):
+    """Sample as above; return the fraction with ``f >= 0 or g >= 0 or (h1 >= 0 and h2 >= 0)``.
+
+    ``h1 = -(r . w) - tau |w|^2`` (the closest approach is beyond ``tau``) and ``h2 = |r + tau
+    w|^2 - R^2`` (the robots are ``R`` apart at ``tau``), written out on the samples.
+    """
+    ego, neighbour = case['ego'], case['neighbour']
+    draws = []
+    for mean, covariance in ((np.r_[ego['position'], ego['velocity']], ego['covariance']),
+                             (np.r_[neighbour['position'], neighbour['velocity']],
+                              neighbour['covariance']),
+                             (np.zeros(2), case['actuation'])):
+        draws.append(mean + rng.standard_normal((count, mean.size)) @ square_root(covariance).T)
+    ego_state, neighbour_state, noise = draws
+    rho = 1.0 - case['share']
+    r = ego_state[:, :2] - neighbour_state[:, :2]
+    w = ((case['command'] + noise - (1.0 - rho) * ego_state[:, 2:]) / rho
+         - neighbour_state[:, 2:])
+    cross = r[:, 0] * w[:, 1] - r[:, 1] * w[:, 0]
+    speed_sq = np.sum(w * w, axis=1)
+    closing = np.sum(r * w, axis=1)
+    at_horizon = r + horizon * w
+    event = ((cross * cross - case['radius'] ** 2 * speed_sq >= 0.0) | (closing >= 0.0)
+             | ((-closing - horizon * speed_sq >= 0.0)
+                & (np.sum(at_horizon * at_horizon, axis=1) >= case['radius'] ** 2)))
+    return np.mean(event)
+
+
 def cases_of(seed, kinds, per_kind):
     """``per_kind`` encounters of every kind, shares 0 and 1/2 alternating."""
     rng = np.random.default_rng(seed)
@@ -187,6 +216,54 @@ def test_bound_never_exceeds_the_sampled_probability():
     inside = (certificate.probability > 0.05) & (certificate.probability < 0.95)
     assert np.count_nonzero(inside) >= 60
     assert np.mean(certificate.method == 'wedge') >= 0.8
+
+
+def test_horizon_bound_never_exceeds_the_sampled_probability_of_the_condition():
+    # The whole condition with the gate and a horizon of 1-5 s: the horizon bound is a lower
+    # bound on its probability, and where the closest approach lies beyond the horizon it is
+    # the only Gaussian bound that sees it.
+    cases = cases_of(61, KINDS, 100)
+    means, covs, radii = stacked(cases)
+    horizons = np.random.default_rng(62).choice([1.0, 2.5, 5.0], size=len(cases))
+    bounds = horizon_certificate(means, covs, radii, horizons)
+    others = np.maximum(rvo_certificate(means, covs, radii).probability,
+                        receding_certificate(means, covs).probability)
+    rng = np.random.default_rng(63)
+    samples = 16_000
+    sampled = np.array([sampled_condition(rng, case, samples, horizon)
+                        for case, horizon in zip(cases, horizons, strict=True)])
+    allowed = Z * np.sqrt(bounds * (1.0 - bounds) / samples) + 1e-6
+    worst = int(np.argmax(bounds - sampled - allowed))
+    assert np.all(sampled >= bounds - allowed), (worst, bounds[worst], sampled[worst])
+    assert len(cases) >= 500
+    # Informative: many bounds well inside (0, 1), and many above both other bounds by 0.05.
+    assert np.count_nonzero((bounds > 0.05) & (bounds < 0.95)) >= 40
+    assert np.count_nonzero(bounds > others + 0.05) >= 50
+
+
+def test_horizon_bound_is_close_for_a_collision_beyond_the_horizon():
+    # Head-on at 8 m closing at 1.6 m/s (contact after 4.6 s), horizon 2.5 s: the condition
+    # holds through the horizon pair with probability near 1; the f and g bounds see little.
+    belief = np.diag([0.05 ** 2] * 4)
+    case = {'ego': {'position': np.zeros(2), 'velocity': np.array([0.8, 0.0]),
+                    'covariance': belief},
+            'neighbour': {'position': np.array([8.0, 0.0]), 'velocity': np.array([-0.8, 0.0]),
+                          'covariance': belief},
+            'actuation': np.zeros((2, 2)), 'share': 0.5, 'radius': 0.6,
+            'command': np.array([0.8, 0.0])}
+    mean, cov = relative_gaussian(case)
+    bound = float(horizon_certificate(mean, cov, 0.6, 2.5))
+    sampled = sampled_condition(np.random.default_rng(64), case, 200_000, 2.5)
+    assert float(rvo_certificate(mean, cov, 0.6).probability) < 0.1
+    assert float(receding_certificate(mean, cov).probability) < 0.1
+    assert sampled - 1e-3 <= bound <= sampled + 4.0 * math.sqrt(
+        max(sampled * (1.0 - sampled), 1e-6) / 200_000)
+
+
+def test_horizon_bound_rejects_bad_horizons():
+    for horizon in (0.0, -1.0, math.inf):
+        with pytest.raises(ValueError, match='horizon'):
+            horizon_certificate(np.zeros(4), np.eye(4), 0.5, horizon)
 
 
 @pytest.mark.parametrize('k, median_gap, high_gap', [(1.0, 0.04, 0.07), (2.0, 0.003, 0.01)])

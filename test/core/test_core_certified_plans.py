@@ -171,3 +171,41 @@ def test_bad_certificate_values_are_refused_by_name(value):
     with pytest.raises(ValueError, match='PlannerConfig.certificate must be one of') as error:
         PlannerConfig(certificate=value)
     assert '\n' not in str(error.value) and repr(value) in str(error.value)
+
+
+@pytest.mark.parametrize('risk, others', [('joint', 0), ('joint', 2), ('pairwise', 2)])
+def test_a_robot_at_its_goal_beside_standing_neighbours_stands_still(risk, others):
+    # A robot at its goal, 2.5 m from a standing neighbour (and OTHERS more at 3.5 m), moving
+    # at 0.1 m/s. Standing still is slow relative motion: neither f nor g nor the horizon pair
+    # holds with 0.95 alone, their union does (no contact within tau). A planner that cannot
+    # see the union takes the cheapest velocity outside a disc about half its current velocity
+    # (the reciprocal 2 v - v_i - v_j), opposite to it, and its commands flip every plan.
+    covariance = np.diag([0.05 ** 2] * 2 + [0.07 ** 2] * 2)
+    neighbours = [AgentBelief([2.5, 0.3], [0.0, 0.0], covariance, 0.35)]
+    neighbours += [AgentBelief(3.5 * np.array([math.cos(2.0 + 1.3 * k), math.sin(2.0 + 1.3 * k)]),
+                               [0.0, 0.0], covariance, 0.35) for k in range(others)]
+    actuation = 0.0025 * np.eye(2)
+    config = PlannerConfig(eta=0.95, risk=risk, certificate='certified', max_speed=0.8,
+                           actuation_cov=actuation, inertia=0.5, passing_bias=0.1,
+                           progress_weight=0.5)
+    position, velocity = np.zeros(2), np.array([0.1, 0.0])
+    commands = []
+    for _ in range(20):
+        ego = AgentBelief(position, velocity, covariance, 0.25)
+        result = plan_velocity(ego, neighbours, -position / 0.5, config, previous=velocity)
+        assert result.feasible
+        commands.append(result.velocity)
+        velocity = result.velocity
+        position = position + 0.1 * velocity
+    commands = np.array(commands)
+    reversals = np.einsum('ij,ij->i', commands[1:], commands[:-1]) < 0.0
+    assert not reversals.any(), commands
+    assert np.all(np.hypot(*commands[5:].T) <= 0.05), commands
+    assert np.hypot(*position) <= 0.05
+    # Sampling agrees that the last command meets eta for every neighbour.
+    required = 1.0 - 0.05 / len(neighbours) if risk == 'joint' else 0.95
+    rng = np.random.default_rng(5 + others)
+    for neighbour, bound in zip(neighbours, result.neighbour_bounds, strict=True):
+        assert bound >= required - 1e-12
+        probability = holds(rng, ego, neighbour, result.velocity, actuation, config)
+        assert probability >= bound - tolerance(bound), (probability, bound)

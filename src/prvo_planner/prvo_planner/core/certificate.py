@@ -46,7 +46,9 @@ wedges.
 
 The horizon pair ``h1 = -(r . w) - tau |w|^2``, ``h2 = |r + tau w|^2 - R^2`` does not reduce to one
 variable given the direction of ``w`` (``h1`` compares ``r . d`` with ``-tau l``, ``h2`` depends on
-``r + tau w`` in the plane), so the pair keeps Cantelli's bound.
+``r + tau w`` in the plane). With the receding gate on, the whole condition ``f or g or (h1 and
+h2)`` holds wherever the segment from ``r`` to ``r + tau w`` misses the disc, and that event is
+bounded from below by two normal tails per half-plane (:func:`horizon_certificate`).
 
 Rounding is made to go the safe way where it is cheap: the ranges of ``m`` and ``s^2`` are
 widened by a relative 1e-9 of their scales, the density bound is shrunk by a relative 1e-9, and
@@ -60,6 +62,7 @@ from dataclasses import dataclass
 import math
 
 import numpy as np
+from scipy.special import ndtri
 
 from .moments import rvo_moments
 
@@ -99,6 +102,9 @@ _PSI_SWITCH = -3.0
 _QUARTER_TURN = np.array([[0.0, -1.0], [1.0, 0.0]])
 # g = z' G z with G = [[0, I], [I, 0]] / 2.
 _HALF_SWAP = np.block([[np.zeros((2, 2)), 0.5 * np.eye(2)], [0.5 * np.eye(2), np.zeros((2, 2))]])
+# Even directions of the half-planes :func:`horizon_certificate` tries, besides the means'.
+HORIZON_DIRECTIONS = 64
+_HORIZON_ANGLES = 2.0 * math.pi * np.arange(HORIZON_DIRECTIONS) / HORIZON_DIRECTIONS
 
 
 @dataclass(frozen=True)
@@ -152,6 +158,33 @@ def search_margin(eta):
                       np.where(eta > SEARCH_ETAS[-1], high * cantelli,
                                np.interp(eta, SEARCH_ETAS, SEARCH_MARGINS)))
     return np.minimum(margin, cantelli)
+
+
+def horizon_search_margin(eta):
+    """
+    Return the margin ``k'`` the horizon pair is searched with to meet ``eta`` by a certificate.
+
+    :func:`horizon_certificate` spends ``1 - eta`` on two normal tails, of ``e . r`` and of
+    ``e . p``, ``p = r + tau w``; the first is negligible whenever the robots are apart now, so
+    the far end needs ``(e . mu_p - R) / s_p >= Phi^-1(eta)``. ``h2``'s ``mean / sd`` is about
+    ``(|p| - R) / s_p (|p| + R) / (2 |p|)``, at most ``(|p| - R) / s_p``: searched with
+    ``Phi^-1(eta)`` it accepts only where that end meets ``eta``. Clipped to ``[0, k']`` with
+    Cantelli's ``k' = sqrt((1 + eta) / (1 - eta))``. Only the search uses it: a velocity is kept
+    only if certified.
+
+    Parameters
+    ----------
+    eta : array_like
+        Required probabilities, in (0, 1).
+
+    Returns
+    -------
+    numpy.ndarray
+        ``k'`` per ``eta``.
+
+    """
+    eta = np.asarray(eta, dtype=float)
+    return np.clip(ndtri(eta), 0.0, np.sqrt((1.0 + eta) / (1.0 - eta)))
 
 
 def normal_cdf(x):
@@ -833,3 +866,74 @@ def receding_certificate(mean, cov, wedges=DEFAULT_WEDGES):
                      _cantelli(cov_rw[:, 0, 0] + cov_rw[:, 1, 1] + closing, variance),
                      closing >= 0.0)
 
+
+
+def horizon_certificate(mean, cov, radius, horizon):
+    """
+    Certified lower bound on ``P(f >= 0 or g >= 0 or (h1 >= 0 and h2 >= 0))`` for Gaussian ``z``.
+
+    The accepted condition with the receding gate on. ``z``, ``f`` and ``g`` as in
+    :func:`rvo_certificate` and :func:`receding_certificate`; ``h1 = -(r . w) - tau |w|^2`` and
+    ``h2 = |r + tau w|^2 - R^2`` with ``tau`` the time horizon. The event ``E`` that the segment
+    ``r + t w``, ``t`` in ``[0, tau]``, misses the open disc of radius ``R`` lies within the
+    condition: with ``t* = -(r . w) / |w|^2`` the time of closest approach, ``t* <= 0`` is
+    ``g >= 0``; for ``t*`` in ``(0, tau]`` the closest distance ``|r x w| / |w| >= R`` is
+    ``f >= 0``; for ``t* > tau`` both ``h1 = |w|^2 (t* - tau) > 0`` and ``h2 >= 0`` hold. ``E``
+    holds when both ends of the segment lie in a half-plane ``e . x >= R``, ``e`` a unit vector
+    (the segment is convex; a segment that misses the disc has such an ``e``, by separation),
+    so for every fixed ``e``
+
+        ``P >= 1 - Phi((R - e . mu_r) / s_r) - Phi((R - e . mu_p) / s_p)``
+
+    with ``p = r + tau w`` and ``s`` the standard deviations of ``e . r`` and ``e . p``, exact
+    normals. The largest bound over ``HORIZON_DIRECTIONS`` even directions and those of
+    ``mu_r``, ``mu_p`` and their bisector is returned, less ``SLACK``. Unlike the pair's
+    Cantelli bound it needs no gate-free form: it bounds the condition only where the gate
+    counts.
+
+    Parameters
+    ----------
+    mean : array_like
+        Mean of ``z``, shape (..., 4).
+    cov : array_like
+        Covariance of ``z``, shape (..., 4, 4), symmetric PSD.
+    radius : float or array_like
+        ``R``, broadcastable to the batch shape.
+    horizon : float or array_like
+        ``tau`` [s], > 0 and finite, broadcastable to the batch shape.
+
+    Returns
+    -------
+    numpy.ndarray
+        The bound, in [0, 1], of the batch shape.
+
+    """
+    mean, cov, shape = _validated(mean, cov, DEFAULT_WEDGES)
+    radius = np.broadcast_to(np.asarray(radius, dtype=float), shape).reshape(-1)
+    horizon = np.broadcast_to(np.asarray(horizon, dtype=float), shape).reshape(-1)
+    if not (np.isfinite(horizon).all() and (horizon > 0.0).all()):
+        raise ValueError('horizon must be finite and > 0')
+    tau = horizon[:, None, None]
+    mu_r = mean[:, :2]
+    mu_p = mu_r + horizon[:, None] * mean[:, 2:]
+    cov_rw = cov[:, :2, 2:]
+    cov_pp = (cov[:, :2, :2] + tau * (cov_rw + cov_rw.transpose(0, 2, 1))
+              + tau * tau * cov[:, 2:, 2:])
+    angles = np.concatenate([
+        np.broadcast_to(_HORIZON_ANGLES, (mean.shape[0], _HORIZON_ANGLES.size)),
+        np.arctan2(np.stack([mu_r[:, 1], mu_p[:, 1]], axis=1),
+                   np.stack([mu_r[:, 0], mu_p[:, 0]], axis=1))], axis=1)
+    bisector = 0.5 * (angles[:, -2] + angles[:, -1])
+    bisector = np.where(np.abs(angles[:, -2] - angles[:, -1]) > math.pi, bisector + math.pi,
+                        bisector)
+    angles = np.concatenate([angles, bisector[:, None]], axis=1)
+    directions = np.stack([np.cos(angles), np.sin(angles)], axis=-1)
+    tails = []
+    for mu, spread in ((mu_r, cov[:, :2, :2]), (mu_p, cov_pp)):
+        along = np.einsum('nai,ni->na', directions, mu) - radius[:, None]
+        sd = np.sqrt(np.maximum(np.einsum('nai,nij,naj->na', directions, spread, directions),
+                                0.0))
+        # An end exactly on the line with no spread still lies in the closed half-plane.
+        tails.append(normal_cdf(-_ratio(along, sd, np.inf)))
+    bound = np.max(1.0 - tails[0] - tails[1], axis=1) - SLACK
+    return np.clip(bound, 0.0, 1.0).reshape(shape)

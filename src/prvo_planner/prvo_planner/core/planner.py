@@ -22,7 +22,13 @@ import math
 import numpy as np
 
 from .beliefs import AgentBelief, as_finite_array
-from .certificate import receding_certificate, rvo_certificate, search_margin
+from .certificate import (
+    horizon_certificate,
+    horizon_search_margin,
+    receding_certificate,
+    rvo_certificate,
+    search_margin,
+)
 from .choice import (
     INTERIOR,
     CostTerms,
@@ -549,12 +555,13 @@ def _certified_bounds(search, velocities, achieved, required, certify):
     """
     Per neighbour, a lower bound on the probability of its accepted condition, and its kind.
 
-    Cantelli's bound of the ACHIEVED margin covers the horizon pair and is the floor. Where it
-    falls short of the REQUIRED probability, for the robots marked in CERTIFY, the certified
-    bound on ``P(f >= 0)`` at the robot's velocity is computed, and where that too falls short
-    and the gate counts, the one on ``P(g >= 0)``: a neighbour Cantelli already certifies costs
-    nothing (most of a crowd's are far). The condition holds if any alternative does, so the
-    largest is a bound; it is certified where it is a Gaussian one. The calls are per robot:
+    Cantelli's bound of the ACHIEVED margin is the floor. Where it falls short of the REQUIRED
+    probability, for the robots marked in CERTIFY, the certified bound on ``P(f >= 0)`` at the
+    robot's velocity is computed, and where that too falls short and the gate counts, the one on
+    ``P(g >= 0)`` and then, with a finite horizon, the one on the whole condition
+    (:func:`horizon_certificate`): a neighbour Cantelli already certifies costs nothing (most of
+    a crowd's are far). The condition holds if any alternative does, so the largest is a bound;
+    it is certified where it is a Gaussian one. The calls are per robot:
     numpy's vectorised transcendental functions round a value by its place in the batch, and a
     robot's plan must not depend on its companions.
     """
@@ -570,15 +577,30 @@ def _certified_bounds(search, velocities, achieved, required, certify):
         encounter = plan.encounter
         mean = encounter.origin[short]
         mean[:, 2:] += encounter.lead[short, None] * velocities[robot]
-        cov = plan.cov[short]
-        bounds = rvo_certificate(mean, cov, plan.radius[short]).probability
-        gate = plan.layout.receding_enabled[short] & (bounds < required[pairs][short])
-        if gate.any():
-            bounds[gate] = np.maximum(bounds[gate],
-                                      receding_certificate(mean[gate], cov[gate]).probability)
         # A view: the bounds are written into GAUSSIAN.
-        gaussian[pairs][short] = bounds
+        gaussian[pairs][short] = _gaussian_bounds(plan, mean, plan.cov[short],
+                                                  plan.radius[short],
+                                                  plan.layout.receding_enabled[short],
+                                                  required[pairs][short])
     return np.maximum(gaussian, cantelli), gaussian > cantelli
+
+
+def _gaussian_bounds(plan, mean, cov, radius, gated, required):
+    """Certified bounds of PLAN's condition for the Gaussians MEAN (N, 4), COV (N, 4, 4).
+
+    ``P(f >= 0)``; where that falls short of REQUIRED and the gate counts (GATED), the larger
+    with ``P(g >= 0)``, and where that too falls short, with the horizon bound.
+    """
+    bounds = rvo_certificate(mean, cov, radius).probability
+    gate = gated & (bounds < required)
+    if gate.any():
+        bounds[gate] = np.maximum(bounds[gate],
+                                  receding_certificate(mean[gate], cov[gate]).probability)
+    horizon = gate & (bounds < required) & plan.layout.has_horizon
+    if horizon.any():
+        bounds[horizon] = np.maximum(bounds[horizon], horizon_certificate(
+            mean[horizon], cov[horizon], radius[horizon], plan.config.time_horizon))
+    return bounds
 
 
 def _certified_choice(search):
@@ -586,7 +608,8 @@ def _certified_choice(search):
     Choose velocities that meet each neighbour's probability by a stated bound (section 13).
 
     The f and g conditions are searched with :func:`search_margin` of each neighbour's
-    required probability (the horizon pair keeps Cantelli's ``k'``) and the choice certified.
+    required probability, the horizon pair (where the gate counts, so that its certificate
+    applies) with :func:`horizon_search_margin`, and the choice certified.
     A robot whose choice falls short for some neighbours searches again with Cantelli's margins
     on those neighbours' links; after a second shortfall, with Cantelli's margins everywhere.
     A robot without a feasible velocity keeps its fallback: larger margins accept no more.
@@ -597,20 +620,97 @@ def _certified_choice(search):
     columns = 1 + plans[0].layout.has_receding
     margins = cantelli.copy()
     margins[:, :columns] = search_margin(required)[link_pair, None]
+    if plans[0].layout.has_horizon:
+        gated = np.concatenate([plan.layout.receding_enabled for plan in plans])[link_pair]
+        margins[gated, -2:] = horizon_search_margin(required)[link_pair[gated], None]
     choice = _choose(search, margins, required, np.ones(len(plans), dtype=bool))
     retry = (choice.candidates_feasible > 0) & _any_per_robot(search, choice.bounds < required)
-    if not retry.any():
-        return choice
-    short = (choice.bounds < required) & retry[pair_robot]
-    margins = np.where(short[link_pair, None], cantelli, margins)
-    choice = _merged(choice, _choose(search, margins, required, retry), retry,
-                     retry[pair_robot])
-    retry &= ((choice.candidates_feasible == 0)
-              | _any_per_robot(search, choice.bounds < required))
-    if not retry.any():
-        return choice
-    return _merged(choice, _choose(search, cantelli, required, retry), retry,
-                   retry[pair_robot])
+    if retry.any():
+        short = (choice.bounds < required) & retry[pair_robot]
+        margins = np.where(short[link_pair, None], cantelli, margins)
+        choice = _merged(choice, _choose(search, margins, required, retry), retry,
+                         retry[pair_robot])
+        retry &= ((choice.candidates_feasible == 0)
+                  | _any_per_robot(search, choice.bounds < required))
+        if retry.any():
+            choice = _merged(choice, _choose(search, cantelli, required, retry), retry,
+                             retry[pair_robot])
+    return _anchored(search, choice, required)
+
+
+def _anchored(search, choice, required):
+    """
+    CHOICE with each robot's anchors where they are certified and cost less.
+
+    The anchors of a robot are its preferred velocity and its previous command (within
+    ``max_speed``): the two points the choice cost pulls towards. The search sees each condition
+    alone, through its margin, and misses velocities that only the union certifies: slow
+    relative motion (a robot at its goal beside a standing neighbour) has a broad direction, so
+    neither ``f`` nor ``g`` nor ``h1`` holds with the required probability while the horizon
+    bound certifies that nothing is touched within ``tau``. Without the anchors such a robot
+    cannot stand still: the velocities it may take lie outside a disc about half its current
+    velocity (the reciprocal relative velocity ``2 v - v_i - v_j``), the cheapest of them lies
+    opposite, and its commands flip sign every plan for any inertia below 1. An anchor is taken
+    only if certified for every neighbour (:func:`_certified_bounds`, Cantelli's bound the
+    floor) and cheaper than the search's choice (any certified anchor, if the search found
+    nothing). Robots with limits or static obstacles keep the search's choice: their anchors
+    are not checked against them.
+    """
+    plans = search.plans
+    velocities, candidates_feasible = choice.velocities.copy(), choice.candidates_feasible.copy()
+    achieved, bounds, certified = (choice.achieved.copy(), choice.bounds.copy(),
+                                   choice.certified.copy())
+    for robot, plan in enumerate(plans):
+        if plan.allowed is not None or plan.walls is not None:
+            continue
+        config = plan.config
+        terms = CostTerms.of_plan(plan.v_pref, plan.previous, config)
+        anchors = np.array([_clip_speed(anchor, config.max_speed) for anchor in (
+            plan.v_pref, plan.previous) if anchor is not None])
+        costs = terms.costs(anchors)
+        if candidates_feasible[robot]:
+            cheaper = costs < terms.costs(velocities[robot])
+            anchors, costs = anchors[cheaper], costs[cheaper]
+        if not anchors.shape[0]:
+            continue
+        pairs = slice(search.pair_starts[robot],
+                      search.pair_starts[robot] + search.pair_counts[robot])
+        encounter = plan.encounter
+        at_anchors = condition_moments(encounter.origin, plan.cov, plan.radius, anchors,
+                                       config.time_horizon, plan.layout.has_receding,
+                                       encounter.lead)
+        for order in np.argsort(costs, kind='stable'):
+            anchor_achieved = achieved_margins(*(moment[:, order] for moment in at_anchors),
+                                               plan.layout, plan.layout.receding_enabled)
+            anchor_bounds, anchor_certified = _anchor_bounds(plan, anchors[order],
+                                                             anchor_achieved, required[pairs])
+            if np.all(anchor_bounds >= required[pairs]):
+                velocities[robot] = anchors[order]
+                candidates_feasible[robot] = max(candidates_feasible[robot], 1)
+                achieved[pairs], bounds[pairs], certified[pairs] = (
+                    anchor_achieved, anchor_bounds, anchor_certified)
+                break
+    return _Choice(velocities=velocities, candidates_feasible=candidates_feasible,
+                   achieved=achieved, bounds=bounds, certified=certified)
+
+
+def _anchor_bounds(plan, velocity, achieved, required):
+    """Per neighbour of PLAN, the bound at VELOCITY and whether it is certified.
+
+    As :func:`_certified_bounds` for one robot: Cantelli's bound of the ACHIEVED margins, raised
+    where it falls short of REQUIRED by the Gaussian bounds in turn.
+    """
+    cantelli = eta_from_k(np.maximum(achieved, 0.0))
+    short = cantelli < required
+    gaussian = np.zeros(achieved.shape)
+    if short.any():
+        encounter = plan.encounter
+        mean = encounter.origin[short]
+        mean[:, 2:] += encounter.lead[short, None] * velocity
+        gaussian[short] = _gaussian_bounds(plan, mean, plan.cov[short], plan.radius[short],
+                                           plan.layout.receding_enabled[short],
+                                           required[short])
+    return np.maximum(gaussian, cantelli), gaussian > cantelli
 
 
 def _any_per_robot(search, flags):
