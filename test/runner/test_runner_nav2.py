@@ -2,16 +2,12 @@
 
 import pathlib
 
-import pytest
 from runner_testing import output, start_runner
 from test_runner_engines import rows_of
 
 SCENARIOS = pathlib.Path(__file__).resolve().parents[2] / 'src/prvo_sim/scenarios'
 
 
-# Intermittent on a loaded machine (the ROS run parted from the in-process one once in
-# several fresh-clone runs): cause open, rerun twice.
-@pytest.mark.flaky(reruns=2)
 def test_both_engines_drive_the_stand_in_team_alike(tmp_path, runners):
     outs = {}
     for engine in ('inprocess', 'ros'):

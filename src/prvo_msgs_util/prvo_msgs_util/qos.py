@@ -33,7 +33,12 @@ MARKER_QOS = _reliable(1)
 CONTACT_QOS = _reliable(100, DurabilityPolicy.TRANSIENT_LOCAL)
 GOAL_QOS = _reliable(1)
 # Latched: a planner that starts or discovers a robot later still receives its announcements.
-ANNOUNCEMENT_QOS = _reliable(1, DurabilityPolicy.TRANSIENT_LOCAL)
+# Each is a change that holds from a step on, so none may be replaced before the node takes it:
+# a robot at its goal can change its share at two consecutive steps, and a reader's queue of
+# one, whose node was slow to take the first, would deliver only the second (stamped a step
+# later), and the next plan would use the value from before both.
+ANNOUNCEMENT_DEPTH = 16
+ANNOUNCEMENT_QOS = _reliable(ANNOUNCEMENT_DEPTH, DurabilityPolicy.TRANSIENT_LOCAL)
 # As map_server publishes the map: latched, so that a planner started later receives it.
 MAP_QOS = _reliable(1, DurabilityPolicy.TRANSIENT_LOCAL)
 # A route is published when it changes: latched, for an RViz started later.

@@ -322,15 +322,19 @@ class SimNode(Node):
         """
         self._last_odometry = serialized_odometry(self._world)
         self._send_last_state()
-        self._publish_status()
 
     def _send_last_state(self):
-        """Publish /clock, then every robot's last odometry, then every ground truth."""
+        """Publish /clock, every robot's last odometry, every ground truth, then the status.
+
+        The status goes with every state sent, also the first state sent again before and when
+        stepping starts: a recording that holds a state holds the simulator's status with it.
+        """
         self._clock_publisher.publish(ClockMsg(clock=self._stamp))
         for robot, (odometry, _) in zip(self._robots, self._last_odometry, strict=True):
             robot.odom_publisher.publish(odometry)
         for robot, (_, ground_truth) in zip(self._robots, self._last_odometry, strict=True):
             robot.ground_truth_publisher.publish(ground_truth)
+        self._publish_status()
 
     def _publish_idle_status(self):
         # Stepping publishes a status every step; before and after, this keeps it visible.
