@@ -26,13 +26,13 @@ SLOW_SUBSCRIBER = """
 import os, sys, time
 import rclpy
 from geometry_msgs.msg import Vector3Stamped
-from prvo_msgs_util import ANNOUNCEMENT_QOS
+from prvo_msgs_util import ANNOUNCEMENT_READER_QOS
 rclpy.init()
 node = rclpy.create_node('slow_share_listener')
 node.create_subscription(
     Vector3Stamped, '/robot_x/avoidance_share',
     lambda message: print(f'share {message.vector.x:.2f} stamped {message.header.stamp.nanosec}',
-                          flush=True), ANNOUNCEMENT_QOS)
+                          flush=True), ANNOUNCEMENT_READER_QOS)
 print('subscribed', flush=True)
 while not os.path.exists(sys.argv[1]):
     time.sleep(0.05)
