@@ -31,6 +31,7 @@ setup(
             'prvo-run = prvo_sim.run_scenario:main',
             'experiments = prvo_sim.bench.experiments:main',
             'nav2_stand_in = prvo_sim.upstream_node:main',
+            'planner_server_stand_in = prvo_sim.planned_path_node:main',
         ],
     },
 )

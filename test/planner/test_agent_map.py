@@ -20,7 +20,7 @@ from prvo_planner.maps import GridMap
 from prvo_planner.route import path_length
 
 SETTINGS = AgentSettings(radius=0.3, goal_tolerance=0.15, obstacle_distance=1.5,
-                         lookahead_distance=0.8)
+                         lookahead_dist=0.8)
 CONFIG = PlannerConfig(eta=0.8, max_speed=1.0, actuation_cov=0.0025 * np.eye(2))
 RESOLUTION = 0.1
 # Does the core take the map's obstacles yet? Until it does, the agent's calls are checked and
@@ -174,7 +174,7 @@ def test_the_route_is_taken_anew_for_a_new_goal_or_when_the_robot_strays(planned
     strayed = stand(agent, [2.0, 0.4], 20, t0=0.2)
     assert strayed.route is not first.route
     # Taken from where the robot was when it strayed farther than the lookahead.
-    assert strayed.route[0][1] < first.route[0][1] - SETTINGS.lookahead_distance + RESOLUTION
+    assert strayed.route[0][1] < first.route[0][1] - SETTINGS.lookahead_dist + RESOLUTION
     agent.set_goal(np.array([7.0, 1.0]))
     new_goal = stand(agent, [2.0, 0.4], 1, t0=3.0)
     np.testing.assert_array_equal(new_goal.route[-1], [7.0, 1.0])

@@ -14,3 +14,16 @@ def test_the_map_benchmark_writes_a_row_per_map(tmp_path, capsys):
     assert all(row['segments'] > 0 and row['cells'] == (row['size_m'] * 10) ** 2
                for row in rows)
     assert '| 8 m at 0.1 m |' in capsys.readouterr().out
+
+
+def test_the_callback_table_times_a_node_that_takes_each_map(tmp_path, capsys, monkeypatch,
+                                                             ros_domain):
+    monkeypatch.setenv('ROS_DOMAIN_ID', str(ros_domain))
+    output = tmp_path / 'rows.json'
+    assert map_bench.main(['--sizes', '8', '--resolution', '0.1', '--callbacks',
+                           '--json', str(output)]) == 0
+    row, = json.loads(output.read_text())
+    # The map was in force only after the callback had returned.
+    assert 0.0 < row['callback_ms'] <= row['in_force_after_ms']
+    assert row['callback_building_ms'] > 0.0
+    assert '| map callback [ms] |' in capsys.readouterr().out

@@ -99,7 +99,7 @@ def test_velocity_scaled_lookahead_is_clamped():
     assert settings.distance(0.0) == 0.3
     assert settings.distance(0.4) == pytest.approx(0.6)
     assert settings.distance(2.0) == 0.9
-    assert LookaheadSettings().distance(2.0) == 0.6
+    assert LookaheadSettings().distance(2.0) == 1.0
 
 
 @dataclasses.dataclass(frozen=True)

@@ -20,7 +20,7 @@ import numpy as np
 
 from prvo_planner.core import AgentBelief, VelocityLimits, plan_velocity
 from prvo_planner.core.beliefs import validated_share
-from prvo_planner.maps import ObstacleIndex, grid_obstacles, occupied_cells
+from prvo_planner.maps import GridMap, ObstacleIndex, grid_obstacles, occupied_cells
 from prvo_planner.path_following import carrot, closest_on_path
 from prvo_planner.preferred import (
     GOAL,
@@ -246,7 +246,8 @@ class AgentSettings:
     # command is the preferred velocity, unplanned.
     preferred_source: str = GOAL
     model: str = 'prvo'
-    lookahead_dist: float = 0.6
+    wait_for_path: bool = False
+    lookahead_dist: float = 1.0
     use_velocity_scaled_lookahead_dist: bool = False
     min_lookahead_dist: float = 0.3
     max_lookahead_dist: float = 0.9
@@ -255,7 +256,6 @@ class AgentSettings:
     state_timeout: float = 1.0
     obstacle_distance: float = 3.0
     unknown_is_occupied: bool = True
-    lookahead_distance: float = 1.0
     route_margin: float = 0.3
     wait_for_map: bool = False
 
@@ -281,7 +281,7 @@ class AgentSettings:
 
     @property
     def lookahead(self):
-        """Return the `LookaheadSettings` of path following."""
+        """Return the `LookaheadSettings` of following a path, or a goal's route on a map."""
         return LookaheadSettings(self.lookahead_dist, self.use_velocity_scaled_lookahead_dist,
                                  self.min_lookahead_dist, self.max_lookahead_dist,
                                  self.lookahead_time)
@@ -291,6 +291,43 @@ class AgentSettings:
         return TrackingModel(max_speed, self.max_angular_speed, self.max_acceleration,
                              self.max_angular_acceleration, self.tracking_horizon,
                              self.tracking_error)
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class BuiltMap:
+    """What an agent plans with of a map: made once per map and settings, never changed after.
+
+    `built_for` is the `PlannerAgent.map_key` it was made for; `obstacle_index` holds the grid's
+    obstacles (`maps.ObstacleIndex`), `route_map` its route graph (`route.RouteMap`) and
+    `route_tree` the shortest paths on it to `goal` (None without a goal). `build_map` makes it
+    from the grid and the key alone, in any thread: a node builds a large map beside its
+    planning and swaps the result in whole (`PlannerAgent.install_map`), so that no plan ever
+    sees a map half made.
+    """
+
+    grid: GridMap
+    built_for: tuple
+    obstacle_index: ObstacleIndex
+    route_map: RouteMap
+    goal: np.ndarray = None
+    route_tree: object = None
+
+
+def same_grid(grid, other):
+    """Whether the `maps.GridMap`s GRID and OTHER are the same map, cell for cell."""
+    return (grid.resolution == other.resolution and np.array_equal(grid.origin, other.origin)
+            and np.array_equal(grid.cells, other.cells))
+
+
+def build_map(grid, built_for, goal=None):
+    """Return the `BuiltMap` of GRID for the map key BUILT_FOR, with the paths to GOAL (2,)."""
+    unknown_is_occupied, obstacle_distance, clearance, route_margin = built_for
+    route_map = RouteMap(occupied_cells(grid, unknown_is_occupied), grid.resolution,
+                         grid.origin, clearance, route_margin)
+    return BuiltMap(grid, built_for, ObstacleIndex(grid_obstacles(grid, unknown_is_occupied),
+                                                   obstacle_distance),
+                    route_map, None if goal is None else np.array(goal, dtype=float),
+                    None if goal is None else route_map.tree_to(goal))
 
 
 # Command.route_status: no map (or no goal), a way to the goal found, no way reaches the goal.
@@ -474,6 +511,8 @@ class PlannerAgent:
         # The map (set_map) and what the agent made of it; the route to the goal in force.
         self._grid = None
         self._map_built_for = None
+        # Whether a map that arrived is being built by the caller (`install_map` ends it).
+        self.map_pending = False
         self._obstacle_index = None
         self._route_map = None
         self._route_tree = None
@@ -495,13 +534,17 @@ class PlannerAgent:
         """Return the names of the neighbours tracked now, in the table's order."""
         return [robot for robot in self._neighbour_tracks.names() if robot != self.name]
 
-    def reconfigure(self, config, settings, goal):
+    def reconfigure(self, config, settings, goal, rebuild_map=True):
         """Take new parameters; the plan in progress and the tracks go on.
 
-        A GOAL other than the current one is taken as by `set_goal`; None keeps no goal.
+        A GOAL other than the current one is taken as by `set_goal`; None keeps no goal. The map
+        in force is made anew for settings it was not made for (`map_outdated`), unless
+        REBUILD_MAP is false: the caller then builds it (`build_map`) and installs it, and
+        meanwhile the agent plans with the map made for the settings before.
         """
         self.config, self.settings = config, settings
-        self._build_map()
+        if rebuild_map and self.map_outdated:
+            self.install_map(build_map(self._grid, self.map_key, self.route_goal()))
         if goal is None:
             self.goal = None
         elif self.goal is None or not np.array_equal(self.goal, goal):
@@ -626,12 +669,15 @@ class PlannerAgent:
     def set_path(self, waypoints):
         """Follow the path WAYPOINTS (K, 2) instead of any before; None or K = 0: stop following.
 
-        The goal becomes the path's last waypoint (none without a path). Raises ValueError
+        The goal becomes the path's last waypoint (none without a path). The path followed
+        again (its sender re-publishes it) keeps the progress along it. Raises ValueError
         naming what is wrong with WAYPOINTS; the path followed then stays.
         """
         if waypoints is None or len(waypoints) == 0:
             self._path, self.goal, self.arrived = None, None, False
             self._previous_velocity = None
+            return
+        if self._path is not None and np.array_equal(self._path.waypoints, waypoints):
             return
         self._path = PathFollower(waypoints)
         self.set_goal(self._path.goal)
@@ -744,33 +790,34 @@ class PlannerAgent:
             velocity = np.zeros(2) if upstream is None else upstream.world_velocity(
                 self._own_yaw, settings.unicycle)
             return velocity, False, math.inf
+        lookahead = settings.lookahead.distance(float(np.hypot(*own.mean[2:])))
         if source == PATH and self._path is not None:
-            lookahead = settings.lookahead.distance(float(np.hypot(*own.mean[2:])))
             return path_preferred_velocity(
                 position, self._path, lookahead, max_speed, settings.approach_time,
                 settings.goal_tolerance, settings.max_acceleration)
         self._route_status = ROUTE_NONE
         if self._route_map is not None and self.goal is not None:
-            return self._route_preference(position)
+            return self._route_preference(position, lookahead)
         v_pref, arrived = preferred_velocity(
             position, self.goal, max_speed, settings.approach_time, settings.goal_tolerance,
             settings.max_acceleration)
         return v_pref, arrived, (
             math.inf if self.goal is None else float(np.hypot(*(self.goal - position))))
 
-    def _route_preference(self, position):
+    def _route_preference(self, position, lookahead):
         """Return (v_pref, arrived, the way left [m]) along the route to the goal on the map.
 
-        No way reaching the goal: the robot holds its place (and keeps avoiding whoever comes).
+        The carrot is LOOKAHEAD [m] ahead. No way reaching the goal: the robot holds its place
+        (and keeps avoiding whoever comes).
         """
         settings = self.settings
-        route = self._route_at(position)
+        route = self._route_at(position, lookahead)
         if route is None:
             self._route_status = ROUTE_UNREACHABLE
             return np.zeros(2), False, math.inf
         self._route_status = ROUTE_FOUND
         v_pref, arrived, self._route_segment, remaining = route_preferred_velocity(
-            position, self.goal, route, self._route_segment, settings.lookahead_distance,
+            position, self.goal, route, self._route_segment, lookahead,
             self.config.max_speed, settings.approach_time, settings.goal_tolerance,
             settings.max_acceleration, self._route_map.in_sight, self._route_map.resolution)
         return v_pref, arrived, remaining
@@ -798,12 +845,13 @@ class PlannerAgent:
         """
         upstream = request.upstream
         if not self.settings.avoids or upstream is None:
-            return dataclasses.replace(request, unplanned=v_pref,
+            return dataclasses.replace(request, unplanned=v_pref, obstacles=None,
                                        passed_through=upstream is not None)
         problem = self._problem(request.own, request.stamp, tracks, request.announcements,
                                 v_pref, self.config.time_horizon)
-        if upstream.is_zero or _unconstrained(problem):
-            return dataclasses.replace(request, unplanned=v_pref, passed_through=True)
+        if upstream.is_zero or _unconstrained(problem, request.obstacles):
+            return dataclasses.replace(request, unplanned=v_pref, obstacles=None,
+                                       passed_through=True)
         return dataclasses.replace(request, problem=problem)
 
     # Planning ---------------------------------------------------------------------------------
@@ -813,12 +861,19 @@ class PlannerAgent:
 
         In full: its odometry, its footprint and its share. Announcements travel apart from
         odometry; without this, a team's first plans would depend on which came first. With
-        `wait_for_map`, the map is waited for likewise.
+        `wait_for_map` the map is waited for likewise, with `wait_for_path` (path mode) a path;
+        a map that arrived and is being built (`map_pending`) however long that takes.
         """
-        if (self._first_own_at is None
-                or now - self._first_own_at > self.settings.neighbor_timeout):
+        if self._first_own_at is None:
+            return False
+        if self.settings.wait_for_map and self._grid is None and self.map_pending:
+            return True
+        if now - self._first_own_at > self.settings.neighbor_timeout:
             return False
         if self.settings.wait_for_map and self._grid is None:
+            return True
+        if (self.settings.wait_for_path and self.settings.preferred_source == PATH
+                and self._path is None):
             return True
         if self.listed_neighbours is None:
             return False
@@ -870,12 +925,17 @@ class PlannerAgent:
             announced.prune(stamp)
         if self._command_stamp is not None and 0.0 < stamp - self._command_stamp:
             self._control_period = stamp - self._command_stamp
+        obstacles = None if self._obstacle_index is None else self._obstacle_index.near(
+            own.mean[:2], self.settings.obstacle_distance)
+        if obstacles is not None and len(obstacles) == 0:
+            # Nothing near: the plan of an empty plane.
+            obstacles = None
         problem = None
         if upstream is not None or not self.settings.avoids:
             return self._unplanned_request(PlanRequest(
                 stamp=stamp, own=own, neighbours=neighbour_beliefs, neighbour_names=names,
-                announcements=announcements, problem=None, arrival=arrival, upstream=upstream),
-                v_pref, tracks)
+                announcements=announcements, problem=None, arrival=arrival, upstream=upstream,
+                obstacles=obstacles), v_pref, tracks)
         if self.goal is not None:
             # At its goal the robot keeps planning, with v_pref = 0: it stands while nobody
             # comes and takes its share of the avoidance when someone does, over the whole
@@ -886,11 +946,6 @@ class PlannerAgent:
             problem = self._problem(own, stamp, tracks, announcements, v_pref, horizon)
             if (self.arrived or route_status == ROUTE_UNREACHABLE) and nobody_comes(problem):
                 problem = None
-        obstacles = None if self._obstacle_index is None else self._obstacle_index.near(
-            own.mean[:2], self.settings.obstacle_distance)
-        if obstacles is not None and len(obstacles) == 0:
-            # Nothing near: the plan of an empty plane.
-            obstacles = None
         return PlanRequest(stamp=stamp, own=own, neighbours=neighbour_beliefs,
                            neighbour_names=names, announcements=announcements,
                            problem=problem, arrival=arrival, obstacles=obstacles, route=route,
@@ -906,53 +961,83 @@ class PlannerAgent:
     def set_map(self, grid):
         """Plan with the occupancy grid GRID (a `maps.GridMap`) from now on; None: no map.
 
-        The way to the goal is searched again on a map that differs from the one in force.
+        The map is built here (`build_map`, with the paths to the goal), unless it is the one in
+        force. The way to the goal is searched again on a map that differs from it.
         """
-        if grid is not None and self._grid is not None and (
-                grid.resolution == self._grid.resolution
-                and np.array_equal(grid.origin, self._grid.origin)
-                and np.array_equal(grid.cells, self._grid.cells)):
+        if grid is not None and self.has_map(grid):
             return
-        self._grid = grid
-        self._map_built_for = None
-        self._build_map()
+        self.install_map(None if grid is None else build_map(grid, self.map_key,
+                                                             self.route_goal()))
+
+    def has_map(self, grid):
+        """Whether GRID (a `maps.GridMap`) is the map in force, cell for cell."""
+        return self._grid is not None and same_grid(grid, self._grid)
+
+    @property
+    def map_key(self):
+        """What a `BuiltMap` depends on besides the grid, for the settings in force."""
+        settings = self.settings
+        # The route's cells keep the clearance the planner keeps from a wall of no thickness.
+        return (settings.unknown_is_occupied, settings.obstacle_distance,
+                settings.planning_radius + self.config.safety_margin, settings.route_margin)
+
+    @property
+    def map_outdated(self):
+        """Whether the map in force was made for other settings than those in force."""
+        return self._grid is not None and self._map_built_for != self.map_key
+
+    def route_goal(self):
+        """Return the goal a map's route is searched to (heading for a goal), else None."""
+        return self.goal if self.settings.preferred_source == GOAL else None
+
+    def install_map(self, built):
+        """Plan with BUILT (a `BuiltMap`) from now on; None: no map.
+
+        Its route tree counts if made for the goal in force; otherwise the next plan searches.
+        A map pending (`map_pending`) is no more.
+        """
+        self.map_pending = False
+        if built is None:
+            self._grid = self._map_built_for = self._obstacle_index = self._route_map = None
+            self._route_tree = None
+        else:
+            self._grid, self._map_built_for = built.grid, built.built_for
+            self._obstacle_index, self._route_map = built.obstacle_index, built.route_map
+            self._route_tree = built.route_tree
+        self._route = None
+
+    @property
+    def route_map(self):
+        """The `route.RouteMap` of the map in force, None without a map."""
+        return self._route_map
+
+    def install_route_tree(self, tree):
+        """Take TREE, the shortest paths to the goal in force searched elsewhere, if it fits.
+
+        It fits if searched on the map in force (`route_map`), to that goal; returns whether.
+        """
+        if (self._route_map is None or tree.route_map is not self._route_map
+                or self.goal is None or not np.array_equal(tree.goal, self.goal)):
+            return False
+        self._route_tree, self._route = tree, None
+        return True
 
     def goal_blocked(self, goal):
         """Whether GOAL (2,) lies in an obstacle of the map, or off it (False without a map)."""
         return self._route_map is not None and self._route_map.blocked(goal)
 
-    def _build_map(self):
-        """Make the obstacles and the route graph of the map for the settings in force."""
-        settings = self.settings
-        # The route's cells keep the clearance the planner keeps from a wall of no thickness.
-        built_for = (settings.unknown_is_occupied, settings.obstacle_distance,
-                     settings.planning_radius + self.config.safety_margin, settings.route_margin)
-        if self._grid is None:
-            self._obstacle_index = self._route_map = None
-        elif built_for != self._map_built_for:
-            occupied = occupied_cells(self._grid, settings.unknown_is_occupied)
-            self._obstacle_index = ObstacleIndex(
-                grid_obstacles(self._grid, settings.unknown_is_occupied),
-                settings.obstacle_distance)
-            self._route_map = RouteMap(occupied, self._grid.resolution, self._grid.origin,
-                                       built_for[2], settings.route_margin)
-        else:
-            return
-        self._map_built_for = None if self._grid is None else built_for
-        self._route_tree = self._route = None
-
-    def _route_at(self, position):
+    def _route_at(self, position, lookahead):
         """Return the route in force from POSITION to the goal, None if no way reaches it.
 
         The shortest paths to a goal are searched once per goal and map; the route is taken
-        anew from them when the robot strayed farther than the lookahead from it.
+        anew from them when the robot strayed farther than LOOKAHEAD [m] from it.
         """
         if self._route_tree is None or not np.array_equal(self._route_tree.goal, self.goal):
             self._route_tree = self._route_map.tree_to(self.goal)
             self._route = None
         if self._route is not None:
             _, closest = closest_on_path(self._route, position, self._route_segment)
-            if float(np.hypot(*(closest - position))) > self.settings.lookahead_distance:
+            if float(np.hypot(*(closest - position))) > lookahead:
                 self._route = None
         if self._route is None:
             self._route = self._route_tree.route_from(position)
@@ -1053,20 +1138,21 @@ class PlannerAgent:
 
 
 
-def _unconstrained(problem):
+def _unconstrained(problem, obstacles=None):
     """Whether PROBLEM's v_pref meets every constraint: the robot may keep it unchanged.
 
-    PROBLEM is the argument tuple of `plan_velocity`. The plan is made choosing by the distance
-    to v_pref alone and without the robot's limits (the command was made for them upstream);
-    the core keeps a choice a hair inside its feasible interval.
+    PROBLEM is the argument tuple of `plan_velocity`, OBSTACLES the map's obstacles near the
+    robot (None: none). The plan is made choosing by the distance to v_pref alone and without
+    the robot's limits (the command was made for them upstream); the core keeps a choice a hair
+    inside its feasible interval.
     """
     ego, neighbours, v_pref, config = problem[:4]
     if float(np.hypot(*v_pref)) > config.max_speed:
         return False
-    if not neighbours:
+    if not neighbours and obstacles is None:
         return True
     result = plan_velocity(ego, neighbours, v_pref, dataclasses.replace(
-        config, inertia=0.0, passing_bias=0.0, progress_weight=0.0))
+        config, inertia=0.0, passing_bias=0.0, progress_weight=0.0), obstacles=obstacles)
     return result.feasible and float(np.hypot(*(result.velocity - v_pref))) <= _PASSING_SLACK
 
 

@@ -2,11 +2,16 @@
 Benchmark of the map pieces: a grid's obstacles, the index near a robot, routes.
 
 Usage: ``python -m prvo_planner.map_bench [--json PATH] [--sizes 20 40 100]
-[--resolution 0.05]``. Each size is a seeded office of that many metres square: 4 m rooms
-joined by 1 m doors, 0.1 m walls, boxes of furniture. Times are process CPU time (insensitive to
-other processes sharing the cores), the best of three: once per map (segments, index, route
-graph), once per goal (the shortest paths to it from every cell), per plan (the obstacles
-within 3 m; a route from a new position).
+[--resolution 0.05] [--callbacks]``. Each size is a seeded office of that many metres square:
+4 m rooms joined by 1 m doors, 0.1 m walls, boxes of furniture. Times are process CPU time
+(insensitive to other processes sharing the cores), the best of three: once per map (segments,
+index, route graph), once per goal (the shortest paths to it from every cell), per plan (the
+obstacles within 3 m; a route from a new position).
+
+With ``--callbacks`` a planner node in this process (on ROS_DOMAIN_ID, or 0) is handed each map
+as an OccupancyGrid message, and a second table gives wall times [ms]: the node's map callback,
+what that callback took when it built the map itself (reading the message, then
+``PlannerAgent.set_map``), and how long after the message the built map was in force.
 """
 
 import argparse
@@ -81,12 +86,53 @@ def bench_map(size, resolution):
             'routes_found': sum(route is not None for route in routes)}
 
 
+def bench_callback(node, size, resolution):
+    """Return the callback row of one office map handed to planner NODE as a message."""
+    import rclpy
+
+    from prvo_msgs_util import WORLD_FRAME, make_occupancy_grid, occupancy_grid_to_parts
+    from prvo_planner.agent import PlannerAgent
+
+    grid = office(size, resolution)
+    message = make_occupancy_grid(0.0, grid.cells, grid.resolution, grid.origin, WORLD_FRAME)
+    agent = PlannerAgent('robot_0', node._agent.config, node._agent.settings)
+    started = time.perf_counter()
+    agent.set_map(GridMap(*occupancy_grid_to_parts(message, expected_frame=WORLD_FRAME)))
+    inline_ms = (time.perf_counter() - started) * 1e3
+    started = time.perf_counter()
+    node._on_map(message)
+    callback_ms = (time.perf_counter() - started) * 1e3
+    while not node._agent.has_map(grid):
+        rclpy.spin_once(node, timeout_sec=0.01)
+    in_force_ms = (time.perf_counter() - started) * 1e3
+    return {'size_m': size, 'resolution_m': resolution, 'callback_ms': callback_ms,
+            'callback_building_ms': inline_ms, 'in_force_after_ms': in_force_ms}
+
+
+def callback_rows(sizes, resolution):
+    """Return the callback rows of SIZES, measured on one planner node in this process."""
+    import rclpy
+
+    from prvo_planner.planner_node import PlannerNode
+
+    rclpy.init(args=['--ros-args', '-r', '__ns:=/robot_0', '-p', 'goal:=[1.5, 1.5]',
+                     '-p', 'neighbors:=[""]'])
+    node = PlannerNode()
+    try:
+        return [bench_callback(node, size, resolution) for size in sizes]
+    finally:
+        node.destroy_node()
+        rclpy.try_shutdown()
+
+
 def main(argv=None):
     """Print the table (and write JSON if asked)."""
     parser = argparse.ArgumentParser(description=__doc__.strip().splitlines()[0])
     parser.add_argument('--sizes', type=float, nargs='+', default=[20.0, 40.0, 100.0])
     parser.add_argument('--resolution', type=float, default=0.05)
     parser.add_argument('--json', help='write the rows to this file')
+    parser.add_argument('--callbacks', action='store_true',
+                        help="also time a planner node's map callback (starts rclpy)")
     arguments = parser.parse_args(argv)
     print('| map | cells | segments | segments [ms] | index [ms] | near 3 m [us] (found) | '
           'route graph [ms] | paths to a goal [ms] | route from [ms] |')
@@ -99,6 +145,17 @@ def main(argv=None):
               f"{row['segments']} | {row['segments_ms']:.1f} | {row['index_ms']:.1f} | "
               f"{row['near_us']:.0f} ({row['near_found']:.0f}) | {row['route_map_ms']:.0f} | "
               f"{row['tree_ms']:.0f} | {row['route_from_ms']:.2f} |", flush=True)
+    if arguments.callbacks:
+        print('\n| map | map callback [ms] | callback building the map [ms] | '
+              'map in force after [ms] |')
+        print('|---|---|---|---|')
+        for row in callback_rows(arguments.sizes, arguments.resolution):
+            print(f"| {row['size_m']:g} m at {arguments.resolution:g} m | "
+                  f"{row['callback_ms']:.1f} | {row['callback_building_ms']:.0f} | "
+                  f"{row['in_force_after_ms']:.0f} |", flush=True)
+            next(own for own in rows if own['size_m'] == row['size_m']).update(
+                {key: row[key] for key in ('callback_ms', 'callback_building_ms',
+                                           'in_force_after_ms')})
     if arguments.json:
         with open(arguments.json, 'w') as output:
             json.dump(rows, output, indent=2)

@@ -130,11 +130,16 @@ _PREFERRED_SOURCE_SPECS = (
     ParameterSpec('path_topic', STRING, 'plan', 'preferred_source path: the nav_msgs/Path (map '
                   'frame) to follow; a new path replaces the old, an empty one cancels.',
                   read_only=True, rule=_topic_name),
-    ParameterSpec('lookahead_dist', FLOAT, 0.6, 'preferred_source path: distance of the carrot '
-                  'on the path [m].', (0.01, 100.0)),
-    ParameterSpec('use_velocity_scaled_lookahead_dist', BOOL, False, 'preferred_source path: '
-                  'lookahead = speed * lookahead_time within [min_lookahead_dist, '
-                  'max_lookahead_dist] instead of lookahead_dist.'),
+    ParameterSpec('wait_for_path', BOOL, False, 'preferred_source path: plan only once a path '
+                  'has arrived (for at most neighbor_timeout after the first own odometry), as '
+                  'for listed neighbours: a run whose robots follow paths plans its first step '
+                  'on them.'),
+    ParameterSpec('lookahead_dist', FLOAT, 1.0, 'Distance [m] of the carrot on the path '
+                  "followed: the path of preferred_source path, or with a map a goal's route "
+                  '(which is taken anew when the robot strays farther from it).', (0.01, 100.0)),
+    ParameterSpec('use_velocity_scaled_lookahead_dist', BOOL, False, 'The lookahead is speed * '
+                  'lookahead_time within [min_lookahead_dist, max_lookahead_dist] instead of '
+                  'lookahead_dist.'),
     ParameterSpec('min_lookahead_dist', FLOAT, 0.3, 'Smallest velocity-scaled lookahead [m].',
                   (0.01, 100.0)),
     ParameterSpec('max_lookahead_dist', FLOAT, 0.9, 'Largest velocity-scaled lookahead [m], >= '
@@ -269,10 +274,6 @@ _SPECS = (
                   'considered, > 0.', (0.0, 1.0e4), rule=_positive),
     ParameterSpec('unknown_is_occupied', BOOL, True, 'Unknown map cells (-1) are obstacles '
                   '(true) or free (false).'),
-    ParameterSpec('lookahead_distance', FLOAT, 1.0, 'With a map, the robot heads for the point '
-                  'this far [m] ahead on its route to the goal and looks for a new route when '
-                  'it strays farther from it, in (0, 100].', (0.0, 100.0),
-                  rule=_positive_up_to_100),
     ParameterSpec('route_margin', FLOAT, 0.3, 'With a map, the route keeps this much more [m] '
                   'than the radius from obstacles where there is room (a way hugging them costs '
                   'up to twice its length), in [0, 10].', (0.0, 10.0)),

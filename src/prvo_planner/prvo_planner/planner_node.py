@@ -11,12 +11,14 @@ an occupancy grid on `map_topic` (latched, as map_server publishes it) it plans 
 grid's obstacles and, heading for a goal, publishes its route there on `<robot>/plan`.
 """
 
+import concurrent.futures
 import dataclasses
 import sys
 import time
 
 from geometry_msgs.msg import PointStamped, PoseStamped, Twist, TwistStamped
 from nav_msgs.msg import OccupancyGrid, Odometry, Path
+import numpy as np
 from rcl_interfaces.msg import SetParametersResult
 import rclpy
 from rclpy.clock import Clock, ClockType
@@ -63,7 +65,13 @@ from prvo_msgs_util import (
     twist_components,
     world_to_body,
 )
-from prvo_planner.agent import ROUTE_UNREACHABLE, AgentSettings, PlannerAgent
+from prvo_planner.agent import (
+    ROUTE_UNREACHABLE,
+    AgentSettings,
+    PlannerAgent,
+    build_map,
+    same_grid,
+)
 from prvo_planner.maps import GridMap
 from prvo_planner.parameters import (
     PARAMETERS,
@@ -82,12 +90,27 @@ _WARN_PERIOD_SECONDS = 2.0
 _ODOMETRY_TYPE = 'nav_msgs/msg/Odometry'
 _TWIST_TYPES = {Twist: 'geometry_msgs/msg/Twist', TwistStamped: 'geometry_msgs/msg/TwistStamped'}
 LOOKAHEAD_POINT = 'lookahead_point'
+# How often [s, wall] a map being built is looked at: the plans go on meanwhile.
+MAP_POLL_PERIOD = 0.02
 # name: (default, descriptor), in declaration order. A parameter without a default (goal,
 # neighbors) is dynamically typed, so that it can stay unset and take integers as well as
 # doubles; its rules are checked on every set.
 _PARAMETERS = {name: (spec.default, parameter_descriptor(
     spec.description, spec.kind, spec.bounds, spec.read_only,
     dynamic_typing=spec.default is None)) for name, spec in PARAMETERS.items()}
+
+
+@dataclasses.dataclass(frozen=True)
+class _MapBuild:
+    """What the worker makes: a `BuiltMap`, or the ways to a goal (a `RouteTree`).
+
+    `future` gives it; `grid` is what it is made of (the `GridMap`, or the goal (2,)),
+    `started` when it began [s, monotonic].
+    """
+
+    future: concurrent.futures.Future
+    grid: object
+    started: float
 
 
 class PlannerNode(Node):
@@ -158,6 +181,11 @@ class PlannerNode(Node):
             f'preferred_source={self._source} '
             f'goal={None if self._agent.goal is None else self._agent.goal.tolist()}')
 
+    def destroy_node(self):
+        """Destroy the node; a map being built is let go (its thread ends with it)."""
+        self._map_builder.shutdown(wait=False, cancel_futures=True)
+        super().destroy_node()
+
     def _source_endpoints(self):
         """Create the endpoints of the preferred velocity's source; return them.
 
@@ -227,8 +255,20 @@ class PlannerNode(Node):
             return SetParametersResult(successful=False, reason=str(error))
         self._values, self._config, self._goal = values, config, goal
         # The goal parameter is the goal_pose's; a path brings its own goal, a filter none.
-        self._agent.reconfigure(config, AgentSettings.from_parameters(values), (
-            goal if self._source == GOAL else self._agent.goal))
+        # A map made for other settings is made anew beside the plans (it is not made here),
+        # and so are the ways to a new goal on the map: until they are, the goal before holds.
+        agent = self._agent
+        routed = (self._source == GOAL and goal is not None and agent.grid_map is not None
+                  and (agent.goal is None or not np.array_equal(goal, agent.goal)))
+        agent.reconfigure(config, AgentSettings.from_parameters(values), (
+            goal if self._source == GOAL and not routed else agent.goal), rebuild_map=False)
+        if routed and (self._route_build is None
+                       or not np.array_equal(self._route_build.grid, goal)):
+            self._build_route(goal)
+        elif self._source == GOAL:
+            self._route_build = None
+        if agent.map_outdated and self._map_build is None:
+            self._build_map(agent.grid_map)
         self._announce()
         if any(parameter.name == 'sync_timeout' for parameter in parameters):
             self._sync_timer.timer_period_ns = int(max(values['sync_timeout'], 1e-3) * 1e9)
@@ -327,6 +367,9 @@ class PlannerNode(Node):
         self._announce()
         self.get_logger().info(f'following a path of {len(waypoints)} poses' if len(waypoints)
                                else 'empty path: stopped following')
+        if self._agent.ready(time.monotonic()):
+            # A plan waiting for the path (wait_for_path) goes ahead now.
+            self._plan()
 
     @quiet_after_shutdown
     def _on_upstream(self, msg):
@@ -377,16 +420,31 @@ class PlannerNode(Node):
     # Map and route ----------------------------------------------------------------------------
 
     def _map_endpoints(self):
-        """Subscribe the map (QoS as map_server's), advertise the route; return both."""
+        """Subscribe the map (QoS as map_server's), advertise the route; return them.
+
+        A map is built (`agent.build_map`: its obstacles, their index, its route graph, the
+        paths to the goal; seconds for a large map) by a worker thread, never in a callback;
+        the plans go on with the map in force until the new one is built whole and swapped in.
+
+        Only a robot heading for a goal has a route of its own: one following a path has the
+        path (on `plan` too, by default), a filter none.
+        """
         self._map_topic = self._values['map_topic']
+        self._map_builder = concurrent.futures.ThreadPoolExecutor(
+            max_workers=1, thread_name_prefix='map_builder')
+        # The newest map being built and the newest goal's ways (`_MapBuild`), None when none.
+        self._map_build = None
+        self._route_build = None
+        self._map_poll = self.create_timer(MAP_POLL_PERIOD, self._on_map_poll,
+                                           clock=self._steady_clock, autostart=False)
         # The route published last (None: an empty path), to publish a route once per change.
         self._published_route = None
-        self._plan_publisher = self.create_publisher(
+        self._plan_publisher = None if self._source != GOAL else self.create_publisher(
             Path, PLAN, PLAN_QOS, event_callbacks=quiet_publisher_events())
         subscription = self.create_subscription(
             OccupancyGrid, self._map_topic, self._on_map, MAP_QOS,
             event_callbacks=quiet_subscription_events())
-        return subscription, self._plan_publisher
+        return [subscription] + ([] if self._plan_publisher is None else [self._plan_publisher])
 
     @quiet_after_shutdown
     def _on_map(self, msg):
@@ -398,16 +456,89 @@ class PlannerNode(Node):
                                 f'ignoring map on {self._map_topic} (keeping the map in force): '
                                 f'{fault}')
             return
-        self._agent.set_map(grid)
-        height, width = grid.shape
-        self.get_logger().info(
-            f'map {width} x {height} cells of {grid.resolution:g} m from {self._map_topic}')
-        if self._agent.ready(time.monotonic()):
+        building = self._map_build is not None and same_grid(self._map_build.grid, grid)
+        if building or (self._map_build is None and self._agent.has_map(grid)):
+            return
+        self._build_map(grid)
+
+    def _build_map(self, grid):
+        """Have the worker build GRID for the settings in force; it replaces any build before."""
+        agent = self._agent
+        self._map_build = _MapBuild(self._map_builder.submit(
+            build_map, grid, agent.map_key, agent.route_goal()), grid, time.monotonic())
+        agent.map_pending = True
+        self._map_poll.reset()
+
+    def _build_route(self, goal):
+        """Have the worker search the ways to GOAL (2,) on the map in force; the goal waits."""
+        route_map = self._agent.route_map
+        self._route_build = _MapBuild(self._map_builder.submit(route_map.tree_to, goal), goal,
+                                      time.monotonic())
+        self._map_poll.reset()
+
+    @quiet_after_shutdown
+    def _on_map_poll(self):
+        taken = self._take_built_map()
+        taken = self._take_route() or taken
+        if taken and self._agent.ready(time.monotonic()):
             # A plan waiting for the map (wait_for_map) goes ahead now.
             self._plan()
 
+    def _take_route(self):
+        """Head for the goal whose ways the worker searched, if done; return whether it did."""
+        build = self._route_build
+        if build is None or not build.future.done():
+            return False
+        self._route_build = None
+        if self._map_build is None:
+            self._map_poll.cancel()
+        agent = self._agent
+        agent.set_goal(build.grid)
+        try:
+            tree = build.future.result()
+        except Exception as error:
+            # The plans search the ways themselves.
+            self._warnings.warn('route build', f'cannot search the ways to the goal: {error!r}')
+            return True
+        if not agent.install_route_tree(tree):
+            # Searched on a map since replaced: the plans search on the one in force.
+            return True
+        self.get_logger().info(f'ways to the goal {build.grid.tolist()} searched in '
+                               f'{time.monotonic() - build.started:.2f} s')
+        return True
+
+    def _take_built_map(self):
+        """Swap in the map the worker built, if it is done; return whether a map came in."""
+        build = self._map_build
+        if build is None or not build.future.done():
+            return False
+        self._map_build = None
+        if self._route_build is None:
+            self._map_poll.cancel()
+        agent = self._agent
+        try:
+            built = build.future.result()
+        except Exception as error:
+            # Whatever failed (memory, most likely), the plans go on with the map in force.
+            agent.map_pending = False
+            self._warnings.warn((self._map_topic, 'build'), f'cannot use the map on '
+                                f'{self._map_topic} (keeping the map in force): {error!r}')
+            return False
+        if built.built_for != agent.map_key:
+            # The settings changed while it was built: build it again for them.
+            self._build_map(built.grid)
+            return False
+        agent.install_map(built)
+        height, width = built.grid.shape
+        self.get_logger().info(
+            f'map {width} x {height} cells of {built.grid.resolution:g} m from '
+            f'{self._map_topic} (built in {time.monotonic() - build.started:.2f} s)')
+        return True
+
     def _publish_route(self, command):
         """Publish COMMAND's route on <robot>/plan where it changed; warn while none is found."""
+        if self._plan_publisher is None:
+            return
         if command.route_status == ROUTE_UNREACHABLE:
             self._warnings.warn('route', f'no way on the map reaches the goal '
                                 f'{self._agent.goal.tolist()}: holding the place')
@@ -456,6 +587,8 @@ class PlannerNode(Node):
     def _plan(self):
         """Plan for the pending stamp and publish the command, diagnostics and markers."""
         self._sync_timer.cancel()
+        self._take_built_map()
+        self._take_route()
         started = time.perf_counter()
         command = self._agent.plan()
         plan_time_ms = (time.perf_counter() - started) * 1e3

@@ -29,13 +29,13 @@ SOURCES = (GOAL, PATH, VELOCITY)
 
 @dataclasses.dataclass(frozen=True)
 class LookaheadSettings:
-    """The carrot's distance [m] on a path: `lookahead_dist`, or scaled with the speed.
+    """The carrot's distance [m] on a path or route: `lookahead_dist`, or scaled with the speed.
 
     With `use_velocity_scaled_lookahead_dist` the distance is speed * `lookahead_time` within
     [`min_lookahead_dist`, `max_lookahead_dist`], as Regulated Pure Pursuit scales it.
     """
 
-    lookahead_dist: float = 0.6
+    lookahead_dist: float = 1.0
     use_velocity_scaled_lookahead_dist: bool = False
     min_lookahead_dist: float = 0.3
     max_lookahead_dist: float = 0.9

@@ -25,7 +25,9 @@ from prvo_msgs_util import (
     announcement_stamp,
     body_to_world,
     make_occupancy_grid,
+    make_path,
     occupancy_grid_to_parts,
+    path_to_waypoints,
     radius_of_footprint,
     serialized_odometry_to_measurement,
     share_of,
@@ -43,6 +45,7 @@ from prvo_planner.maps import GridMap
 from prvo_planner.parameters import planner_config_from
 from prvo_planner.preferred import UpstreamCommand
 from prvo_planner.tracks import TrackTable
+from prvo_sim.planned_path import PlannedPath
 from prvo_sim.upstream import PurePursuitUpstream
 from prvo_sim.world import TeamWorld
 from prvo_sim.world_messages import serialized_odometry
@@ -93,6 +96,13 @@ def upstream_of(robot, scenario):
                                scenario.goal_tolerance / 2.0, robot.max_angular_speed)
 
 
+def path_of(robot):
+    """Return the `PlannedPath` that gives ROBOT (its `path` block) the path it follows."""
+    path = PlannedPath()
+    path.replan(robot.followed_path.waypoints)
+    return path
+
+
 class InProcessTeam:
     """A scenario's robots, each planned by its own agent, stepped in lockstep in one process.
 
@@ -140,6 +150,13 @@ class InProcessTeam:
             grid_map = self.world.static_world.grid
         if grid_map is not None:
             self._give_map(grid_map, planner_values)
+        # The planner_server stand-ins' paths, through the message, as a planner node takes
+        # them before its first plan (wait_for_path).
+        for index, robot in enumerate(scenario.robots):
+            if robot.followed_path is not None:
+                received = _received(make_path(0.0, path_of(robot).poses, WORLD_FRAME))
+                self.agents[index].set_path(path_to_waypoints(received,
+                                                              expected_frame=WORLD_FRAME))
         # The Nav2 stand-ins of the robots driven upstream (their planners filter), by index.
         self._upstreams = {index: upstream_of(robot, scenario)
                            for index, robot in enumerate(scenario.robots)

@@ -1,10 +1,10 @@
 """Run metrics computed from recorded ground truth: pure functions over numpy arrays.
 
-Shapes: `times` (T,), `positions` (T, N, 2) for N robots sampled at the same T instants,
-`radii` (N,), `goals` (N, 2). Definitions follow the metrics.json schema of the scenario
-README: a collision is an entry into contact of a pair of robots, a separation is the centre
-distance minus the sum of radii; a wall contact is a robot's entry into contact with a static
-shape, its wall clearance the distance from its centre to the nearest shape minus its radius.
+Shapes: `times` (T,), `positions` (T, N, 2) for N robots sampled at the same T instants, `radii`
+(N,), `goals` (N, 2). Definitions follow the metrics.json schema (docs/scenarios.md): a collision
+is an entry into contact of a pair of robots, a separation is the centre distance minus the sum of
+radii; a wall contact is a robot's entry into contact with a static shape, its wall clearance the
+distance from its centre to the nearest shape minus its radius.
 """
 
 import math

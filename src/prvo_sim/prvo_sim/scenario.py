@@ -52,7 +52,7 @@ _TOP_LEVEL_KEYS = {'name', 'description', 'seed', 'dt', 'duration', 'goal_tolera
 _TOP_LEVEL_REQUIRED = {'name', 'seed', 'dt', 'duration', 'goal_tolerance', 'robots'}
 _ROBOT_KEYS = {'name', 'start', 'goal', 'radius', 'max_speed', 'noise', 'planner', 'scripted',
                'kinematics', 'max_angular_speed', 'max_acceleration', 'max_angular_acceleration',
-               'start_yaw', 'upstream'}
+               'start_yaw', 'upstream', 'path'}
 DEFAULT_MAX_ANGULAR_SPEED = 2.0
 # Limits of a robot's motion [m/s^2, rad/s^2, rad/s]: as large as a speed may be, and more.
 MAX_LIMIT = 1.0e3
@@ -60,6 +60,7 @@ _UNICYCLE_ONLY = ('max_angular_speed', 'max_angular_acceleration')
 _ROBOT_REQUIRED = {'name', 'start', 'goal', 'radius', 'max_speed'}
 _SCRIPTED_KEYS = {'waypoints', 'speed', 'loop'}
 _UPSTREAM_KEYS = {'waypoints', 'speed'}
+_PATH_KEYS = {'waypoints'}
 _NOISE_KEYS = ('position_std', 'velocity_std', 'actuation_std')
 _WALL_KEYS = {'line', 'thickness'}
 _DISC_KEYS = {'position', 'radius'}
@@ -181,6 +182,9 @@ class RobotSpec:
     `start_yaw` [rad] is the heading at the start (None: facing the goal). `upstream` is the
     `ScriptedPath` (never looping) that a stand-in for Nav2's controller drives the robot along,
     its planner filtering the commands (its `goal` is the last waypoint), else None.
+    `followed_path` is the `ScriptedPath` (never looping, at `max_speed`) that a stand-in for
+    Nav2's planner_server publishes as the robot's `nav_msgs/Path`, its planner following it
+    (`preferred_source: path`; its `goal` is the last waypoint), else None.
     """
 
     name: str
@@ -197,6 +201,7 @@ class RobotSpec:
     max_angular_acceleration: float = math.inf
     start_yaw: float | None = None
     upstream: ScriptedPath = None
+    followed_path: ScriptedPath = None
 
 
 @dataclass(frozen=True)
@@ -520,8 +525,11 @@ def _map(check, name, key='map'):
 def _robot(check, entry, key, file_noise, file_planner):
     scripted = isinstance(entry, dict) and 'scripted' in entry
     driven = isinstance(entry, dict) and 'upstream' in entry
-    # A scripted robot, or one driven upstream, goes to its waypoints: it has no goal of its own.
-    required = _ROBOT_REQUIRED - {'goal'} if scripted or driven else _ROBOT_REQUIRED
+    following = isinstance(entry, dict) and 'path' in entry
+    # A scripted robot, or one driven upstream or along a path, goes to its waypoints: it has no
+    # goal of its own.
+    required = (_ROBOT_REQUIRED - {'goal'} if scripted or driven or following
+                else _ROBOT_REQUIRED)
     entry = check.mapping(entry, key, _ROBOT_KEYS, required)
     name = check.string(entry['name'], f'{key}.name')
     problem = ros_name_problem(name)
@@ -568,21 +576,30 @@ def _robot(check, entry, key, file_noise, file_planner):
                        f"it has no {'scripted block' if scripted else 'goal'}")
         upstream = _scripted_path(check, entry['upstream'], f'{key}.upstream', name, max_speed,
                                   _UPSTREAM_KEYS)
-    goal = (path or upstream).waypoints[-1] if (path or upstream) is not None else check.point(
-        entry['goal'], f'{key}.goal')
+    followed = None
+    if following:
+        if scripted or driven or 'goal' in entry:
+            other = 'scripted block' if scripted else 'upstream block' if driven else 'goal'
+            check.fail(f'{key}.path', f'robot {name!r} follows path.waypoints: it has no {other}')
+        followed = _scripted_path(check, entry['path'], f'{key}.path', name, max_speed,
+                                  _PATH_KEYS)
+    waypoints = next((block.waypoints for block in (path, upstream, followed)
+                      if block is not None), None)
+    goal = waypoints[-1] if waypoints is not None else check.point(entry['goal'], f'{key}.goal')
     return RobotSpec(
         name=name, start=start, goal=goal, kinematics=kinematics, start_yaw=start_yaw,
         **limits, radius=radius, max_speed=max_speed,
         noise=NoiseSpec(**{field: noise.get(field, 0.0) for field in _NOISE_KEYS}),
         planner={} if path is not None else {
             **file_planner, **check.planner(entry.get('planner'), f'{key}.planner')},
-        scripted=path, upstream=upstream)
+        scripted=path, upstream=upstream, followed_path=followed)
 
 
 def _scripted_path(check, value, key, name, max_speed, keys=_SCRIPTED_KEYS):
     """Return the ScriptedPath of robot NAME's block VALUE (KEYS allowed); errors name the robot.
 
-    A `scripted` block, or an `upstream` block (waypoints and speed, no loop).
+    A `scripted` block, an `upstream` block (waypoints and speed, no loop) or a `path` block
+    (waypoints).
     """
     try:
         block = check.mapping(value, key, keys, {'waypoints'})

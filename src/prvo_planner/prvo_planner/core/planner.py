@@ -306,7 +306,7 @@ def _result(plan, velocity, candidates_feasible, achieved, bounds, certified):
                       and obstacles.get('obstacle_clearance', math.inf) > 0.0,
                       achieved_k=smallest,
                       eta_bound=(eta_from_k(max(smallest, 0.0)) if certificate == 'cantelli'
-                                 else float(bounds.min())),
+                                 else float(bounds.min(initial=1.0))),
                       num_constraints=plan.encounter.origin.shape[0],
                       candidates_feasible=candidates_feasible, neighbour_bounds=bounds,
                       bound_kinds=['certified' if flag else 'cantelli' for flag in certified],

@@ -34,6 +34,7 @@ DEFAULT_ETA = PLANNER_DEFAULTS['eta']
 SIM_NODE = 'prvo_sim'
 PLANNER_NODE = 'planner'
 STAND_IN_NODE = 'nav2_stand_in'
+PATH_STAND_IN_NODE = 'planner_server_stand_in'
 STEP_TIMEOUT = 2.0  # wall seconds the sim waits for a late planner before reusing its command
 STARTUP_LIMIT = 60.0  # wall seconds for each start-up stage before the run counts as failed
 SETTLE_TIME = 1.0  # sim seconds every robot must stay at its goal before the run ends
@@ -55,6 +56,9 @@ LOCKSTEP_SYNC = {'sync_timeout': STEP_TIMEOUT - 0.1, 'neighbor_timeout': 5.0}
 # answer) and counts its own state as stale only when the run has surely stalled.
 FILTER_PARAMETERS = {'preferred_source': 'velocity', 'enable_stamped_cmd_vel': True,
                      'stop_pub_timeout': 1.0e9, 'state_timeout': 60.0}
+# A robot given its path by the planner_server stand-in: its planner follows it, from the first
+# step on (it waits for the path as for its neighbours).
+PATH_PARAMETERS = {'preferred_source': 'path', 'wait_for_path': True}
 # Parameters the runner sets itself; a scenario's planner block cannot override them.
 RUNNER_PARAMETERS = ('use_sim_time', 'goal', 'radius', 'max_speed', 'actuation_std',
                      'goal_tolerance', 'model', 'eta', 'kinematics', 'max_angular_speed',
@@ -114,6 +118,8 @@ def runner_planner_values(robot, scenario, method, eta, mode='lockstep'):
             values[limit] = float(getattr(robot, limit))
     if robot.upstream is not None:
         values.update(FILTER_PARAMETERS)
+    if robot.followed_path is not None:
+        values.update(PATH_PARAMETERS)
     if mode == 'lockstep':
         # The simulator waits for every answer, so a planner can wait for every neighbour's
         # odometry of the same stamp however loaded the machine: that makes runs reproducible.
@@ -201,12 +207,20 @@ class RunSpec:
         """The Nav2 stand-in's argv prefix (the ROS engine's)."""
         return package_command('prvo_sim', 'nav2_stand_in', 'prvo_sim.upstream_node')
 
+    @property
+    def path_stand_in_command(self):
+        """The planner_server stand-in's argv prefix (the ROS engine's)."""
+        return package_command('prvo_sim', 'planner_server_stand_in',
+                               'prvo_sim.planned_path_node')
+
     def own_nodes(self):
         """Return the fully qualified names of the nodes the run's children create."""
         return {f'/{SIM_NODE}', *(f'/{robot.name}/{PLANNER_NODE}'
                                    for robot in planned_robots(self.scenario)),
                 *(f'/{robot.name}/{STAND_IN_NODE}' for robot in self.scenario.robots
-                  if robot.upstream is not None)}
+                  if robot.upstream is not None),
+                *(f'/{robot.name}/{PATH_STAND_IN_NODE}' for robot in self.scenario.robots
+                  if robot.followed_path is not None)}
 
 
 def stand_in_parameters(robot, scenario, mode):
@@ -224,16 +238,30 @@ def stand_in_parameters(robot, scenario, mode):
             'enable_stamped_cmd_vel': 'true'}
 
 
+def path_stand_in_parameters(robot):
+    """Return the `-p` parameters of ROBOT's planner_server stand-in, ROS-formatted.
+
+    As the in-process engine's (`prvo_sim.engine.path_of`).
+    """
+    return {'use_sim_time': 'true',
+            'waypoints': ros_parameter(robot.followed_path.waypoints.ravel())}
+
+
 def start_stand_ins(children, spec):
-    """Start the Nav2 stand-in of every robot driven upstream."""
+    """Start the Nav2 stand-in of every robot driven upstream, and of every one given a path."""
     for robot in spec.scenario.robots:
-        if robot.upstream is None:
-            continue
-        argv = [*spec.stand_in_command, '--ros-args', '-r', f'__ns:=/{robot.name}',
-                '-r', f'__node:={STAND_IN_NODE}']
-        for key, value in stand_in_parameters(robot, spec.scenario, spec.mode).items():
-            argv += ['-p', f'{key}:={value}']
-        children.start(f'stand_in_{robot.name}', argv)
+        stand_ins = []
+        if robot.upstream is not None:
+            stand_ins.append((spec.stand_in_command, STAND_IN_NODE, 'stand_in',
+                              stand_in_parameters(robot, spec.scenario, spec.mode)))
+        if robot.followed_path is not None:
+            stand_ins.append((spec.path_stand_in_command, PATH_STAND_IN_NODE, 'path_stand_in',
+                              path_stand_in_parameters(robot)))
+        for command, node, label, parameters in stand_ins:
+            argv = [*command, '--ros-args', '-r', f'__ns:=/{robot.name}', '-r', f'__node:={node}']
+            for key, value in parameters.items():
+                argv += ['-p', f'{key}:={value}']
+            children.start(f'{label}_{robot.name}', argv)
 
 
 def start_planners(children, spec):

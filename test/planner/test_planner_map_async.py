@@ -1,0 +1,194 @@
+"""A planner node builds its map beside its plans: the callbacks return, no plan sees half a map.
+
+A PlannerNode runs in this process (its own ROS domain); its callbacks are called directly.
+The map's build is held on an event the test releases, so that "the callback returned while
+the map was still being built" is shown by the order of events, never by a clock.
+"""
+
+import threading
+
+import numpy as np
+import pytest
+from rclpy.parameter import Parameter
+from rclpy.serialization import serialize_message
+
+from prvo_msgs_util import make_occupancy_grid, make_odometry
+from prvo_planner import planner_node as planner_node_module
+from prvo_planner.agent import build_map
+from prvo_planner.maps import GridMap
+
+COVARIANCE = 1e-6 * np.eye(2)
+WAIT = 30.0
+
+
+def _room(wall_row):
+    """Return the cells of a 6 m x 6 m room (0.1 m cells) with a wall along row WALL_ROW."""
+    cells = np.zeros((60, 60), dtype=np.int8)
+    cells[wall_row, 10:50] = 100
+    return cells
+
+
+class HeldBuilds:
+    """`build_map` made to wait for `release` (each build in turn), counting the builds."""
+
+    def __init__(self):
+        self.release = threading.Event()
+        self.started = threading.Event()
+        self.grids = []
+
+    def __call__(self, grid, built_for, goal=None):
+        self.grids.append(grid)
+        self.started.set()
+        assert self.release.wait(WAIT), 'the test never released the build'
+        return build_map(grid, built_for, goal)
+
+
+@pytest.fixture
+def held(monkeypatch):
+    builds = HeldBuilds()
+    monkeypatch.setattr(planner_node_module, 'build_map', builds)
+    yield builds
+    # Never leave a worker waiting.
+    builds.release.set()
+
+
+@pytest.fixture
+def map_node(ros_domain):
+    """Yield a PlannerNode in /robot_0 heading for (3, 5) that waits for the map."""
+    import rclpy
+
+    from prvo_planner.planner_node import PlannerNode
+
+    rclpy.init(domain_id=ros_domain, args=[
+        '--ros-args', '-r', '__ns:=/robot_0', '-p', 'goal:=[3.0, 5.0]', '-p', 'neighbors:=[""]',
+        '-p', 'wait_for_map:=true', '-p', 'neighbor_timeout:=0.01', '-p', 'status_period:=0.0'])
+    node = PlannerNode()
+    yield node
+    node.destroy_node()
+    rclpy.try_shutdown()
+
+
+def _spin_until(node, condition):
+    import rclpy
+
+    for _ in range(int(WAIT / 0.01)):
+        if condition():
+            return
+        rclpy.spin_once(node, timeout_sec=0.01)
+    raise AssertionError('timed out')
+
+
+def _own_odometry(node, stamp, position=(3.0, 1.0)):
+    node._on_own_odometry(serialize_message(make_odometry(
+        stamp, position, [0.0, 0.0], COVARIANCE, COVARIANCE,
+        child_frame_id='robot_0/base_link')))
+
+
+def test_the_map_callback_returns_while_the_map_is_built_and_the_plan_waits(map_node, held):
+    node, agent = map_node, map_node._agent
+    node._on_map(make_occupancy_grid(0.0, _room(30), 0.1, [0.0, 0.0]))
+    # Returned, the build still held: it runs in another thread.
+    assert held.started.wait(WAIT)
+    assert agent.grid_map is None and agent.map_pending
+    _own_odometry(node, 0.1)
+    # neighbor_timeout is long past when the build is released: a map on its way is waited
+    # for however long it takes to build, so the first plan is on it.
+    assert agent.awaiting_listed(1e9) and not agent.ready(1e9)
+    assert agent.pending_stamp == 0.1
+    held.release.set()
+    _spin_until(node, lambda: agent.pending_stamp is None)
+    assert agent.grid_map is not None and not agent.map_pending
+    assert agent.tally.plans == 1
+
+
+def test_plans_go_on_with_the_map_in_force_until_the_new_one_is_built(map_node, held):
+    node, agent = map_node, map_node._agent
+    held.release.set()
+    first = make_occupancy_grid(0.0, _room(30), 0.1, [0.0, 0.0])
+    node._on_map(first)
+    _spin_until(node, lambda: agent.grid_map is not None)
+    in_force = agent.grid_map
+    held.release.clear()
+    held.started.clear()
+    node._on_map(make_occupancy_grid(0.0, _room(40), 0.1, [0.0, 0.0]))
+    assert held.started.wait(WAIT)
+    for stamp in (0.1, 0.2):
+        _own_odometry(node, stamp)
+        assert agent.pending_stamp is None, 'planned on the map in force'
+        assert agent.grid_map is in_force
+    held.release.set()
+    _spin_until(node, lambda: agent.grid_map is not in_force)
+    assert np.array_equal(agent.grid_map.cells, _room(40))
+    # A map equal to the one in force is not built again.
+    builds = len(held.grids)
+    node._on_map(make_occupancy_grid(0.0, _room(40), 0.1, [0.0, 0.0]))
+    assert len(held.grids) == builds and node._map_build is None
+
+
+def test_new_settings_rebuild_the_map_beside_the_plans(map_node, held):
+    node, agent = map_node, map_node._agent
+    held.release.set()
+    node._on_map(make_occupancy_grid(0.0, _room(30), 0.1, [0.0, 0.0]))
+    _spin_until(node, lambda: agent.grid_map is not None)
+    before = agent.map_key
+    held.release.clear()
+    held.started.clear()
+    node.set_parameters([Parameter('obstacle_distance', Parameter.Type.DOUBLE, 1.0)])
+    assert held.started.wait(WAIT)
+    # The parameter callback returned; the map made for the settings before is in force.
+    assert agent.map_outdated and agent._map_built_for == before
+    _own_odometry(node, 0.1)
+    assert agent.pending_stamp is None
+    held.release.set()
+    _spin_until(node, lambda: not agent.map_outdated)
+    assert agent.map_key[1] == 1.0
+
+
+def test_a_built_map_plans_as_one_built_in_place():
+    """The worker's result is what `set_map` makes: same obstacles, same route."""
+    from prvo_planner.agent import AgentSettings, PlannerAgent
+    from prvo_planner.core import PlannerConfig
+
+    grid = GridMap(_room(30), 0.1, [0.0, 0.0])
+    here = PlannerAgent('robot_0', PlannerConfig(), AgentSettings(), [3.0, 5.0])
+    there = PlannerAgent('robot_0', PlannerConfig(), AgentSettings(), [3.0, 5.0])
+    here.set_map(grid)
+    there.install_map(build_map(grid, there.map_key, there.route_goal()))
+    routes = [agent._route_at(np.array([3.0, 1.0]), 1.0) for agent in (here, there)]
+    np.testing.assert_array_equal(*routes)
+    assert routes[0][:, 0].min() < 1.0 or routes[0][:, 0].max() > 5.0  # round the wall
+    near = [agent._obstacle_index.near(np.array([3.0, 2.5]), 1.0).segments
+            for agent in (here, there)]
+    np.testing.assert_array_equal(*near)
+
+
+def test_a_new_goal_waits_for_its_ways_while_the_goal_before_holds(map_node, held):
+    node, agent = map_node, map_node._agent
+    held.release.set()
+    node._on_map(make_occupancy_grid(0.0, _room(30), 0.1, [0.0, 0.0]))
+    _spin_until(node, lambda: agent.grid_map is not None)
+    searching, release = threading.Event(), threading.Event()
+    search = agent.route_map.tree_to
+
+    def held_search(goal):
+        searching.set()
+        assert release.wait(WAIT), 'the test never released the search'
+        return search(goal)
+
+    agent.route_map.tree_to = held_search
+    try:
+        node.set_parameters([Parameter('goal', Parameter.Type.DOUBLE_ARRAY, [1.0, 5.0])])
+        assert searching.wait(WAIT)
+        # The parameter callback returned while the ways are searched; the goal before holds
+        # and the plans go on toward it.
+        np.testing.assert_array_equal(agent.goal, [3.0, 5.0])
+        _own_odometry(node, 0.1)
+        assert agent.pending_stamp is None
+    finally:
+        release.set()
+    _spin_until(node, lambda: np.array_equal(agent.goal, [1.0, 5.0]))
+    tree = agent._route_tree
+    assert tree is not None and np.array_equal(tree.goal, [1.0, 5.0])
+    _own_odometry(node, 0.2)
+    # The plan took the ways the worker searched: it did not search again.
+    assert agent.pending_stamp is None and agent._route_tree is tree
