@@ -9,6 +9,7 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, ReliabilityPolicy
 
 from prvo_msgs_util import (
     ANNOUNCEMENT_QOS,
+    ANNOUNCEMENT_READER_QOS,
     MAX_FOOTPRINT_RADIUS,
     MIN_FOOTPRINT_RADIUS,
     AnnouncementChanges,
@@ -161,4 +162,11 @@ def test_only_what_changed_is_announced_again_with_the_new_stamp():
 def test_announcements_are_latched():
     assert ANNOUNCEMENT_QOS.reliability == ReliabilityPolicy.RELIABLE
     assert ANNOUNCEMENT_QOS.durability == DurabilityPolicy.TRANSIENT_LOCAL
+    # A writer of one asks for an acknowledgement with every sample.
     assert (ANNOUNCEMENT_QOS.history, ANNOUNCEMENT_QOS.depth) == (HistoryPolicy.KEEP_LAST, 1)
+    # A reader's queue is bounded, and deep enough that no change is replaced before a slow
+    # node takes it.
+    reader = ANNOUNCEMENT_READER_QOS
+    assert (reader.reliability, reader.durability) == (ReliabilityPolicy.RELIABLE,
+                                                       DurabilityPolicy.TRANSIENT_LOCAL)
+    assert reader.history == HistoryPolicy.KEEP_LAST and reader.depth > 2

@@ -152,11 +152,16 @@ def test_stale_own_state_gives_zero_and_fresh_state_resumes():
     assert agent.plan().passed_through
 
 
-def test_no_state_at_all_is_stale():
-    agent = _filter_agent()
-    agent.receive_upstream(UpstreamCommand((0.4, 0.0), 0.0), 0.0)
+def test_no_state_at_all_is_stale_once_the_first_command_waited_state_timeout():
+    agent = _filter_agent(state_timeout=0.5)
     assert agent.own_state_stale(0.0)
-    assert not agent.ready(0.0)
+    agent.receive_upstream(UpstreamCommand((0.4, 0.0), 0.0), 1.0)
+    # The robot's first state may come after its controller's first command: wait for it.
+    assert not agent.own_state_stale(1.4) and agent.upstream_answer(1.4) == 'wait'
+    assert not agent.ready(1.4)
+    agent.receive_upstream(UpstreamCommand((0.4, 0.0), 0.0), 1.6)
+    assert agent.own_state_stale(1.6) and agent.upstream_answer(1.6) == 'stale'
+    assert agent.stale_answer() is not None
 
 
 # A node in this process --------------------------------------------------------------------
@@ -257,3 +262,22 @@ def test_a_re_sent_step_is_answered_by_the_last_answer():
     agent.plan()
     agent.receive_upstream(UpstreamCommand((0.3, 0.0), 0.0), 0.12)
     assert agent.upstream_answer(0.12) == 'plan' and agent.pending_stamp == 0.1
+
+
+def test_a_re_sent_step_that_comes_after_the_next_state_waits_for_the_next_command():
+    # A lockstep simulator sent step 0 again and, once answered, step 0.1: the stand-in's
+    # answer to the repeat comes after the state of 0.1. Step 0.1 is planned with the command
+    # that answers it, as in the in-process loop, once.
+    agent = _filter_agent()
+    agent.receive_own(_Measurement(0.0, np.zeros(2), np.zeros(2), COVARIANCE), 0.0)
+    agent.receive_upstream(UpstreamCommand((0.4, 0.0), 0.0, stamp=0.0), 0.0)
+    assert agent.upstream_answer(0.0) == 'plan'
+    agent.plan()
+    agent.receive_own(_Measurement(0.1, np.zeros(2), np.zeros(2), COVARIANCE), 0.1)
+    agent.receive_upstream(UpstreamCommand((0.4, 0.0), 0.0, stamp=0.0), 0.1)
+    assert agent.upstream_answer(0.1) == 'repeat' and agent.pending_stamp == 0.1
+    agent.receive_upstream(UpstreamCommand((0.0, 0.3), 0.0, stamp=0.1), 0.1)
+    assert agent.upstream_answer(0.1) == 'plan'
+    command = agent.plan()
+    assert command.stamp == 0.1 and command.upstream.stamp == 0.1
+    np.testing.assert_array_equal(command.velocity, [0.0, 0.3])

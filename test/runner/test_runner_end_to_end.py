@@ -59,8 +59,6 @@ def test_headon2_both_arrive_without_contact(tmp_path, runners):
     assert unanswered <= {times[-1]}, sorted(unanswered, key=float)[:5]
 
 
-# Intermittent on a loaded machine (a bag without /diagnostics): cause open, rerun twice.
-@pytest.mark.flaky(reruns=2)
 def test_sigint_during_a_real_run_leaves_no_process(tmp_path, runners):
     # A long scenario: the run must still be going when the signal comes, however fast.
     long_run = tmp_path / 'long.yaml'

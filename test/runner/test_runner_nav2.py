@@ -23,9 +23,6 @@ def final_positions(path):
     return finals
 
 
-# Intermittent on a loaded machine (the ROS run parted from the in-process one once in
-# several fresh-clone runs): cause open, rerun twice.
-@pytest.mark.flaky(reruns=2)
 def test_both_engines_drive_the_stand_in_team_alike(tmp_path, runners):
     outs = {}
     for engine in ('inprocess', 'ros'):

@@ -65,6 +65,7 @@ from prvo_msgs_util.parameters import (
 )
 from prvo_msgs_util.qos import (
     ANNOUNCEMENT_QOS,
+    ANNOUNCEMENT_READER_QOS,
     CLOCK_QOS,
     CMD_VEL_QOS,
     CONTACT_QOS,
@@ -107,7 +108,8 @@ from prvo_msgs_util.topics import (
 )
 
 __all__ = [
-    'ANNOUNCEMENT_QOS', 'AVOIDANCE_SHARE', 'FOOTPRINT', 'footprint_message',
+    'ANNOUNCEMENT_QOS', 'ANNOUNCEMENT_READER_QOS', 'AVOIDANCE_SHARE', 'FOOTPRINT',
+    'footprint_message',
     'radius_of_footprint', 'share_message', 'share_of', 'announcement_stamp',
     'AnnouncementChanges', 'Announcer', 'subscribe_announcements',
     'all_acknowledged', 'CommandsAfterAnnouncements',

@@ -1,13 +1,13 @@
 """What a robot announces about itself to its neighbours: its footprint and share of avoidance.
 
-Every planner publishes, latched (ANNOUNCEMENT_QOS), on `/<robot>/footprint` a
-`geometry_msgs/PolygonStamped` in `<robot>/base_link` (a regular polygon with its vertices on the
-robot's radius, as Nav2 publishes a circular footprint) and on `/<robot>/avoidance_share` a
-`geometry_msgs/Vector3Stamped` in `<robot>/base_link` whose `vector.x` is the share of a pair's
-avoidance the robot takes itself, in [0, 1) (0.5 for a reciprocating planner, 0 for a robot that
-does not avoid; y and z are 0). Each holds for the plans of odometry stamped after its
-`header.stamp`, the stamp of the plan that changed it; a zero stamp, from the start. See
-docs/interfaces.md.
+Every planner publishes, latched (ANNOUNCEMENT_QOS; subscribers queue more:
+ANNOUNCEMENT_READER_QOS), on `/<robot>/footprint` a `geometry_msgs/PolygonStamped` in
+`<robot>/base_link` (a regular polygon with its vertices on the robot's radius, as Nav2
+publishes a circular footprint) and on `/<robot>/avoidance_share` a `geometry_msgs/Vector3Stamped`
+in `<robot>/base_link` whose `vector.x` is the share of a pair's avoidance the robot takes
+itself, in [0, 1) (0.5 for a reciprocating planner, 0 for a robot that does not avoid; y and z
+are 0). Each holds for the plans of odometry stamped after its `header.stamp`, the stamp of the
+plan that changed it; a zero stamp, from the start. See docs/interfaces.md.
 """
 
 import math
@@ -24,6 +24,7 @@ from prvo_msgs_util.conversions import (
 )
 from prvo_msgs_util.qos import (
     ANNOUNCEMENT_QOS,
+    ANNOUNCEMENT_READER_QOS,
     quiet_publisher_events,
     quiet_subscription_events,
 )
@@ -280,7 +281,7 @@ def subscribe_announcements(node, robot, receive_radius, receive_share, on_fault
 
     footprint, share = robot_topic(robot, FOOTPRINT), robot_topic(robot, AVOIDANCE_SHARE)
     return [node.create_subscription(kind, topic, handler(topic, convert, receive),
-                                     ANNOUNCEMENT_QOS,
+                                     ANNOUNCEMENT_READER_QOS,
                                      event_callbacks=quiet_subscription_events())
             for kind, topic, convert, receive in (
                 (PolygonStamped, footprint, radius_of_footprint, receive_radius),

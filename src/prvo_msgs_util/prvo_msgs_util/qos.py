@@ -33,7 +33,15 @@ MARKER_QOS = _reliable(1)
 CONTACT_QOS = _reliable(100, DurabilityPolicy.TRANSIENT_LOCAL)
 GOAL_QOS = _reliable(1)
 # Latched: a planner that starts or discovers a robot later still receives its announcements.
+# A publisher keeps one: Fast DDS asks for an acknowledgement with every sample only of a
+# writer this shallow (a deeper one asks every few samples, and a command that waits for the
+# acknowledgement waits for the periodic heartbeat, seconds).
 ANNOUNCEMENT_QOS = _reliable(1, DurabilityPolicy.TRANSIENT_LOCAL)
+# A subscriber queues more: each announcement is a change that holds from a step on, and a
+# robot at its goal can change its share at two consecutive steps; a queue of one, whose node
+# was slow to take the first change, would hold only the second (stamped a step later), and
+# the plan of the step between would use the value from before both.
+ANNOUNCEMENT_READER_QOS = _reliable(16, DurabilityPolicy.TRANSIENT_LOCAL)
 # As map_server publishes the map: latched, so that a planner started later receives it.
 MAP_QOS = _reliable(1, DurabilityPolicy.TRANSIENT_LOCAL)
 # A route is published when it changes: latched, for an RViz started later.

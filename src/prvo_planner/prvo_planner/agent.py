@@ -504,6 +504,9 @@ class PlannerAgent:
         self._upstream_received_at = None
         self._upstream_answered = None
         self._own_received_at = None
+        # When the first upstream command came: before the first own state, staleness counts
+        # from it.
+        self._first_upstream_at = None
         self._gate = FilterGate(settings.stop_pub_timeout)
         # The map (set_map) and what the agent made of it; the route to the goal in force.
         self._grid = None
@@ -692,31 +695,36 @@ class PlannerAgent:
         ran out (`repeat_last_stamp`).
         """
         self._upstream, self._upstream_received_at = command, now
+        if self._first_upstream_at is None:
+            self._first_upstream_at = now
 
     def upstream_answer(self, now):
         """Return how the waiting upstream command is to be answered at NOW.
 
         'stale': by zero (`stale_answer`), the own state is stale; 'repeat': by the last answer
-        again (a stamped command no later than the last one answered, for the same own state:
-        its sender re-sent a step, as a lockstep simulator re-sends a step not answered, and one
-        step has one answer); 'plan': by `plan()`, the robot is ready;
-        'wait': for the own state the command's stamp is later than, or for the neighbours
-        (the caller plans at the latest when its wait runs out: `repeat_last_stamp`). A
-        command that finds no newer own state is answered from the last one.
+        again (a stamped command no later than the last one answered, for that own state or
+        with a newer one pending: its sender re-sent a step, as a lockstep simulator re-sends a
+        step not answered and a stand-in answers each state sent, and one step has one answer);
+        'plan': by `plan()`, the robot is ready; 'wait': for the first own state, for the own
+        state the command's stamp is later than, or for the neighbours (the caller plans at the
+        latest when its wait runs out: `repeat_last_stamp`). A command that finds no newer own
+        state is answered from the last one.
         """
         upstream = self._upstream
         if self.own_state_stale(now):
             return 'stale'
+        if self._own_track is None:
+            return 'wait'
+        answered = self._upstream_answered
+        if (upstream.stamp is not None and answered is not None
+                and answered.stamp is not None and upstream.stamp <= answered.stamp
+                and (self._pending_stamp is not None
+                     or self._command_stamp == self._own_track.stamp)):
+            self._upstream = None
+            return 'repeat'
         if self._pending_stamp is None:
-            last = self._own_track.stamp
-            if upstream.stamp is not None and upstream.stamp > last:
+            if upstream.stamp is not None and upstream.stamp > self._own_track.stamp:
                 return 'wait'
-            answered = self._upstream_answered
-            if (upstream.stamp is not None and answered is not None
-                    and answered.stamp is not None and upstream.stamp <= answered.stamp
-                    and self._command_stamp == last):
-                self._upstream = None
-                return 'repeat'
             self.repeat_last_stamp()
         return 'plan' if self.ready(now) else 'wait'
 
@@ -726,9 +734,15 @@ class PlannerAgent:
         return self._upstream is not None
 
     def own_state_stale(self, now):
-        """Whether no own measurement came within `state_timeout` before NOW."""
-        return (self._own_received_at is None
-                or now - self._own_received_at > self.settings.state_timeout)
+        """Whether no own measurement came within `state_timeout` before NOW.
+
+        Before the first one, the wait counts from the first upstream command: a controller
+        started with the robot can send its first command before the robot's first state
+        reaches the filter, which waits for it (answering nothing) up to `state_timeout`.
+        """
+        since = (self._first_upstream_at if self._own_received_at is None
+                 else self._own_received_at)
+        return since is None or now - since > self.settings.state_timeout
 
     def repeat_last_stamp(self):
         """Plan the next time for the last own stamp again (no newer measurement came)."""

@@ -205,24 +205,30 @@ class SimNode(Node):
         robot = self._robots[index]
         try:
             if self._world.unicycle[index]:
-                robot.command, sideways = unicycle_command(msg, robot.base_frame, self._world)
+                command, sideways = unicycle_command(msg, robot.base_frame, self._world)
                 if sideways != 0.0:
                     robot.logger.warning(
                         f'{robot.cmd_vel_topic}: linear.y {sideways:.3f} m/s dropped: '
                         f'{robot.name} is a unicycle (linear.x and angular.z only)',
                         throttle_duration_sec=_WARNING_THROTTLE)
             else:
-                robot.command = command_velocity(msg, index, robot.base_frame, self._world)
+                command = command_velocity(msg, index, robot.base_frame, self._world)
         except MessageFault as fault:
             robot.logger.warning(f'skipping {robot.cmd_vel_topic}: {fault}',
                                  throttle_duration_sec=_WARNING_THROTTLE)
             return
+        stamped = isinstance(msg, TwistStamped)
+        # In lockstep the answer to a step done (a planner's repeat that crossed the next
+        # state) leaves the command in force: the current step's answer, or until it comes
+        # the last step's, as an unanswered step executes.
+        if not (self._mode == 'lockstep' and stamped
+                and _stamp_key(msg.header.stamp) < _stamp_key(self._stamp)):
+            robot.command = command
         # An unstamped Twist cannot say which odometry it answers: any after it counts. A
         # duplicate answer finds the robot answered already, or the step it answers done.
         timing = self._timing
         timing.command_received(
-            index, not isinstance(msg, TwistStamped) or msg.header.stamp == self._stamp,
-            time.monotonic())
+            index, not stamped or msg.header.stamp == self._stamp, time.monotonic())
         if (self._mode == 'lockstep' and timing.started and not self._world.finished
                 and timing.all_answered()):
             self._advance()
@@ -322,15 +328,19 @@ class SimNode(Node):
         """
         self._last_odometry = serialized_odometry(self._world)
         self._send_last_state()
-        self._publish_status()
 
     def _send_last_state(self):
-        """Publish /clock, then every robot's last odometry, then every ground truth."""
+        """Publish /clock, every robot's last odometry, every ground truth, then the status.
+
+        The status goes with every state sent, also the first state sent again before and when
+        stepping starts: a recording that holds a state holds the simulator's status with it.
+        """
         self._clock_publisher.publish(ClockMsg(clock=self._stamp))
         for robot, (odometry, _) in zip(self._robots, self._last_odometry, strict=True):
             robot.odom_publisher.publish(odometry)
         for robot, (_, ground_truth) in zip(self._robots, self._last_odometry, strict=True):
             robot.ground_truth_publisher.publish(ground_truth)
+        self._publish_status()
 
     def _publish_idle_status(self):
         # Stepping publishes a status every step; before and after, this keeps it visible.
@@ -344,6 +354,11 @@ class SimNode(Node):
             message = 'running' if self._timing.started else f'waiting for {self._waiting_for}'
         self._diagnostics_publisher.publish(status_array(
             self._world, message, self._mode, self._timing.deadline_misses))
+
+
+def _stamp_key(stamp):
+    """Return a builtin_interfaces/Time STAMP as (sec, nanosec), which orders stamps."""
+    return stamp.sec, stamp.nanosec
 
 
 def main(args=None):
