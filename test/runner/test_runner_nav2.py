@@ -5,7 +5,6 @@ import json
 import pathlib
 
 import numpy as np
-import pytest
 from runner_testing import output, start_runner
 from test_runner_engines import rows_of
 
@@ -40,8 +39,6 @@ def test_both_engines_drive_the_stand_in_team_alike(tmp_path, runners):
         assert max(abs(value - other) for value, other in pairs) <= 1e-9, (key, values, ros[key])
 
 
-# Intermittent on a loaded machine like the stand-in team above: rerun twice.
-@pytest.mark.flaky(reruns=2)
 def test_both_engines_follow_the_path_stand_ins_alike_to_every_path_end(tmp_path, runners):
     outs = {}
     for engine in ('inprocess', 'ros'):
