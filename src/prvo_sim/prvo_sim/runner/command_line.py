@@ -27,7 +27,12 @@ from prvo_sim.runner.domain import (
     requested_domain,
 )
 from prvo_sim.runner.outputs import Ending, OutputError, print_summary, write_summary
-from prvo_sim.runner.processes import INTERRUPT_SIGNALS, INTERRUPTS, RunInterruptedError
+from prvo_sim.runner.processes import (
+    INTERRUPT_SIGNALS,
+    INTERRUPTS,
+    RunInterruptedError,
+    untranslated,
+)
 from prvo_sim.runner.session import (
     ENGINES,
     METHODS,
@@ -233,7 +238,8 @@ def run_interruptibly(program, job):
     previous_handlers = {signum: signal.signal(signum, INTERRUPTS.handle)
                          for signum in INTERRUPT_SIGNALS}
     try:
-        return job()
+        with untranslated():
+            return job()
     except RunInterruptedError as interruption:
         print(f'{program}: interrupted by {interruption}', file=sys.stderr)
         return 128 + interruption.signum

@@ -14,7 +14,7 @@ import numpy as np
 from prvo_sim.engine import InProcessTeam
 from prvo_sim.runner.bag import TeamMessages
 from prvo_sim.runner.outputs import Ending, Recording, RunResult, write_outputs
-from prvo_sim.runner.processes import INTERRUPTS, RunInterruptedError
+from prvo_sim.runner.processes import INTERRUPTS, RunInterruptedError, untranslated
 from prvo_sim.runner.session import (
     PROGRESS_PERIOD,
     ProgressLine,
@@ -58,7 +58,9 @@ def run_inprocess(spec):
     progress = ProgressLine(spec, quiet=spec.quiet)
     started = time.monotonic()
     try:
-        with wall_clock_limit(spec.timeout):
+        # The engine deserializes messages, as a subscriber would: a signal's exception
+        # raised in rclpy's conversion keeps its own type.
+        with wall_clock_limit(spec.timeout), untranslated(RunInterruptedError, _TimedOutError):
             ending = run_steps(spec, team, messages, steps, progress)
     except _TimedOutError:
         failure = f'timed out after {spec.timeout:g} s of wall time'

@@ -122,6 +122,32 @@ class _InterruptGate:
 INTERRUPTS = _InterruptGate()
 
 
+@contextlib.contextmanager
+def untranslated(*kinds):
+    """Re-raise, as itself, a signal handler's exception that a C extension translated.
+
+    A handler's exception raised while the interpreter runs Python code called from C (rclpy's
+    deserialization calls each message class's constructor) can reach the caller as the
+    extension's own error: pybind11 raises TypeError with the handler's exception as its cause.
+    Within the block, such an error whose cause or context is one of KINDS (default:
+    RunInterruptedError) is replaced by that exception.
+    """
+    kinds = kinds or (RunInterruptedError,)
+    try:
+        yield
+    except kinds:
+        raise
+    except Exception as error:
+        seen = set()
+        origin = error
+        while origin is not None and id(origin) not in seen and not isinstance(origin, kinds):
+            seen.add(id(origin))
+            origin = origin.__cause__ or origin.__context__
+        if origin is None:
+            raise
+        raise origin from None
+
+
 def package_command(package, executable, module):
     """Return the argv prefix 'ros2 run PACKAGE EXECUTABLE' would run, else MODULE's main().
 

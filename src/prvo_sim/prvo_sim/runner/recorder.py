@@ -24,7 +24,12 @@ import time
 import numpy as np
 
 from prvo_sim.runner.listener import UNNAMED_NODE
-from prvo_sim.runner.processes import RunInterruptedError, child_environment, die_with
+from prvo_sim.runner.processes import (
+    RunInterruptedError,
+    child_environment,
+    die_with,
+    untranslated,
+)
 
 # Sim seconds within which two stamps count as equal (the runner's end is a float of a stamp).
 TIME_EPSILON = 1e-6
@@ -199,6 +204,8 @@ class Recorder:
                 return f': {lines[-1]}'
         return ''
 
+    # A Ctrl-C while rclpy deserializes must stay a Ctrl-C.
+    @untranslated()
     def _handle(self, kind, payload):
         if kind == 'messages':
             for index, data in payload:
@@ -248,6 +255,7 @@ class Recorder:
             return ['diagnostics']
         return unheard
 
+    @untranslated()
     def latest(self):
         """Return {robot: (stamp ns, position (2,))} of the newest ground truth of each robot."""
         from prvo_msgs_util import serialized_odometry_to_measurement
@@ -286,6 +294,7 @@ class Recorder:
 
         return self._decode('commands', decode)
 
+    @untranslated()
     def _decode(self, kind, decode):
         """Decode the KIND of messages received since the last call; return all decoded."""
         decoded, counts = self._decoded[kind]
