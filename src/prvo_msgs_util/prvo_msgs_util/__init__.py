@@ -81,9 +81,11 @@ from prvo_msgs_util.qos import (
     quiet_subscription_events,
 )
 from prvo_msgs_util.runtime import (
+    EXIT_BAD_INPUT,
     ThrottledWarnings,
     freeze_startup_objects,
     quiet_after_shutdown,
+    run_node,
     spin_events,
 )
 from prvo_msgs_util.topics import (
@@ -124,7 +126,7 @@ __all__ = [
     'release_stop_signals', 'body_to_world', 'check_world_point', 'checked_stamp_seconds',
     'declare_parameters',
     'diagnostic_values', 'freeze_startup_objects', 'PARAMETER_TYPES', 'parameter_descriptor',
-    'quiet_after_shutdown', 'spin_events', 'ThrottledWarnings',
+    'quiet_after_shutdown', 'run_node', 'spin_events', 'ThrottledWarnings', 'EXIT_BAD_INPUT',
     'WORLD_MARKERS', 'make_static_world_markers',
     'make_belief_markers', 'make_diagnostic_array', 'make_diagnostic_status', 'make_odometry',
     'make_pose_stamped', 'make_twist', 'make_twist_stamped', 'odometry_to_measurement',

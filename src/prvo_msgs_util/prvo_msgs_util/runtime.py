@@ -5,7 +5,13 @@ import gc
 import math
 import time
 
+import rclpy
+from rclpy.executors import ExternalShutdownException
 from rclpy.experimental import EventsExecutor
+
+from prvo_msgs_util.interrupts import SigintRecorder, ignore_stop_signals
+
+EXIT_BAD_INPUT = 2  # a node's exit code when it cannot start on what it was given
 
 
 def freeze_startup_objects():
@@ -47,6 +53,39 @@ def spin_events(node):
     finally:
         executor.remove_node(node)
         executor.shutdown()
+
+
+def run_node(make_node, logger_name, bad_input, args=None):
+    """
+    Build a node with MAKE_NODE() and spin it until SIGINT or SIGTERM; return the exit code.
+
+    The body of a small node's main(). BAD_INPUT: the exception classes that mean the node
+    cannot start on what it was given (a scenario, a parameter); one is logged under
+    LOGGER_NAME as 'cannot start: ...' and returns EXIT_BAD_INPUT. ARGS: rclpy.init's.
+    """
+    sigint = SigintRecorder().install()
+    rclpy.init(args=args)
+    node = None
+    try:
+        node = make_node()
+        freeze_startup_objects()
+        spin_events(node)
+    except bad_input as error:
+        rclpy.logging.get_logger(logger_name).error(f'cannot start: {error}')
+        return EXIT_BAD_INPUT
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    except RuntimeError:
+        # A message take, or a node still being built, when Ctrl-C or SIGTERM lands can fail
+        # with a RuntimeError. That is the shutdown asked for; anything else is not.
+        if rclpy.ok() and not sigint.received:
+            raise
+    finally:
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown()
+        ignore_stop_signals()
+    return 0
 
 
 def quiet_after_shutdown(callback):

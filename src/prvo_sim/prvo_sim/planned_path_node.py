@@ -17,7 +17,6 @@ import sys
 from nav_msgs.msg import Path
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.event_handler import PublisherEventCallbacks
-from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 
@@ -25,19 +24,15 @@ from prvo_msgs_util import (
     PLAN,
     PLAN_QOS,
     WORLD_FRAME,
-    SigintRecorder,
     declare_parameters,
-    freeze_startup_objects,
-    ignore_stop_signals,
     make_path,
     parameter_descriptor,
     quiet_after_shutdown,
-    spin_events,
+    run_node,
 )
 from prvo_sim.planned_path import SPACING, PlannedPath
 
 NODE = 'planner_server_stand_in'
-EXIT_BAD_INPUT = 2
 PARAMETERS = {
     'waypoints': (Parameter.Type.DOUBLE_ARRAY, parameter_descriptor(
         'Route [x0, y0, x1, y1, ...] in the map frame [m]; set again to replan', 'float[]',
@@ -94,29 +89,7 @@ class PlannedPathNode(Node):
 
 def main(args=None):
     """Run the stand-in until SIGINT or SIGTERM; exit 2 on a bad parameter."""
-    import rclpy
-
-    sigint = SigintRecorder().install()
-    rclpy.init(args=args)
-    node = None
-    try:
-        node = PlannedPathNode()
-        freeze_startup_objects()
-        spin_events(node)
-    except ValueError as error:
-        rclpy.logging.get_logger(NODE).error(f'cannot start: {error}')
-        return EXIT_BAD_INPUT
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    except RuntimeError:
-        if rclpy.ok() and not sigint.received:
-            raise
-    finally:
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown()
-        ignore_stop_signals()
-    return 0
+    return run_node(PlannedPathNode, NODE, (ValueError,), args)
 
 
 if __name__ == '__main__':

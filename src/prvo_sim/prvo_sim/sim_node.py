@@ -15,10 +15,8 @@ from geometry_msgs.msg import Twist, TwistStamped
 from nav_msgs.msg import OccupancyGrid, Odometry
 import numpy as np
 from rcl_interfaces.msg import SetParametersResult
-import rclpy
 from rclpy.clock import Clock, ClockType
 from rclpy.exceptions import ParameterException
-from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rosgraph_msgs.msg import Clock as ClockMsg
 from visualization_msgs.msg import MarkerArray
@@ -41,15 +39,12 @@ from prvo_msgs_util import (
     Announcer,
     MessageFault,
     QosWatch,
-    SigintRecorder,
     declare_parameters,
-    freeze_startup_objects,
-    ignore_stop_signals,
     quiet_publisher_events,
     quiet_subscription_events,
     robot_topic,
+    run_node,
     seconds_to_stamp,
-    spin_events,
 )
 from prvo_planner.agent import ANNOUNCED_FROM_THE_START, UNANNOUNCED_SHARE
 from prvo_sim.commands import command_velocity, unicycle_command
@@ -67,8 +62,6 @@ from prvo_sim.world_messages import (
     wall_contact_array,
 )
 
-# Exit code of a run rejected at startup (bad scenario or parameter).
-EXIT_BAD_INPUT = 2
 # How often timeouts, the cmd_vel publishers and the observers are checked [s]. Only timeouts
 # are polled (answers step the simulation from their callback): each poll is a spin of the
 # executor, which costs as much as a message.
@@ -363,29 +356,7 @@ def _stamp_key(stamp):
 
 def main(args=None):
     """Run the simulator until SIGINT or SIGTERM; exit 2 if the scenario or a parameter is bad."""
-    sigint = SigintRecorder().install()
-    rclpy.init(args=args)
-    node = None
-    try:
-        node = SimNode()
-        freeze_startup_objects()
-        spin_events(node)
-    except (ScenarioError, ParameterException) as error:
-        rclpy.logging.get_logger('prvo_sim').error(f'cannot start: {error}')
-        return EXIT_BAD_INPUT
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    except RuntimeError:
-        # A message take, or a node still being built, when Ctrl-C or SIGTERM lands can fail
-        # with a RuntimeError. That is the shutdown asked for; anything else is not.
-        if rclpy.ok() and not sigint.received:
-            raise
-    finally:
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown()
-        ignore_stop_signals()
-    return 0
+    return run_node(SimNode, 'prvo_sim', (ScenarioError, ParameterException), args)
 
 
 if __name__ == '__main__':

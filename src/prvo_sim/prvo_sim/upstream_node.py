@@ -14,7 +14,6 @@ import sys
 
 from geometry_msgs.msg import Twist, TwistStamped
 from nav_msgs.msg import Odometry
-from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 
@@ -23,25 +22,21 @@ from prvo_msgs_util import (
     ODOM,
     ODOM_LATEST_QOS,
     MessageFault,
-    SigintRecorder,
     declare_parameters,
-    freeze_startup_objects,
-    ignore_stop_signals,
     make_twist,
     parameter_descriptor,
     quiet_after_shutdown,
     quiet_publisher_events,
     quiet_subscription_events,
+    run_node,
     seconds_to_stamp,
     serialized_odometry_to_measurement,
-    spin_events,
 )
 from prvo_planner.parameters import KINEMATICS
 from prvo_sim.upstream import DECELERATION, LOOKAHEAD, RATE, PurePursuitUpstream
 
 NODE = 'nav2_stand_in'
 CMD_VEL_SMOOTHED = 'cmd_vel_smoothed'
-EXIT_BAD_INPUT = 2
 _WARNING_THROTTLE = 2.0
 PARAMETERS = {
     'waypoints': (Parameter.Type.DOUBLE_ARRAY, parameter_descriptor(
@@ -124,29 +119,7 @@ class StandInNode(Node):
 
 def main(args=None):
     """Run the stand-in until SIGINT or SIGTERM; exit 2 on a bad parameter."""
-    import rclpy
-
-    sigint = SigintRecorder().install()
-    rclpy.init(args=args)
-    node = None
-    try:
-        node = StandInNode()
-        freeze_startup_objects()
-        spin_events(node)
-    except ValueError as error:
-        rclpy.logging.get_logger(NODE).error(f'cannot start: {error}')
-        return EXIT_BAD_INPUT
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    except RuntimeError:
-        if rclpy.ok() and not sigint.received:
-            raise
-    finally:
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown()
-        ignore_stop_signals()
-    return 0
+    return run_node(StandInNode, NODE, (ValueError,), args)
 
 
 if __name__ == '__main__':
