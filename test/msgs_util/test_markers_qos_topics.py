@@ -129,7 +129,7 @@ def test_topic_helpers():
         assert robot_from_topic(topic, 'odom') is None, topic
     for good in ('robot_0', 'R', '_x9'):
         validate_robot_name(good)
-    for bad in ('', '0robot', 'robot-0', 'a/b', 'robot 0', None):
+    for bad in ('', '0robot', 'robot-0', 'a/b', 'robot 0', None, 'robot__0', '__robot'):
         with pytest.raises(ValueError, match=re.escape(repr(bad))):
             validate_robot_name(bad)
     with pytest.raises(ValueError, match='robot-0'):

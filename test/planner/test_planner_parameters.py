@@ -131,6 +131,9 @@ def test_neighbour_names_must_be_robot_names():
     assert neighbour_names(None) is None
     with pytest.raises(ParameterError, match="neighbors: robot name '2bad' is not a valid"):
         neighbour_names(['robot_1', '2bad'])
+    # A name no robot can have: its nodes' remap rule __ns:=/robot__2 does not parse.
+    with pytest.raises(ParameterError, match="neighbors: robot name 'robot__2' holds '__'"):
+        neighbour_names(['robot_1', 'robot__2'])
     with pytest.raises(ParameterError, match='neighbors: expected a list of strings'):
         neighbour_names([1, 2])
 

@@ -39,7 +39,8 @@ from prvo_sim.scenario import (
 )
 
 SHIPPED = ('circle8', 'crossing4', 'headon2', 'paper3', 'walkers', 'diffdrive_circle6',
-           'mixed_drive', 'accel8', 'corridor8', 'doorway8', 'pillars12', 'office', 'u_trap')
+           'mixed_drive', 'accel8', 'corridor8', 'doorway8', 'pillars12', 'office', 'u_trap',
+           'mixed12', 'parked_large', 'nav2_crossing4', 'nav2_headon2', 'nav2_path_crossing4')
 
 VALID = """\
 name: pair
@@ -209,6 +210,11 @@ def test_unreadable_file_is_named(tmp_path):
 def test_bad_seed_override(tmp_path):
     with pytest.raises(ScenarioError, match=re.escape('seed: must be in [0, 2147483647], got -3')):
         load_scenario(write(tmp_path, VALID), seed=-3)
+
+
+def test_every_shipped_scenario_is_tested():
+    source_copy = pathlib.Path(__file__).resolve().parents[2] / 'src/prvo_sim/scenarios'
+    assert sorted(path.stem for path in source_copy.glob('*.yaml')) == sorted(SHIPPED)
 
 
 def test_shipped_directory_is_found_from_the_source_tree_too():

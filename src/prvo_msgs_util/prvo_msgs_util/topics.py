@@ -24,11 +24,20 @@ _NAME_SEGMENT = re.compile(r'[A-Za-z_][A-Za-z0-9_]*')
 
 
 def validate_robot_name(name):
-    """Raise ValueError naming NAME unless it is a single valid ROS name segment."""
+    """Raise ValueError naming NAME unless it is a single valid ROS name segment.
+
+    Repeated underscores are refused too: a robot's nodes are started with the remap rule
+    `__ns:=/NAME`, whose parser reads `__` as the start of one of its own tokens (`__ns`,
+    `__node`), although rclpy's name validators take it.
+    """
     if not isinstance(name, str) or _NAME_SEGMENT.fullmatch(name) is None:
         raise ValueError(
             f'robot name {name!r} is not a valid ROS name segment '
             '(letters, digits and underscores, not starting with a digit)')
+    if '__' in name:
+        raise ValueError(
+            f"robot name {name!r} holds '__': ROS cannot parse the remap rule "
+            f'__ns:=/{name} (no repeated underscores in a ROS name)')
 
 
 def robot_topic(robot, leaf):

@@ -119,18 +119,13 @@ _YAML_1_2_FLOAT = re.compile(
 def ros_name_problem(name):
     """Return why ROS refuses robot NAME as the namespace /NAME of its nodes and topics, or None.
 
-    The namespace, the robot's topics and its planner's services must pass rclpy's validators.
-    The ROS engine starts each robot's nodes with the remap rule `__ns:=/NAME`, whose parser
-    reads `__` as the start of one of its own tokens (`__ns`, `__node`): a name holding repeated
-    underscores fails there, although the validators take it.
+    The name must be a robot name (`validate_robot_name`), and the namespace, the robot's
+    topics and its planner's services must pass rclpy's validators.
     """
     try:
         validate_robot_name(name)
     except ValueError as error:
         return str(error)
-    if '__' in name:
-        return (f"robot name {name!r} holds '__': ROS cannot parse the remap rule "
-                f'__ns:=/{name} (no repeated underscores in a ROS name)')
     try:
         validate_namespace(f'/{name}')
         for leaf in _ROBOT_TOPIC_LEAVES:
