@@ -1,7 +1,6 @@
 """Belief markers, diagnostics helpers, QoS profiles, topic helpers and the SIGINT recorder."""
 
 import math
-import os
 import re
 import signal
 import subprocess
@@ -22,7 +21,6 @@ from prvo_msgs_util import (
     GOAL_QOS,
     MARKER_QOS,
     ODOM_QOS,
-    SigintRecorder,
     diagnostic_values,
     make_belief_markers,
     make_diagnostic_array,
@@ -134,25 +132,6 @@ def test_topic_helpers():
             validate_robot_name(bad)
     with pytest.raises(ValueError, match='robot-0'):
         robot_topic('robot-0', 'odom')
-
-
-def test_sigint_recorder_remembers_the_signal_and_keeps_keyboard_interrupt():
-    previous = signal.getsignal(signal.SIGINT)
-    sigint = SigintRecorder().install()
-    try:
-        assert sigint.received is False
-        with pytest.raises(KeyboardInterrupt):
-            os.kill(os.getpid(), signal.SIGINT)
-            # The handler runs at the next bytecode boundary; give it a few.
-            for _ in range(1000):
-                pass
-        assert sigint.received is True
-        # A second SIGINT only records: it would land in the node's teardown.
-        os.kill(os.getpid(), signal.SIGINT)
-        for _ in range(1000):
-            pass
-    finally:
-        signal.signal(signal.SIGINT, previous)
 
 
 def test_qos_watch_reports_each_incompatible_remote_endpoint_once(probe):

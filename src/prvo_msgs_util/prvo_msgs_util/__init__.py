@@ -52,7 +52,6 @@ from prvo_msgs_util.grid_maps import (
 )
 from prvo_msgs_util.interrupts import (
     STOP_SIGNALS,
-    SigintRecorder,
     hold_stop_signals,
     ignore_stop_signals,
     release_stop_signals,
@@ -122,7 +121,7 @@ __all__ = [
     'occupancy_grid_to_parts',
     'MessageFault', 'ODOM', 'ODOM_LATEST_QOS', 'ODOM_QOS', 'OdometryMeasurement',
     'QosWatch', 'quiet_publisher_events', 'quiet_subscription_events',
-    'SigintRecorder', 'STOP_SIGNALS', 'hold_stop_signals', 'ignore_stop_signals',
+    'STOP_SIGNALS', 'hold_stop_signals', 'ignore_stop_signals',
     'release_stop_signals', 'body_to_world', 'check_world_point', 'checked_stamp_seconds',
     'declare_parameters',
     'diagnostic_values', 'freeze_startup_objects', 'PARAMETER_TYPES', 'parameter_descriptor',

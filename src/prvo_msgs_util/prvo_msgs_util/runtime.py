@@ -9,7 +9,11 @@ import rclpy
 from rclpy.executors import ExternalShutdownException
 from rclpy.experimental import EventsExecutor
 
-from prvo_msgs_util.interrupts import SigintRecorder, ignore_stop_signals
+from prvo_msgs_util.interrupts import (
+    hold_stop_signals,
+    ignore_stop_signals,
+    release_stop_signals,
+)
 
 EXIT_BAD_INPUT = 2  # a node's exit code when it cannot start on what it was given
 
@@ -62,23 +66,29 @@ def run_node(make_node, logger_name, bad_input, args=None):
     The body of a small node's main(). BAD_INPUT: the exception classes that mean the node
     cannot start on what it was given (a scenario, a parameter); one is logged under
     LOGGER_NAME as 'cannot start: ...' and returns EXIT_BAD_INPUT. ARGS: rclpy.init's.
+
+    Stop signals are held while the node starts and then end spinning through rclpy's own
+    handlers, which shut the context down (`hold_stop_signals`): no KeyboardInterrupt is raised
+    inside a callback, where the events executor would log it as FATAL, or inside a message's
+    constructor that rclpy's deserialization calls, which would turn it into a TypeError.
     """
-    sigint = SigintRecorder().install()
-    rclpy.init(args=args)
+    hold_stop_signals()
     node = None
     try:
+        rclpy.init(args=args)
         node = make_node()
         freeze_startup_objects()
-        spin_events(node)
+        if release_stop_signals():
+            spin_events(node)
     except bad_input as error:
         rclpy.logging.get_logger(logger_name).error(f'cannot start: {error}')
         return EXIT_BAD_INPUT
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     except RuntimeError:
-        # A message take, or a node still being built, when Ctrl-C or SIGTERM lands can fail
-        # with a RuntimeError. That is the shutdown asked for; anything else is not.
-        if rclpy.ok() and not sigint.received:
+        # A message take in flight when the context shuts down can fail with a RuntimeError.
+        # That is the shutdown asked for; anything else is not.
+        if rclpy.ok():
             raise
     finally:
         if node is not None:

@@ -40,6 +40,7 @@ from prvo_msgs_util import (
     MessageFault,
     QosWatch,
     declare_parameters,
+    quiet_after_shutdown,
     quiet_publisher_events,
     quiet_subscription_events,
     robot_topic,
@@ -162,7 +163,7 @@ class SimNode(Node):
         steady = Clock(clock_type=ClockType.STEADY_TIME)
         self._poll_timer = self.create_timer(_POLL_PERIOD, self._poll, clock=steady)
         self.create_timer(_IDLE_STATUS_PERIOD, self._publish_idle_status, clock=steady)
-        self.create_timer(_QOS_CHECK_PERIOD, self._qos_watch.check, clock=steady)
+        self.create_timer(_QOS_CHECK_PERIOD, self._check_qos, clock=steady)
         self._realtime_timer = None
         if self._mode == 'realtime':
             self._realtime_timer = self.create_timer(
@@ -194,6 +195,7 @@ class SimNode(Node):
             elif parameter.name == 'cmd_timeout':
                 self._timing.cmd_timeout = parameter.value
 
+    @quiet_after_shutdown
     def _on_cmd_vel(self, index, msg):
         robot = self._robots[index]
         try:
@@ -226,6 +228,7 @@ class SimNode(Node):
                 and timing.all_answered()):
             self._advance()
 
+    @quiet_after_shutdown
     def _poll(self):
         now, timing = time.monotonic(), self._timing
         if not timing.started:
@@ -265,6 +268,7 @@ class SimNode(Node):
             throttle_duration_sec=_WARNING_THROTTLE)
         return False
 
+    @quiet_after_shutdown
     def _advance(self):
         """Execute every robot's command for one dt and publish the state at t_(k+1)."""
         world = self._world
@@ -335,6 +339,11 @@ class SimNode(Node):
             robot.ground_truth_publisher.publish(ground_truth)
         self._publish_status()
 
+    @quiet_after_shutdown
+    def _check_qos(self):
+        self._qos_watch.check()
+
+    @quiet_after_shutdown
     def _publish_idle_status(self):
         # Stepping publishes a status every step; before and after, this keeps it visible.
         if not self._timing.started or self._world.finished:
