@@ -1,4 +1,4 @@
-"""The nodes stop cleanly on Ctrl-C, also when it lands in a callback or a second one in teardown."""
+"""The nodes stop cleanly on Ctrl-C: also when it lands in a callback, or again in teardown."""
 
 import pathlib
 

@@ -59,13 +59,15 @@ def spin_events(node):
         executor.shutdown()
 
 
-def run_node(make_node, logger_name, bad_input, args=None):
+def run_node(make_node, logger_name, bad_input, args=None, bad_input_logged=False):
     """
     Build a node with MAKE_NODE() and spin it until SIGINT or SIGTERM; return the exit code.
 
-    The body of a small node's main(). BAD_INPUT: the exception classes that mean the node
-    cannot start on what it was given (a scenario, a parameter); one is logged under
-    LOGGER_NAME as 'cannot start: ...' and returns EXIT_BAD_INPUT. ARGS: rclpy.init's.
+    The body of a node's main(). BAD_INPUT: the exception classes that mean the node cannot
+    start on what it was given (a scenario, a parameter); one is logged under LOGGER_NAME as
+    'cannot start: ...', unless BAD_INPUT_LOGGED (the node logged it under its own name), and
+    returns EXIT_BAD_INPUT. So does a malformed --ros-args value, which rcl rejects in
+    rclpy.init before any node exists. ARGS: rclpy.init's.
 
     Stop signals are held while the node starts and then end spinning through rclpy's own
     handlers, which shut the context down (`hold_stop_signals`): no KeyboardInterrupt is raised
@@ -81,11 +83,18 @@ def run_node(make_node, logger_name, bad_input, args=None):
         if release_stop_signals():
             spin_events(node)
     except bad_input as error:
-        rclpy.logging.get_logger(logger_name).error(f'cannot start: {error}')
+        if not bad_input_logged:
+            rclpy.logging.get_logger(logger_name).error(f'cannot start: {error}')
         return EXIT_BAD_INPUT
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
-    except RuntimeError:
+    except RuntimeError as error:
+        if node is None and not rclpy.ok():
+            # rcl parses --ros-args in init (rclpy's RCLError): a malformed -p value, such as
+            # goal:="[nan, 0]" (a list of mixed types), fails before any parameter exists.
+            rclpy.logging.get_logger(logger_name).fatal(
+                f'invalid parameter: {str(error).split(", at ")[0]}')
+            return EXIT_BAD_INPUT
         # A message take in flight when the context shuts down can fail with a RuntimeError.
         # That is the shutdown asked for; anything else is not.
         if rclpy.ok():

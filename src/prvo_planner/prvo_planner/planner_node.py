@@ -20,10 +20,8 @@ from geometry_msgs.msg import PointStamped, PoseStamped, Twist, TwistStamped
 from nav_msgs.msg import OccupancyGrid, Odometry, Path
 import numpy as np
 from rcl_interfaces.msg import SetParametersResult
-import rclpy
 from rclpy.clock import Clock, ClockType
 from rclpy.exceptions import InvalidParameterTypeException, InvalidParameterValueException
-from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 
@@ -43,9 +41,6 @@ from prvo_msgs_util import (
     ThrottledWarnings,
     declare_parameters,
     filtered_twist,
-    freeze_startup_objects,
-    hold_stop_signals,
-    ignore_stop_signals,
     make_path,
     make_point_stamped,
     occupancy_grid_to_parts,
@@ -55,11 +50,10 @@ from prvo_msgs_util import (
     quiet_after_shutdown,
     quiet_publisher_events,
     quiet_subscription_events,
-    release_stop_signals,
     robot_topic,
     robots_with_topic,
+    run_node,
     serialized_odometry_to_measurement,
-    spin_events,
     stamp_to_seconds,
     subscribe_announcements,
     twist_components,
@@ -630,40 +624,19 @@ class PlannerNode(Node):
                               upstream.angular)
 
 
+def warmed_up_planner():
+    """Return a PlannerNode whose first plan has been computed once (`PlannerNode.warm_up`)."""
+    node = PlannerNode()
+    node.warm_up()
+    return node
+
+
 def main(args=None):
     """Run one planner until Ctrl-C; exit 2 with a clear message on an invalid parameter."""
-    # Until the node is ready to spin; a stop signal that came meanwhile ends the run here.
-    hold_stop_signals()
-    node = None
-    try:
-        rclpy.init(args=args)
-        node = PlannerNode()
-        node.warm_up()
-        freeze_startup_objects()
-        if release_stop_signals():
-            spin_events(node)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    except (ParameterError, InvalidParameterTypeException, InvalidParameterValueException):
-        # PlannerNode logged it.
-        return 2
-    except RuntimeError as error:
-        if node is None and not rclpy.ok():
-            # rcl parses --ros-args in init (rclpy's RCLError): a malformed -p value, such as
-            # goal:="[nan, 0]" (a list of mixed types), fails before any parameter exists.
-            rclpy.logging.get_logger('planner').fatal(
-                f'invalid parameter: {str(error).split(", at ")[0]}')
-            return 2
-        # A message take in flight when the context shuts down can fail with a RuntimeError.
-        # That is the shutdown asked for; anything else is not.
-        if rclpy.ok():
-            raise
-    finally:
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown()
-        ignore_stop_signals()
-    return 0
+    # PlannerNode logs an invalid parameter under its own name.
+    return run_node(warmed_up_planner, 'planner', (
+        ParameterError, InvalidParameterTypeException, InvalidParameterValueException), args,
+        bad_input_logged=True)
 
 
 if __name__ == '__main__':
