@@ -87,10 +87,19 @@ class LivePlanner:
             f'planner exited ({self.process.returncode}):\n{self.children.output(self.process)}')
 
     def call(self, service, request):
-        """Return the answer of the planner's parameter SERVICE to REQUEST."""
-        future = self.clients[service].call_async(request)
-        self.wait(future.done, f'the answer of {service.__name__}')
-        return future.result()
+        """Return the answer of the planner's parameter SERVICE to REQUEST.
+
+        Sent again if unanswered (`probe.call`): Fast DDS drops the answer to a request that
+        reaches the planner before it has matched the probe's response reader ("failed to send
+        response (timeout)" in the planner's log).
+        """
+        try:
+            return self.probe.call(self.clients[service], request,
+                                   f'the answer of {service.__name__}', timeout=30.0,
+                                   resend_after=5.0)
+        except TimeoutError as error:
+            raise AssertionError(
+                f'{error}; planner log:\n{self.children.output(self.process)}') from None
 
     def set(self, name, value):
         """Set parameter NAME to the ParameterValue VALUE; return the SetParametersResult."""
