@@ -205,11 +205,13 @@ def test_plans_wait_for_every_neighbour_and_listed_ones_at_start():
     # b is listed and not heard yet: wait for it, up to neighbor_timeout after the first odometry.
     assert agent.awaiting_listed(1.0) and not agent.ready(1.0)
     assert not agent.awaiting_listed(2.5) and agent.ready(2.5)
+    assert agent.unheard_listed() == ['b']  # a plan now would be made without b
     agent.receive_neighbour('b', data['b'][0], 1.0)
     # Heard in full only with its announcements: its share is still missing.
     assert agent.awaiting_listed(1.0) and not agent.ready(1.0)
+    assert agent.unheard_listed() == ['b']
     agent.receive_share('b', 0.5, 0.0)
-    assert agent.ready(1.0)
+    assert agent.ready(1.0) and agent.unheard_listed() == []
     agent.plan()
     assert agent.pending_stamp is None and not agent.ready(1.0)
     # A neighbour behind the own stamp holds the plan until it catches up (or the caller's

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from prvo_sim.engine import InProcessTeam
-from prvo_sim.runner.session import planner_values, settled
+from prvo_sim.runner.session import ArrivalRule, planner_values
 from prvo_sim.scenario import load_scenario
 
 SCENARIOS = pathlib.Path(__file__).resolve().parents[2] / 'src/prvo_sim/scenarios'
@@ -74,14 +74,16 @@ def test_a_mixed_team_gets_every_robot_home_in_time_without_contact(tmp_path):
 
 
 @pytest.mark.parametrize('arrivals, ends_at', [
-    # Both at their goal from t = 1 on: the run may end at t = 1 + SETTLE_TIME.
-    ([[False, True], [True, True], [True, True], [True, True]], 1.0),
+    # Both at their goal from t = 1 on: the run ends at t = 1 + SETTLE_TIME = 2.
+    ([[False, True], [True, True], [True, True], [True, True]], 2.0),
     # Robot 0 arrives at t = 1, is pushed aside at t = 2 and back at t = 3: counted from 3.
-    ([[False, True], [True, True], [False, True], [True, True]], 3.0),
+    ([[False, True], [True, True], [False, True], [True, True], [True, True]], 4.0),
     # Never all at once.
     ([[True, False], [False, True], [True, False], [False, True]], None)])
 def test_a_run_ends_once_every_robot_is_at_its_goal_together(arrivals, ends_at):
-    since = None
-    for time, arrived in enumerate(arrivals):
-        since = settled(np.array(arrived), float(time), since)
-    assert since == ends_at
+    goals = np.array([[1.0, 0.0], [0.0, 1.0]])
+    rule = ArrivalRule(goals, goal_tolerance=0.2, planned=[True, True])
+    away = np.array([0.5, 0.0])  # farther than the tolerance
+    ended = [float(time) for time, arrived in enumerate(arrivals) if rule.step(
+        float(time), goals + np.where(np.array(arrived)[:, None], 0.0, away))]
+    assert (ended[0] if ended else None) == ends_at

@@ -875,10 +875,20 @@ class PlannerAgent:
         if (self.settings.wait_for_path and self.settings.preferred_source == PATH
                 and self._path is None):
             return True
+        return bool(self.unheard_listed())
+
+    def unheard_listed(self):
+        """Return the listed neighbours not heard in full yet (odometry, footprint, share), sorted.
+
+        A plan made while this is not empty (their wait, `neighbor_timeout`, ran out) is made
+        without them: worth a word to whoever runs the team.
+        """
         if self.listed_neighbours is None:
-            return False
-        return any(robot not in self._neighbour_tracks or robot not in self._announced_radius
-                   or robot not in self._announced_share for robot in self.listed_neighbours)
+            return []
+        return sorted(robot for robot in self.listed_neighbours
+                      if robot not in self._neighbour_tracks
+                      or robot not in self._announced_radius
+                      or robot not in self._announced_share)
 
     def ready(self, now):
         """Whether a stamp is pending and every neighbour has been measured at or after it."""

@@ -223,7 +223,7 @@ _SPECS = (
     ParameterSpec('neighbor_timeout', FLOAT, 2.0, 'A neighbour silent this long [s, wall time] '
                   'is dropped.', (0.01, 3600.0)),
     ParameterSpec('sync_timeout', FLOAT, 0.2, "Wall time [s] to wait for neighbours' odometry "
-                  'of the same stamp before planning.', (0.0, 10.0)),
+                  'of the same stamp before planning.', (0.0, 60.0)),
     ParameterSpec('status_period', FLOAT, 0.2, 'Diagnostics and markers are published at most '
                   'this often [s, wall]; cmd_vel always.', (0.0, 60.0)),
     ParameterSpec('acceleration_std', FLOAT, 2.0, 'Process noise of the constant-velocity '

@@ -583,6 +583,12 @@ class PlannerNode(Node):
         self._sync_timer.cancel()
         self._take_built_map()
         self._take_route()
+        unheard = self._agent.unheard_listed() if self._last_command_stamp is None else []
+        if unheard:
+            self.get_logger().warning(
+                f"first plan without {', '.join(unheard)}: not heard in full (odometry, "
+                f"footprint, share) within neighbor_timeout "
+                f"{self._values['neighbor_timeout']:g} s")
         started = time.perf_counter()
         command = self._agent.plan()
         plan_time_ms = (time.perf_counter() - started) * 1e3

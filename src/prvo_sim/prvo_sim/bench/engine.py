@@ -32,7 +32,7 @@ import numpy as np
 from prvo_sim.bench.team import circle_document, peak_rss_kib, write_scenario
 from prvo_sim.engine import InProcessTeam
 from prvo_sim.runner.outputs import write_trajectories_csv
-from prvo_sim.runner.session import SETTLE_TIME, planner_values, settled
+from prvo_sim.runner.session import ArrivalRule, planner_values
 
 DEFAULT_TEAM_SIZES = (8, 16, 48, 96)
 DEFAULT_PEER_SIZES = (10, 20)
@@ -48,17 +48,15 @@ def run_team(scenario, method='prvo', observer=None):
     """
     values = [planner_values(robot, scenario, method, None) for robot in scenario.robots]
     team = InProcessTeam(scenario, values)
-    goals = team.world.goals
+    rule = ArrivalRule.of(scenario)
     started = time.perf_counter()
-    steps, settled_since = [], None
+    steps = []
     while not team.finished:
         step = team.do_step()
         steps.append(step)
         if observer is not None:
             observer(team, step)
-        arrived = np.linalg.norm(step.states[:, :2] - goals, axis=1) <= scenario.goal_tolerance
-        settled_since = settled(arrived, step.time, settled_since)
-        if settled_since is not None and step.time - settled_since >= SETTLE_TIME:
+        if rule.step(step.time, step.states[:, :2]):
             break
     wall = time.perf_counter() - started
     count = len(scenario.robots)
@@ -70,7 +68,7 @@ def run_team(scenario, method='prvo', observer=None):
         'steps': len(steps),
         'robot_steps_per_s': round(robot_steps / wall, 1),
         'plan_ms_per_robot_step': round(float(np.mean([step.plan_ms for step in steps])), 3),
-        'all_arrived': bool(settled_since is not None),
+        'all_arrived': rule.all_arrived,
         'collisions': team.world.contact_count,
         'peak_rss_mib': round(peak_rss_kib('self') / KIB_PER_MIB, 1),
     }, steps

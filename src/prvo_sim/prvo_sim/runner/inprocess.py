@@ -17,10 +17,9 @@ from prvo_sim.runner.outputs import Ending, Recording, RunResult, write_outputs
 from prvo_sim.runner.processes import INTERRUPTS, RunInterruptedError, untranslated
 from prvo_sim.runner.session import (
     PROGRESS_PERIOD,
+    ArrivalRule,
     ProgressLine,
-    has_settled,
     planner_values,
-    settled,
 )
 
 
@@ -90,13 +89,9 @@ def run_inprocess(spec):
 
 def run_steps(spec, team, messages, steps, progress):
     """Step TEAM, appending each step to STEPS, until the run ends; return its `Ending`."""
-    scenario = spec.scenario
-    goals = team.world.goals
-    # Scripted robots do not arrive: the planned ones end the run.
-    planned = np.array([robot.scripted is None for robot in scenario.robots])
+    rule = ArrivalRule.of(spec.scenario)
     started = time.monotonic()
     next_progress = started
-    settled_since = None
     while True:
         if messages is not None:
             messages.add_state()
@@ -104,14 +99,12 @@ def run_steps(spec, team, messages, steps, progress):
         steps.append(step)
         if messages is not None:
             messages.add_step(step)
-        arrived = (np.linalg.norm(step.states[:, :2] - goals, axis=1) <= (
-            scenario.goal_tolerance))[planned]
+        ends = rule.step(step.time, step.states[:, :2])
         now = time.monotonic()
         if now >= next_progress:
-            progress(step.time, int(arrived.sum()), now - started)
+            progress(step.time, rule.arrived_count, now - started)
             next_progress = now + PROGRESS_PERIOD
-        settled_since = settled(arrived, step.time, settled_since)
-        if has_settled(step.time, settled_since):
+        if ends:
             return Ending.ARRIVED
         if team.finished:
             return Ending.DURATION

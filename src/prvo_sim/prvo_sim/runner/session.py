@@ -35,22 +35,30 @@ SIM_NODE = 'prvo_sim'
 PLANNER_NODE = 'planner'
 STAND_IN_NODE = 'nav2_stand_in'
 PATH_STAND_IN_NODE = 'planner_server_stand_in'
-STEP_TIMEOUT = 2.0  # wall seconds the sim waits for a late planner before reusing its command
+# Wall seconds a lockstep run waits for any one answer: for a planner's command (the simulator's
+# step_timeout and startup_timeout), for a neighbour's odometry or first announcement (the
+# planners' sync_timeout and neighbor_timeout, a little less, so that a plan is still in time).
+# Every step is waited for in full however loaded the machine (under a load of 20 on 2 cores a
+# 2 s wait ran out at the first step and parted the run from the in-process one): only a
+# stalled team reaches the bound, which keeps a run that lost a message going.
+LOCKSTEP_PATIENCE = 30.0
+STEP_TIMEOUT = LOCKSTEP_PATIENCE
 STARTUP_LIMIT = 60.0  # wall seconds for each start-up stage before the run counts as failed
 SETTLE_TIME = 1.0  # sim seconds every robot must stay at its goal before the run ends
 # Sim seconds below which two times count as equal: the engines' clocks (stamps in ns, sums of
 # steps) differ by rounding, and the end of a run must not.
 TIME_EPSILON = 1e-6
 PROGRESS_PERIOD = 0.5
-# Wall seconds for messages in flight when a run ends to arrive: longer than a planner may take
-# to answer a step (STEP_TIMEOUT), since the step the run ends at must have its answers.
+# Wall seconds for messages in flight when a run ends to arrive (a wait that ends as soon as
+# the recording is complete): longer than a planner may take to answer a step (STEP_TIMEOUT),
+# since the step the run ends at must have its answers.
 RECORDING_GRACE = STEP_TIMEOUT + 1.0
 GRAPH_CHECK_PERIOD = 1.0  # wall seconds between looks for intruders during a run
-# Planner waits in lockstep [s]: for same-stamp odometry, as long as the sim waits for the plan
-# less a margin to plan (with 24 planners on 2 cores a neighbour's odometry took over 1 s to be
-# taken, and a plan made without it parted the run from the in-process one); and for every
-# listed neighbour's first message.
-LOCKSTEP_SYNC = {'sync_timeout': STEP_TIMEOUT - 0.1, 'neighbor_timeout': 5.0}
+# Planner waits in lockstep [s], for same-stamp odometry and for every listed neighbour's first
+# messages: as long as the simulator waits for the plan, less a margin to plan. A neighbour
+# counts as gone only after as long: in lockstep every robot is heard once per step.
+LOCKSTEP_SYNC = {'sync_timeout': LOCKSTEP_PATIENCE - 2.0,
+                 'neighbor_timeout': LOCKSTEP_PATIENCE - 2.0}
 # A robot driven by the Nav2 stand-in: its planner filters the stand-in's TwistStamped (the
 # simulator's cmd_vel type), never falls silent within a run (the simulator waits for every
 # answer) and counts its own state as stale only when the run has surely stalled.
@@ -283,7 +291,8 @@ def sim_parameters(scenario, mode, seed, observers=()):
     The simulator takes no step until every node in OBSERVERS listens to it.
     """
     parameters = {'scenario': str(pathlib.Path(scenario.path).resolve()), 'mode': mode,
-                  'seed': str(int(seed)), 'step_timeout': repr(STEP_TIMEOUT)}
+                  'seed': str(int(seed)), 'step_timeout': repr(STEP_TIMEOUT),
+                  'startup_timeout': repr(LOCKSTEP_PATIENCE)}
     if observers:
         parameters['observers'] = '[' + ', '.join(f"'{name}'" for name in observers) + ']'
     return parameters
@@ -342,12 +351,17 @@ def wait_for_planners(recorder, watch):
 
 
 def wait_for_end(recorder, watch, spec, progress):
-    """Record until the run ends; return its `Ending` if it completed, else a one-line failure."""
+    """Record until the run ends; return (its `Ending`, the end time [s] or None) or a failure.
+
+    The end-of-run rule sees every step the recording holds, in order, once no robot's
+    ground truth for it can still come (each robot's messages arrive in order): so a ROS run
+    ends at the step an in-process run of the same team ends at, however late the runner
+    looks.
+    """
     scenario = spec.scenario
-    goals = np.array([robot.goal for robot in scenario.robots], dtype=float)
-    planned = np.array([robot.scripted is None for robot in scenario.robots])
+    rule = ArrivalRule.of(scenario)
+    steps = RecordedSteps([robot.name for robot in scenario.robots])
     started = time.monotonic()
-    settled_since = None
     next_progress = started
     while True:
         recorder.spin_for(0.05)
@@ -355,61 +369,92 @@ def wait_for_end(recorder, watch, spec, progress):
         failure = watch.failure()
         if failure is not None:
             return failure
-        latest = recorder.latest()
         finished = recorder.sim_status is not None and recorder.sim_status.finished
-        if len(latest) < len(scenario.robots):
+        if not steps.heard_all(recorder.ground_truth):
             if finished:
                 return ('the simulator finished before the recorder received ground truth of '
                         'every robot')
             if now - started > STARTUP_LIMIT:
                 return f'no ground truth from every robot within {STARTUP_LIMIT:g} s'
             continue
-        sim_time = min(stamp for stamp, _ in latest.values()) * 1e-9
-        positions = np.array([latest[robot.name][1] for robot in scenario.robots])
-        # Scripted robots do not arrive: the planned ones end the run.
-        arrived = (np.linalg.norm(positions - goals, axis=1) <= scenario.goal_tolerance)[planned]
-        if now >= next_progress:
-            progress(sim_time, int(arrived.sum()), now - started)
+        for sim_time, positions in steps.completed(recorder.ground_truth):
+            if rule.step(sim_time, positions):
+                return Ending.ARRIVED, sim_time
+        if now >= next_progress and rule.time is not None:
+            progress(rule.time, rule.arrived_count, now - started)
             next_progress = now + PROGRESS_PERIOD
-        settled_since = settled(arrived, sim_time, settled_since)
-        if has_settled(sim_time, settled_since):
-            return Ending.ARRIVED
         if finished:
-            return Ending.DURATION
+            return Ending.DURATION, None
 
 
-def settled(arrived, sim_time, settled_since):
-    """Return since when (sim time) every robot has been at its goal, None if one is not.
+class ArrivalRule:
+    """The rule that ends a run: every planned robot within the goal tolerance for SETTLE_TIME.
 
-    ARRIVED says, per robot, whether it is at its goal at SIM_TIME; SETTLED_SINCE is the
-    previous answer. A run ends once this is SETTLE_TIME behind.
+    Fed a run's steps in order, it says at which step the run ends: a function of the simulated
+    run only, so identical runs end at the same step on either engine. Scripted robots do not
+    arrive: the planned ones end the run.
     """
-    if not arrived.all():
-        return None
-    return sim_time if settled_since is None else settled_since
+
+    def __init__(self, goals, goal_tolerance, planned):
+        """GOALS (N, 2) [m]; GOAL_TOLERANCE [m]; PLANNED (N,) bool: the robots that must arrive."""
+        self._goals = np.asarray(goals, dtype=float)
+        self._goal_tolerance = goal_tolerance
+        self._planned = np.asarray(planned, dtype=bool)
+        self._settled_since = None
+        self.time = None
+        self.arrived_count = 0
+
+    @classmethod
+    def of(cls, scenario):
+        """Return the rule of SCENARIO's robots and goal tolerance."""
+        return cls([robot.goal for robot in scenario.robots], scenario.goal_tolerance,
+                   [robot.scripted is None for robot in scenario.robots])
+
+    @property
+    def all_arrived(self):
+        """Whether every planned robot has been at its goal since some step, to the last one."""
+        return self._settled_since is not None
+
+    def step(self, sim_time, positions):
+        """Take the step at SIM_TIME [s] with POSITIONS (N, 2); return whether the run ends."""
+        arrived = (np.linalg.norm(np.asarray(positions)[:, :2] - self._goals, axis=1)
+                   <= self._goal_tolerance)[self._planned]
+        self.time = float(sim_time)
+        self.arrived_count = int(arrived.sum())
+        if not arrived.all():
+            self._settled_since = None
+            return False
+        if self._settled_since is None:
+            self._settled_since = self.time
+        return self.time - self._settled_since >= SETTLE_TIME - TIME_EPSILON
 
 
-def has_settled(sim_time, settled_since):
-    """Whether a run whose robots have all been at their goal since SETTLED_SINCE ends now."""
-    return settled_since is not None and sim_time - settled_since >= SETTLE_TIME - TIME_EPSILON
+class RecordedSteps:
+    """The steps of a ROS recording that every robot's ground truth has, each given once.
 
-
-def arrival_end(times, positions, goals, goal_tolerance, planned):
-    """Return the time [s] at which a run ends because every planned robot arrived, else None.
-
-    TIMES (T,) and POSITIONS (T, N, 2) are the recorded steps; GOALS (N, 2); PLANNED (N,) says
-    which robots end the run (scripted ones do not arrive). The end is the first step at which
-    every planned robot has been within GOAL_TOLERANCE of its goal for SETTLE_TIME: a function
-    of the simulated run only, so identical runs end at the same step on either engine,
-    however late the runner noticed.
+    A step is complete once every robot has it; it is final once every robot has a later
+    one (a robot's messages arrive in order, so a step it skipped never comes).
     """
-    settled_since = None
-    for sim_time, position in zip(times, positions, strict=True):
-        arrived = (np.linalg.norm(position - goals, axis=1) <= goal_tolerance)[planned]
-        settled_since = settled(arrived, sim_time, settled_since)
-        if has_settled(sim_time, settled_since):
-            return float(sim_time)
-    return None
+
+    def __init__(self, robot_names):
+        """ROBOT_NAMES: the robots, in the scenario's order."""
+        self._robot_names = list(robot_names)
+        self._done = -1  # ns: the last stamp given
+
+    def heard_all(self, ground_truth):
+        """Whether GROUND_TRUTH ({robot: {stamp ns: state}}) holds a message of every robot."""
+        return all(ground_truth.get(name) for name in self._robot_names)
+
+    def completed(self, ground_truth):
+        """Yield (time [s], positions (N, 2)) of each step newly complete and final, in order."""
+        frontier = min(max(ground_truth[name]) for name in self._robot_names)
+        first = ground_truth[self._robot_names[0]]
+        stamps = sorted(stamp for stamp in first if self._done < stamp <= frontier and all(
+            stamp in ground_truth[name] for name in self._robot_names))
+        self._done = max(self._done, frontier)
+        for stamp in stamps:
+            yield stamp * 1e-9, np.array([ground_truth[name][stamp][:2]
+                                          for name in self._robot_names])
 
 
 def run_once(spec, domain_id, monitor=None):
@@ -454,17 +499,10 @@ def run_once(spec, domain_id, monitor=None):
             if monitor is not None:
                 monitor.started(children, recorder)
             end = wait_for_end(recorder, watch, spec, progress)
-            if isinstance(end, Ending):
-                ending = end
-            else:
+            if isinstance(end, str):
                 failure = end
-        if ending is Ending.ARRIVED:
-            recording = recorder.recording()
-            end_time = arrival_end(
-                recording.times, recording.states[..., :2],
-                np.array([robot.goal for robot in scenario.robots], dtype=float),
-                scenario.goal_tolerance, np.array([robot.scripted is None
-                                                   for robot in scenario.robots]))
+            else:
+                ending, end_time = end
         if failure is None:
             failure = recorder.recording_gaps(scenario.dt, spec.mode == 'lockstep',
                                               RECORDING_GRACE, until=end_time)
