@@ -8,10 +8,9 @@ before the simulator's waits for the plans do, so that a plan made after a long 
 answers its step.
 """
 
-import dataclasses
-
 import numpy as np
 
+from prvo_msgs_util import OdometryMeasurement
 from prvo_sim.engine import agent_of
 from prvo_sim.runner.session import planner_values, sim_parameters
 from prvo_sim.scenario import find_scenario, load_scenario
@@ -20,21 +19,11 @@ HEARD_LATE = 20.0  # wall seconds after the first own odometry a neighbour is fi
 PLAN_MARGIN = 1.0  # wall seconds a plan may take once its wait is over
 
 
-@dataclasses.dataclass(frozen=True)
-class Measurement:
-    """The fields of prvo_msgs_util.OdometryMeasurement the agent reads."""
-
-    stamp: float
-    position: np.ndarray
-    velocity: np.ndarray
-    covariance: np.ndarray
-    yaw: float = 0.0
-
-
 def measurement_of(robot):
     """Return ROBOT's t_0 measurement: at its start, standing, 5 cm std."""
-    return Measurement(0.0, np.asarray(robot.start, dtype=float), np.zeros(2),
-                       np.diag([0.0025] * 4))
+    return OdometryMeasurement(0.0, 'map', f'{robot.name}/base_link',
+                               np.asarray(robot.start, dtype=float), np.zeros(2),
+                               np.diag([0.0025] * 4), 0.0)
 
 
 def test_a_lockstep_planner_plans_its_first_step_with_a_neighbour_heard_late():

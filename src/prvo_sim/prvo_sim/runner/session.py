@@ -370,14 +370,15 @@ def wait_for_end(recorder, watch, spec, progress):
         if failure is not None:
             return failure
         finished = recorder.sim_status is not None and recorder.sim_status.finished
-        if not steps.heard_all(recorder.ground_truth):
+        ground_truth = recorder.ground_truth
+        if not steps.heard_all(ground_truth):
             if finished:
                 return ('the simulator finished before the recorder received ground truth of '
                         'every robot')
             if now - started > STARTUP_LIMIT:
                 return f'no ground truth from every robot within {STARTUP_LIMIT:g} s'
             continue
-        for sim_time, positions in steps.completed(recorder.ground_truth):
+        for sim_time, positions in steps.completed(ground_truth):
             if rule.step(sim_time, positions):
                 return Ending.ARRIVED, sim_time
         if now >= next_progress and rule.time is not None:
