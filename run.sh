@@ -135,7 +135,11 @@ case "$job" in
     ruff check .
     echo 'prvo test: pytest'
     status=0
-    python -m pytest "$@" || status=$?
+    # Two workers, one a core (a test's time goes mostly to starting ROS processes, which is
+    # CPU); a worker that runs out of tests takes some of the other's (worksteal), so the long
+    # tests do not queue on one. --durations=25 ends the report with the slowest tests. The
+    # caller's options come after these and win: './run.sh test -n 0' runs in this one process.
+    python -m pytest -n 2 --dist worksteal --durations=25 "$@" || status=$?
     if [ "$status" -eq 5 ]; then
       echo 'prvo test: error: pytest collected no tests' >&2
     fi

@@ -14,6 +14,7 @@ import threading
 import time
 
 import pytest
+from worker_domains import worker_domain_ids
 
 os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
 # The probe talks to the children over the same transport they use (see env.sh).
@@ -25,7 +26,7 @@ def ros_domain():
     """Claim a ROS_DOMAIN_ID no test or scenario run on this machine holds; release it after."""
     from prvo_sim.run_scenario import claimed_domain
 
-    with claimed_domain(None) as domain_id:
+    with claimed_domain(None, candidates=worker_domain_ids()) as domain_id:
         yield domain_id
 
 

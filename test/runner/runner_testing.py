@@ -11,8 +11,9 @@ import time
 import uuid
 
 import pytest
+from worker_domains import worker_domain_ids
 
-from prvo_sim.run_scenario import DOMAIN_IDS, DomainRefusedError, claimed_domain
+from prvo_sim.run_scenario import DomainRefusedError, claimed_domain
 
 HERE = pathlib.Path(__file__).resolve().parent
 FAKE_CHILD = f'{sys.executable} {HERE / "fake_child.py"}'
@@ -121,7 +122,7 @@ def free_domain():
     Searched from the top of the range down (fixtures and automatic choices search upwards),
     from an offset of this process's own, so that test processes running at once do not meet.
     """
-    ids = list(reversed(DOMAIN_IDS))
+    ids = list(reversed(worker_domain_ids()))
     offset = os.getpid() % (len(ids) // 2)
     for domain_id in ids[offset:] + ids[:offset]:
         with contextlib.suppress(DomainRefusedError), claimed_domain(domain_id):

@@ -75,13 +75,13 @@ def _release(descriptor):
 
 
 @contextlib.contextmanager
-def claimed_domain(requested, vet=None):
+def claimed_domain(requested, vet=None, candidates=DOMAIN_IDS):
     """Yield a ROS_DOMAIN_ID held exclusively until the block ends.
 
-    REQUESTED (an id, or None for the first free one in DOMAIN_IDS) is claimed or refused with
-    DomainRefusedError naming its holder. VET(domain_id), if given, returns None for a domain
-    fit to use, else the reason it is not: a requested domain is then refused, an automatic
-    choice moves on to the next id.
+    REQUESTED (an id, or None for the first free one in the range CANDIDATES, by default
+    DOMAIN_IDS) is claimed or refused with DomainRefusedError naming its holder. VET(domain_id),
+    if given, returns None for a domain fit to use, else the reason it is not: a requested
+    domain is then refused, an automatic choice moves on to the next id.
     """
     if requested is not None:
         descriptor, holder = _lock(requested)
@@ -95,7 +95,7 @@ def claimed_domain(requested, vet=None):
         finally:
             _release(descriptor)
         return
-    for domain_id in DOMAIN_IDS:
+    for domain_id in candidates:
         descriptor, _ = _lock(domain_id)
         if descriptor is None:
             continue
@@ -107,7 +107,7 @@ def claimed_domain(requested, vet=None):
         finally:
             _release(descriptor)
     raise DomainRefusedError(
-        f'no free ROS_DOMAIN_ID in {DOMAIN_IDS.start}..{DOMAIN_IDS.stop - 1}: every one is held '
+        f'no free ROS_DOMAIN_ID in {candidates.start}..{candidates.stop - 1}: every one is held '
         f'or used by other processes')
 
 
