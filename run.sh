@@ -95,7 +95,7 @@ setup() {
   requirements_hash=$(sha256sum "$ROOT/requirements.txt" | cut -d' ' -f1)
   if [ ! -f "$VENV/.requirements-stamp" ] || \
     [ "$(cat "$VENV/.requirements-stamp")" != "$requirements_hash" ]; then
-    echo 'prvo setup: installing pinned dependencies (ROS 2 Jazzy wheels, numpy, filterpy, ...)'
+    echo 'prvo setup: installing pinned dependencies (ROS 2 Jazzy wheels, numpy, scipy, ...)'
     pip_install 'the pinned dependencies in requirements.txt' -r "$ROOT/requirements.txt"
     echo "$requirements_hash" >"$VENV/.requirements-stamp"
   fi

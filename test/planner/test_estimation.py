@@ -3,7 +3,12 @@
 import numpy as np
 import pytest
 
-from prvo_planner.estimation import ConstantVelocityTracker, TrackFault
+from prvo_planner.estimation import (
+    ConstantVelocityTracker,
+    TrackFault,
+    _process_noise,
+    _transition,
+)
 
 
 def _hand_prediction(mean, covariance, dt, acceleration_std):
@@ -108,3 +113,41 @@ def test_an_unfusable_measurement_leaves_the_track_as_it_was(far_stamp):
     expected, actual = reference.belief_at(0.35), tracker.belief_at(0.35)
     np.testing.assert_array_equal(actual.mean, expected.mean)
     np.testing.assert_array_equal(actual.covariance, expected.covariance)
+
+
+def test_the_filter_is_filterpys_kalman_filter_to_the_bit():
+    """Every fused and predicted belief equals filterpy's KalmanFilter given the same models.
+
+    The tracker writes the two Kalman steps out (importing filterpy costs a node about a second
+    of start-up); filterpy is the independent implementation it must reproduce exactly, so that
+    no plan moves. The models F and Q themselves are checked against the hand derivation above.
+    """
+    from filterpy.kalman import KalmanFilter, predict
+
+    rng = np.random.default_rng(11)
+    tracker = ConstantVelocityTracker(acceleration_std=0.8)
+    reference = KalmanFilter(dim_x=4, dim_z=4)
+    reference.H = np.eye(4)
+    stamp, dt = 0.0, None
+    for _ in range(200):
+        factor = rng.normal(size=(4, 4)) * 0.05
+        covariance = factor @ factor.T + 1e-4 * np.eye(4)
+        measurement = np.concatenate([rng.normal(size=2) * 3.0, rng.normal(size=2)])
+        tracker.update(stamp, measurement[:2], measurement[2:], covariance)
+        noise = covariance + 1e-8 * np.eye(4)
+        if dt is None:
+            reference.x, reference.P = measurement, noise
+        else:
+            reference.predict(F=_transition(dt), Q=_process_noise(dt, 0.8))
+            reference.update(measurement, R=noise)
+        belief = tracker.belief_at(stamp)
+        np.testing.assert_array_equal(belief.mean, reference.x)
+        np.testing.assert_array_equal(belief.covariance, reference.P)
+        dt = float(rng.choice([0.05, 0.1, 0.37]))
+        stamp = round(stamp + dt, 9)
+        dt = round(stamp - tracker.stamp, 9)
+    ahead = tracker.belief_at(tracker.stamp + 0.25)
+    mean, covariance = predict(reference.x, reference.P, F=_transition(0.25),
+                               Q=_process_noise(0.25, 0.8))
+    np.testing.assert_array_equal(ahead.mean, mean)
+    np.testing.assert_array_equal(ahead.covariance, 0.5 * (covariance + covariance.T))

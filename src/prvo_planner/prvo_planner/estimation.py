@@ -1,13 +1,15 @@
-"""Constant-velocity tracking of a robot's planar state with filterpy (docs/method.md 8).
+"""Constant-velocity tracking of a robot's planar state with a Kalman filter (docs/method.md 8).
 
-Plain numpy and filterpy, no ROS: the planner node feeds it measurements converted by
-prvo_msgs_util and asks it for beliefs predicted to the planning time.
+Plain numpy, no ROS: the planner node feeds it measurements converted by prvo_msgs_util and asks
+it for beliefs predicted to the planning time. The filter's two steps are filterpy's
+`KalmanFilter` equations (the same operations in the same order, so the same numbers; the tests
+check it against filterpy): importing filterpy would import scipy.stats, half of every node's
+start-up time.
 """
 
 from dataclasses import dataclass
 import functools
 
-from filterpy.kalman import KalmanFilter, predict
 import numpy as np
 
 # Measurement covariances are floored so that an exact (zero-variance) odometry source does not
@@ -52,6 +54,30 @@ def _process_noise(dt, acceleration_std):
     return noise
 
 
+def predict(state, covariance, transition, process_noise):
+    """Return the prior (state (4,), covariance (4, 4)) one interval later.
+
+    `x = F x`, `P = F P F' + Q` for the transition F (4, 4) and process noise Q (4, 4).
+    """
+    return (np.dot(transition, state),
+            np.dot(np.dot(transition, covariance), transition.T) + process_noise)
+
+
+def update(state, covariance, measurement, noise):
+    """Return the posterior (state (4,), covariance (4, 4)) after a full-state measurement.
+
+    The measurement z (4,) has covariance R (4, 4) and measures the state itself (H = I), so the
+    innovation covariance is `S = P + R` and the gain `K = P S^-1`. The covariance update is
+    Joseph's form, `(I - K) P (I - K)' + K R K'`, which stays symmetric and positive definite
+    under rounding where the textbook `(I - K) P` may not.
+    """
+    gain = np.dot(covariance, np.linalg.inv(covariance + noise))
+    complement = np.eye(4) - gain
+    return (state + np.dot(gain, measurement - state),
+            np.dot(np.dot(complement, covariance), complement.T)
+            + np.dot(np.dot(gain, noise), gain.T))
+
+
 @dataclass(frozen=True)
 class StateBelief:
     """Gaussian belief over [x, y, vx, vy] at time `stamp`: `mean` (4,), `covariance` (4, 4)."""
@@ -62,7 +88,7 @@ class StateBelief:
 
 
 class ConstantVelocityTracker:
-    """A `filterpy.kalman.KalmanFilter` over [x, y, vx, vy] fed full-state measurements.
+    """A Kalman filter over [x, y, vx, vy] fed full-state measurements (`predict`, `update`).
 
     Parameters
     ----------
@@ -77,7 +103,8 @@ class ConstantVelocityTracker:
         if not acceleration_std > 0.0:
             raise ValueError(f'acceleration_std must be > 0, got {acceleration_std!r}')
         self.acceleration_std = float(acceleration_std)
-        self._filter = None
+        self._state = None  # (4,)
+        self._covariance = None  # (4, 4)
         self._stamp = None
 
     @property
@@ -108,11 +135,8 @@ class ConstantVelocityTracker:
         """
         measurement = np.concatenate([position, velocity]).astype(float)
         noise = np.asarray(covariance, dtype=float) + _MEASUREMENT_VARIANCE_FLOOR * np.eye(4)
-        if self._filter is None:
-            self._filter = KalmanFilter(dim_x=4, dim_z=4)
-            self._filter.H = np.eye(4)
-            self._filter.x = measurement.copy()
-            self._filter.P = noise.copy()
+        if self._state is None:
+            self._state, self._covariance = measurement, noise
             self._stamp = float(stamp)
             return
         dt = float(stamp) - self._stamp
@@ -121,23 +145,24 @@ class ConstantVelocityTracker:
                 f'stamp {stamp:.3f} s is not after the last measurement {self._stamp:.3f} s')
         # ROS stamps have nanosecond resolution: rounding there makes recurring periods equal.
         dt = round(dt, 9)
-        state, covariance = self._filter.x.copy(), self._filter.P.copy()
-        self._filter.predict(F=_transition(dt), Q=_process_noise(dt, self.acceleration_std))
+        prior_state, prior_covariance = predict(
+            self._state, self._covariance, _transition(dt),
+            _process_noise(dt, self.acceleration_std))
         try:
             # H is the identity: the innovation covariance is P + R.
-            np.linalg.cholesky(self._filter.P + noise)
-            self._filter.update(measurement, R=noise)
-            if not np.isfinite(self._filter.x).all():
+            np.linalg.cholesky(prior_covariance + noise)
+            state, covariance = update(prior_state, prior_covariance, measurement, noise)
+            if not np.isfinite(state).all():
                 raise np.linalg.LinAlgError('non-finite state')
             # A full-state measurement bounds the posterior: no variance can exceed the
             # measurement's. Rounding in a huge prediction breaks that (variances of 1e34 after
             # a jump of 1.7e9 s), and the result is no belief at all.
-            if not (np.diag(self._filter.P) <= _POSTERIOR_SLACK * np.diag(noise)).all():
+            if not (np.diag(covariance) <= _POSTERIOR_SLACK * np.diag(noise)).all():
                 raise np.linalg.LinAlgError('posterior variance beyond the measurement variance')
         except np.linalg.LinAlgError as error:
-            self._filter.x, self._filter.P = state, covariance
             raise TrackFault(
                 f'fusing a measurement {dt:g} s after the last one fails: {error}') from None
+        self._state, self._covariance = state, covariance
         self._stamp = float(stamp)
 
     def belief_at(self, stamp):
@@ -145,12 +170,12 @@ class ConstantVelocityTracker:
 
         A `stamp` at or before the last measurement returns the filtered state as it is.
         """
-        if self._filter is None:
+        if self._state is None:
             raise RuntimeError('belief_at() before any measurement')
         dt = float(stamp) - self._stamp
         if dt <= 0.0:
-            return StateBelief(self._stamp, self._filter.x.copy(), self._filter.P.copy())
+            return StateBelief(self._stamp, self._state.copy(), self._covariance.copy())
         dt = round(dt, 9)
-        mean, covariance = predict(self._filter.x, self._filter.P, F=_transition(dt),
-                                   Q=_process_noise(dt, self.acceleration_std))
+        mean, covariance = predict(self._state, self._covariance, _transition(dt),
+                                   _process_noise(dt, self.acceleration_std))
         return StateBelief(float(stamp), mean, 0.5 * (covariance + covariance.T))
