@@ -69,6 +69,18 @@ def test_missing_scenario_file(tmp_path, marker_command, capsys):
     assert_one_line_error(err, 'missing.yaml')
 
 
+def test_map_image_declaring_too_many_pixels(tmp_path, marker_command, capsys):
+    # A PGM header declaring 60000 x 60000 pixels, and no pixels.
+    (tmp_path / 'huge.pgm').write_bytes(b'P5\n60000 60000\n255\n')
+    (tmp_path / 'map.yaml').write_text('image: huge.pgm\nresolution: 0.05\n'
+                                       'origin: [-10.0, -10.0, 0.0]\n')
+    scenario = tmp_path / 'mapped.yaml'
+    scenario.write_text(open(HEADON).read() + 'map: map.yaml\n')
+    code, err = run_main([str(scenario), '--out', str(tmp_path / 'out')], marker_command, capsys)
+    assert code == 2
+    assert_one_line_error(err, 'map.yaml', 'image', 'huge.pgm', 'more than 4e+07 pixels')
+
+
 def test_output_folder_that_cannot_be_written(tmp_path, marker_command, capsys):
     blocker = tmp_path / 'a-file'
     blocker.write_text('not a folder')

@@ -6,6 +6,7 @@ closed formulas or dense sampling, map cells by hand, polygon interiors by matpl
 
 import math
 import re
+import warnings
 
 from matplotlib.path import Path
 import numpy as np
@@ -362,6 +363,24 @@ def test_an_unreadable_image_is_named(tmp_path):
     (tmp_path / 'map.yaml').write_text(MAP)
     with pytest.raises(ScenarioError, match=re.escape(f'{tmp_path / "map.yaml"}: image: ')):
         load_scenario(scenario_file(tmp_path, 'map: map.yaml\n'))
+
+
+@pytest.mark.parametrize('width, height', [
+    # Above the 4e7-cell bound, above Pillow's warning limit (8.9e7), above its error limit.
+    (7000, 6000), (10000, 10000), (60000, 60000)])
+def test_an_image_declaring_too_many_pixels_is_refused_before_decoding(tmp_path, width, height):
+    # A header alone: decoding it would read pixels that are not there.
+    (tmp_path / 'map.pgm').write_bytes(f'P5\n{width} {height}\n255\n'.encode())
+    (tmp_path / 'map.yaml').write_text(MAP)
+    with warnings.catch_warnings(), pytest.raises(ScenarioError) as raised:
+        # A warning would be a second line on the terminal.
+        warnings.simplefilter('error')
+        load_scenario(scenario_file(tmp_path, 'map: map.yaml\n'))
+    message = str(raised.value)
+    assert message.startswith(f'{tmp_path / "map.yaml"}: image: '), message
+    assert 'more than 4e+07 pixels' in message, message
+    assert str(width * height) in message or f'{width} x {height}' in message, message
+    assert '\n' not in message
 
 
 def test_a_robot_in_a_map_cell_is_refused(tmp_path):

@@ -507,12 +507,9 @@ def _map(check, name, key='map'):
         map_check.fail('mode', f'must be one of {", ".join(MODES)}, got {mode!r}')
     image_path = path.parent / image_name
     try:
-        levels, alpha = read_image(image_path)
+        levels, alpha = read_image(image_path, MAX_GRID_CELLS)
     except OSError as error:
         map_check.fail('image', f'cannot read {str(image_path)!r}: {error}')
-    if levels.size > MAX_GRID_CELLS:
-        map_check.fail('image', f'{levels.shape[1]} x {levels.shape[0]} pixels, more than '
-                       f'{MAX_GRID_CELLS:.3g} cells')
     cells = cells_from_image(levels, alpha, mode, bool(negate), **thresholds)
     return GridMap(cells, resolution, corner)
 
