@@ -1,5 +1,6 @@
 """Bad input: a one-line error naming the problem, exit code 2, and no child ever started."""
 
+import os
 import pathlib
 import subprocess
 import sys
@@ -79,6 +80,23 @@ def test_map_image_declaring_too_many_pixels(tmp_path, marker_command, capsys):
     code, err = run_main([str(scenario), '--out', str(tmp_path / 'out')], marker_command, capsys)
     assert code == 2
     assert_one_line_error(err, 'map.yaml', 'image', 'huge.pgm', 'more than 4e+07 pixels')
+
+
+@pytest.mark.parametrize('fifo', ['map.pgm', 'mapped.yaml'])
+def test_a_fifo_for_a_file_is_refused_at_once(tmp_path, fifo):
+    # Reading a FIFO waits for a writer that never comes: refused, not read.
+    (tmp_path / 'map.yaml').write_text('image: map.pgm\nresolution: 0.05\n'
+                                       'origin: [-10.0, -10.0, 0.0]\n')
+    (tmp_path / 'map.pgm').write_bytes(b'P5\n2 2\n255\n\xff\xff\xff\xff')
+    (tmp_path / 'mapped.yaml').write_text(open(HEADON).read() + 'map: map.yaml\n')
+    (tmp_path / fifo).unlink()
+    os.mkfifo(tmp_path / fifo)
+    result = subprocess.run(
+        [sys.executable, '-m', 'prvo_sim.run_scenario', str(tmp_path / 'mapped.yaml'),
+         '--engine', 'inprocess', '--out', str(tmp_path / 'out')],
+        capture_output=True, text=True, timeout=60)
+    assert result.returncode == 2
+    assert_one_line_error(result.stderr, fifo, 'not a regular file')
 
 
 def test_output_folder_that_cannot_be_written(tmp_path, marker_command, capsys):

@@ -5,6 +5,8 @@ A map's YAML names the image and how to read it (`mode`, `negate`, `occupied_thr
 grey levels (a colour image by its luminance), the image's top row the grid's last row.
 """
 
+import os
+import stat
 import warnings
 
 import numpy as np
@@ -17,15 +19,28 @@ DEFAULT_OCCUPIED_THRESH = 0.65
 DEFAULT_FREE_THRESH = 0.25
 
 
+def check_regular_file(path):
+    """Raise OSError unless PATH is a regular file (or a link to one), with the reason.
+
+    Reading a FIFO would wait for a writer, reading a device might never end: neither is read.
+    """
+    mode = os.stat(path).st_mode
+    if not stat.S_ISREG(mode):
+        kind = ('a FIFO' if stat.S_ISFIFO(mode) else 'a directory' if stat.S_ISDIR(mode)
+                else 'a socket' if stat.S_ISSOCK(mode) else 'a device')
+        raise OSError(f'not a regular file ({kind})')
+
+
 def read_image(path, max_pixels):
     """Return (grey levels (H, W) uint8, alpha (H, W) uint8) of the PGM or PNG image at PATH.
 
     A colour image is read by its luminance (Pillow's ITU-R 601-2 luma), an image without
     transparency as opaque. The size the image's header declares is checked before its pixels
     are decoded: more than MAX_PIXELS is refused. Raises OSError (unreadable, not an image, too
-    large) with the reason.
+    large, not a regular file) with the reason.
     """
     try:
+        check_regular_file(path)
         with warnings.catch_warnings():
             # Pillow warns of a possible decompression bomb above its own limit; the bound that
             # applies here is MAX_PIXELS, checked below before decoding.

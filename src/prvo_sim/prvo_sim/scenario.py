@@ -42,6 +42,7 @@ from prvo_sim.map_files import (
     DEFAULT_OCCUPIED_THRESH,
     MODES,
     cells_from_image,
+    check_regular_file,
     read_image,
 )
 from prvo_sim.static_world import StaticWorld, polygon_crossing
@@ -336,6 +337,7 @@ class _Validator:
 
 def _parse(path):
     try:
+        check_regular_file(path)
         text = path.read_text()
     except (OSError, UnicodeDecodeError) as error:
         raise ScenarioError(path, '(file)', f'cannot read: {error}') from None
