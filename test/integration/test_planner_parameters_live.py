@@ -49,6 +49,11 @@ def test_set_parameters_rejects_bad_values_with_a_reason(children, ros2_executab
     for name, value in (('max_angular_speed', 1e-9), ('max_angular_acceleration', 1e-6)):
         refused = _set(probe, client, name, value)
         assert not refused.successful and name in refused.reason, refused.reason
+    # A minimum above the maximum (0.9 by default) is refused as the minimum set.
+    refused = _set(probe, client, 'min_lookahead_dist', 0.95)
+    assert not refused.successful, refused.reason
+    assert refused.reason.startswith('min_lookahead_dist: must be <= max_lookahead_dist'), \
+        refused.reason
     accepted = _set(probe, client, 'eta', 0.9)
     assert accepted.successful, accepted.reason
 

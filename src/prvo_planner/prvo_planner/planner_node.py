@@ -243,7 +243,7 @@ class PlannerNode(Node):
                 if parameter.name in values:
                     values[parameter.name] = check_parameter_update(parameter.name,
                                                                     parameter.value)
-            config = planner_config_from(values)
+            config = planner_config_from(values, {parameter.name for parameter in parameters})
             goal = goal_array(values['goal'])
         except ParameterError as error:
             return SetParametersResult(successful=False, reason=str(error))

@@ -414,16 +414,25 @@ def _static_world(check, document, robots):
                    f'the static world spans {width} x {height} cells of '
                    f'{world.grid_layout()[2]:g} m: more than {MAX_GRID_CELLS:.3g}')
     for index, robot in enumerate(robots):
-        for place in ('start', 'goal'):
+        key = f'robots[{index}]'
+        for place, place_key in (('start', f'{key}.start'), ('goal', _goal_key(robot, key))):
             point = getattr(robot, place)
             clearance = float(world.clearance(point)[0])
             if clearance < robot.radius:
                 where = ('inside an obstacle' if clearance <= 0.0 else
                          f'{clearance:g} m from an obstacle, closer than its radius '
                          f'{robot.radius:g} m')
-                check.fail(f'robots[{index}].{place}',
-                           f'{point.tolist()} is {where} (robot {robot.name!r})')
+                check.fail(place_key, f'{point.tolist()} is {where} (robot {robot.name!r})')
     return world
+
+
+def _goal_key(robot, key):
+    """Return the key path that gives ROBOT (at KEY) its goal: its goal or its last waypoint."""
+    for block, name in ((robot.scripted, 'scripted'), (robot.upstream, 'upstream'),
+                        (robot.followed_path, 'path')):
+        if block is not None:
+            return f'{key}.{name}.waypoints[{len(block.waypoints) - 1}]'
+    return f'{key}.goal'
 
 
 def _entries(check, document, key):
@@ -470,10 +479,21 @@ def _polygon(check, entry, key):
                    f'{value!r}')
     vertices = np.array([check.point(point, f'{key}.polygon[{index}]')
                          for index, point in enumerate(value)])
+    sides = vertices[1:] - vertices[0]
+    along = sides[(sides != 0.0).any(axis=1)]
+    if not len(along) or not (along[0, 0] * sides[:, 1] - along[0, 1] * sides[:, 0]).any():
+        # Every edge of such a polygon folds back onto another: it has no inside to solidify.
+        check.fail(f'{key}.polygon', f'its {len(vertices)} vertices lie on one line: a polygon '
+                   'needs an inside')
+    repeated = np.flatnonzero((vertices == np.roll(vertices, -1, axis=0)).all(axis=1))
+    if len(repeated):
+        index = int(repeated[0])
+        check.fail(f'{key}.polygon', f'vertices {index} and {(index + 1) % len(vertices)} are '
+                   'equal: an edge needs a length')
     crossing = polygon_crossing(vertices)
     if crossing is not None:
-        first, second = crossing
-        check.fail(f'{key}.polygon', f'edges {first} and {second} cross (edge i runs from vertex '
+        first, second, how = crossing
+        check.fail(f'{key}.polygon', f'edges {first} and {second} {how} (edge i runs from vertex '
                    'i to the next): a polygon must be simple')
     return vertices
 
