@@ -234,6 +234,14 @@ class PlannerNode(Node):
             raise ParameterError(
                 '__ns', f'run the planner in a robot namespace (-r __ns:=/robot_0), '
                 f'got namespace {self.get_namespace()!r}')
+        if self._values['preferred_source'] == VELOCITY:
+            # Compared as the graph names them: after the namespace and any remapping.
+            names = [self._values[name] for name in ('cmd_vel_in_topic', 'cmd_vel_out_topic')]
+            upstream, output = (self.resolve_topic_name(name) for name in names)
+            if upstream == output:
+                raise ParameterError(
+                    'cmd_vel_out_topic', f'{names[1]!r} and cmd_vel_in_topic {names[0]!r} are '
+                    f'both {output}: the filter would take its own commands as its input')
 
     def _on_set_parameters(self, parameters):
         """Accept a parameter change only if the whole configuration stays valid."""
