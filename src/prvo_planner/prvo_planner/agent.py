@@ -20,7 +20,13 @@ import numpy as np
 
 from prvo_planner.core import AgentBelief, VelocityLimits, plan_velocity
 from prvo_planner.core.beliefs import validated_share
-from prvo_planner.maps import GridMap, ObstacleIndex, grid_obstacles, occupied_cells
+from prvo_planner.maps import (
+    GridMap,
+    ObstacleIndex,
+    check_route_work,
+    grid_obstacles,
+    occupied_cells,
+)
 from prvo_planner.path_following import carrot, closest_on_path
 from prvo_planner.preferred import (
     GOAL,
@@ -320,8 +326,12 @@ def same_grid(grid, other):
 
 
 def build_map(grid, built_for, goal=None):
-    """Return the `BuiltMap` of GRID for the map key BUILT_FOR, with the paths to GOAL (2,)."""
+    """Return the `BuiltMap` of GRID for the map key BUILT_FOR, with the paths to GOAL (2,).
+
+    Raises `maps.MapTooLargeError` at once for a map whose route is beyond the bounds.
+    """
     unknown_is_occupied, obstacle_distance, clearance, route_margin = built_for
+    check_route_work(grid.shape, grid.resolution, clearance + route_margin)
     route_map = RouteMap(occupied_cells(grid, unknown_is_occupied), grid.resolution,
                          grid.origin, clearance, route_margin)
     return BuiltMap(grid, built_for, ObstacleIndex(grid_obstacles(grid, unknown_is_occupied),

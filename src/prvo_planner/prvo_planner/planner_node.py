@@ -66,7 +66,7 @@ from prvo_planner.agent import (
     build_map,
     same_grid,
 )
-from prvo_planner.maps import GridMap
+from prvo_planner.maps import GridMap, MapTooLargeError
 from prvo_planner.parameters import (
     PARAMETERS,
     ParameterError,
@@ -521,10 +521,12 @@ class PlannerNode(Node):
         try:
             built = build.future.result()
         except Exception as error:
-            # Whatever failed (memory, most likely), the plans go on with the map in force.
+            # Whatever failed (a map beyond the bounds, memory), the plans go on with the map in
+            # force. The type tells what else failed (a MemoryError's text may be empty).
             agent.map_pending = False
+            reason = str(error) if isinstance(error, MapTooLargeError) else repr(error)
             self._warnings.warn((self._map_topic, 'build'), f'cannot use the map on '
-                                f'{self._map_topic} (keeping the map in force): {error!r}')
+                                f'{self._map_topic} (keeping the map in force): {reason}')
             return False
         if built.built_for != agent.map_key:
             # The settings changed while it was built: build it again for them.
