@@ -5,6 +5,8 @@ import pathlib
 import subprocess
 import sys
 
+import numpy as np
+from PIL import Image
 import pytest
 
 from prvo_sim import run_scenario
@@ -80,6 +82,20 @@ def test_map_image_declaring_too_many_pixels(tmp_path, marker_command, capsys):
     code, err = run_main([str(scenario), '--out', str(tmp_path / 'out')], marker_command, capsys)
     assert code == 2
     assert_one_line_error(err, 'map.yaml', 'image', 'huge.pgm', 'more than 4e+07 pixels')
+
+
+def test_a_map_of_cells_too_small_for_the_planners_is_refused(tmp_path, marker_command, capsys):
+    # 160 x 160 cells of 1e-4 m: every planner would refuse to build a route on it (its reach
+    # of 0.6 m is 6,000 cells), and plan as if there were no map.
+    Image.fromarray(np.full((160, 160), 255, dtype=np.uint8)).save(tmp_path / 'tiny.pgm')
+    (tmp_path / 'map.yaml').write_text('image: tiny.pgm\nresolution: 0.0001\n'
+                                       'origin: [10.0, 10.0, 0.0]\n')
+    scenario = tmp_path / 'mapped.yaml'
+    scenario.write_text(open(HEADON).read() + 'map: map.yaml\n')
+    code, err = run_main([str(scenario), '--out', str(tmp_path / 'out')], marker_command, capsys)
+    assert code == 2
+    assert_one_line_error(err, 'mapped.yaml: map: ', '160 x 160 cells of 0.0001 m',
+                          'cells padded (at most 2.5e+07)')
 
 
 @pytest.mark.parametrize('fifo', ['map.pgm', 'mapped.yaml'])
