@@ -34,6 +34,7 @@ from prvo_planner.parameters import (
     KINEMATICS,
     ParameterError,
     check_parameter,
+    planner_config_from,
     type_name,
     unknown_parameter_reason,
 )
@@ -600,13 +601,22 @@ def _robot(check, entry, key, file_noise, file_planner):
     waypoints = next((block.waypoints for block in (path, upstream, followed)
                       if block is not None), None)
     goal = waypoints[-1] if waypoints is not None else check.point(entry['goal'], f'{key}.goal')
+    planner = {}
+    if path is None:
+        own = check.planner(entry.get('planner'), f'{key}.planner')
+        planner = {**file_planner, **own}
+        try:
+            # The rules between parameters (each alone is checked above), as the planner's.
+            planner_config_from(planner)
+        except ParameterError as error:
+            where = (f'{key}.planner.{error.name}' if error.name in own else
+                     f'planner.{error.name}' if error.name in file_planner else f'{key}.planner')
+            check.fail(where, f'{error.reason} (robot {name!r})')
     return RobotSpec(
         name=name, start=start, goal=goal, kinematics=kinematics, start_yaw=start_yaw,
         **limits, radius=radius, max_speed=max_speed,
         noise=NoiseSpec(**{field: noise.get(field, 0.0) for field in _NOISE_KEYS}),
-        planner={} if path is not None else {
-            **file_planner, **check.planner(entry.get('planner'), f'{key}.planner')},
-        scripted=path, upstream=upstream, followed_path=followed)
+        planner=planner, scripted=path, upstream=upstream, followed_path=followed)
 
 
 def _scripted_path(check, value, key, name, max_speed, keys=_SCRIPTED_KEYS):
