@@ -29,6 +29,44 @@ def test_invalid_parameter_at_startup_exits_non_zero_naming_it(children, ros2_ex
     assert 'Traceback' not in output
 
 
+@pytest.mark.parametrize('arguments', [
+    ['-p', 'cmd_vel_in_topic:=cmd_vel', '-p', 'cmd_vel_out_topic:=cmd_vel'],
+    # The same topic once resolved in the namespace, or once remapped.
+    ['-p', 'cmd_vel_in_topic:=/robot_0/cmd_vel'],
+    ['-r', 'cmd_vel_smoothed:=cmd_vel'],
+])
+def test_a_filter_fed_its_own_output_is_refused_at_startup(children, ros2_executable,
+                                                           arguments):
+    # Started, it would filter its own commands, a thousand a second.
+    process = children.start('planner', [
+        ros2_executable('prvo_planner', 'planner'), '--ros-args', '-r', '__ns:=/robot_0',
+        '-p', 'preferred_source:=velocity', *arguments])
+    assert process.wait(timeout=30.0) == 2
+    output = children.output(process)
+    assert 'invalid parameter: cmd_vel_out_topic: ' in output, output
+    assert 'cmd_vel_in_topic' in output and '/robot_0/cmd_vel' in output, output
+    assert 'Traceback' not in output
+
+
+def test_a_running_filter_keeps_its_topics(children, ros2_executable, probe):
+    children.start('planner', [ros2_executable('prvo_planner', 'planner'), '--ros-args',
+                               '-r', '__ns:=/robot_0', '-p', 'preferred_source:=velocity'])
+    setter = probe.node.create_client(SetParameters, '/robot_0/planner/set_parameters')
+    getter = probe.node.create_client(GetParameters, '/robot_0/planner/get_parameters')
+    assert setter.wait_for_service(timeout_sec=60.0)
+    assert getter.wait_for_service(timeout_sec=60.0)
+    for name, value in (('cmd_vel_out_topic', 'cmd_vel_smoothed'),
+                        ('cmd_vel_in_topic', 'cmd_vel')):
+        request = SetParameters.Request(parameters=[Parameter(
+            name=name, value=ParameterValue(type=ParameterType.PARAMETER_STRING,
+                                            string_value=value))])
+        result = probe.call(setter, request, f'the answer to setting {name}').results[0]
+        assert not result.successful and name in result.reason, result.reason
+    values = probe.call(getter, GetParameters.Request(names=[
+        'cmd_vel_in_topic', 'cmd_vel_out_topic']), 'the answer to getting the topics').values
+    assert [value.string_value for value in values] == ['cmd_vel_smoothed', 'cmd_vel']
+
+
 def _set(probe, client, name, value):
     request = SetParameters.Request(parameters=[Parameter(
         name=name, value=ParameterValue(type=ParameterType.PARAMETER_DOUBLE,
@@ -49,6 +87,11 @@ def test_set_parameters_rejects_bad_values_with_a_reason(children, ros2_executab
     for name, value in (('max_angular_speed', 1e-9), ('max_angular_acceleration', 1e-6)):
         refused = _set(probe, client, name, value)
         assert not refused.successful and name in refused.reason, refused.reason
+    # A minimum above the maximum (0.9 by default) is refused as the minimum set.
+    refused = _set(probe, client, 'min_lookahead_dist', 0.95)
+    assert not refused.successful, refused.reason
+    assert refused.reason.startswith('min_lookahead_dist: must be <= max_lookahead_dist'), \
+        refused.reason
     accepted = _set(probe, client, 'eta', 0.9)
     assert accepted.successful, accepted.reason
 

@@ -1,12 +1,19 @@
 """Occupancy grids as the planner sees them: exact boundary segments and the index near a robot."""
 
 import itertools
+import re
 
 import numpy as np
 import pytest
 
 from prvo_planner.core.obstacles import StaticObstacles
-from prvo_planner.maps import GridMap, ObstacleIndex, grid_obstacles
+from prvo_planner.maps import (
+    GridMap,
+    MapTooLargeError,
+    ObstacleIndex,
+    check_route_work,
+    grid_obstacles,
+)
 
 VALUES = np.array([-1, 0, 30, 64, 65, 100], dtype=np.int8)
 
@@ -142,3 +149,22 @@ def test_an_index_asked_for_tiny_buckets_stays_small_and_exact():
     assert index.bucket_size > 1e-3
     np.testing.assert_array_equal(index.near([0.5, 50.0], 0.6).segments, [[[0.0, 0.0],
                                                                           [0.0, 100.0]]])
+
+
+@pytest.mark.parametrize('shape, resolution, reach, refused', [
+    # A large map of usual cells passes; tiny cells, however few, do not.
+    ((4000, 4000), 0.05, 1.0, None),
+    ((160, 160), 0.05, 0.6, None),
+    ((160, 160), 1e-4, 0.6, '1.48e+08 cells padded'),
+    ((160, 160), 1e-9, 0.6, '1.44e+18 cells padded'),
+    ((160, 160), 5e-324, 0.6, 'inf cells padded'),
+    # Within the padding bound, beyond the visits: a reach of 200 cells over 2000 x 2000.
+    ((2000, 2000), 0.005, 1.0, '3.53e+09 cell visits'),
+])
+def test_the_route_work_of_a_map_is_bounded_before_anything_is_built(shape, resolution, reach,
+                                                                      refused):
+    if refused is None:
+        check_route_work(shape, resolution, reach)
+        return
+    with pytest.raises(MapTooLargeError, match=re.escape(refused)):
+        check_route_work(shape, resolution, reach)

@@ -164,3 +164,46 @@ def test_a_latched_map_before_the_planner_gives_a_route_and_bad_maps_are_named(
                      'diagnostics of an unreachable goal')
     probe.wait_until(lambda: len(observer.paths[-1].poses) == 0, 10.0, 'an empty route')
     assert children.interrupt(planner) == 0
+
+
+@pytest.mark.parametrize('resolution', [1e-4, 1e-9])
+def test_a_map_of_tiny_cells_is_refused_at_once_keeping_the_map_in_force(
+        children, ros2_executable, probe, resolution):
+    # 160 x 160 cells: the route's 0.6 m of clearance would be 6,000 cells of 1e-4 m (days of
+    # work) or 6e8 of 1e-9 m (exabytes), on every side of the map.
+    node = probe.node
+    map_publisher = node.create_publisher(OccupancyGrid, '/map', MAP_QOS)
+    map_publisher.publish(make_occupancy_grid(0.0, walled_room(), 0.1, [0.0, 0.0]))
+    observer = Observer(probe)
+    odometry = node.create_publisher(Odometry, robot_topic('robot_0', 'odom'), ODOM_QOS)
+    planner = children.start('planner', [
+        ros2_executable('prvo_planner', 'planner'), '--ros-args', '-r', '__ns:=/robot_0',
+        '-p', f'goal:=[{GOAL[0]}, {GOAL[1]}]', '-p', "neighbors:=['']"])
+
+    def alive(condition):
+        assert planner.poll() is None, children.output(planner)
+        return condition()
+
+    probe.wait_until(lambda: alive(lambda: observer.logged('map 80 x 60 cells of 0.1 m')), 30.0,
+                     'the planner taking the map')
+    stamp = [0.0]
+
+    def command():
+        stamp[0] = round(stamp[0] + 0.1, 6)
+        odometry.publish(make_odometry(stamp[0], START, [0.0, 0.0], COVARIANCE, COVARIANCE,
+                                       child_frame_id='robot_0/base_link'))
+        probe.wait_until(lambda: alive(lambda: stamp[0] in observer.commands), 10.0,
+                         f'the command for {stamp[0]} s')
+        return observer.commands[stamp[0]]
+
+    heading = command()
+    map_publisher.publish(make_occupancy_grid(0.0, np.zeros((160, 160), dtype=np.int8),
+                                              resolution, [0.0, 0.0]))
+    probe.wait_until(lambda: alive(lambda: observer.logged(
+        f'cannot use the map on /map (keeping the map in force): 160 x 160 cells of '
+        f'{resolution:g} m')), 10.0, 'the fault of a map of tiny cells')
+    # Still round the wall by the map in force (a free map would head straight for the goal).
+    again = command()
+    np.testing.assert_allclose(again / np.linalg.norm(again),
+                               heading / np.linalg.norm(heading), atol=0.05)
+    assert children.interrupt(planner) == 0

@@ -50,6 +50,24 @@ def test_invalid_values_are_rejected_by_name(name, value, named):
         planner_config_from(values)
 
 
+@pytest.mark.parametrize('values, changed, named, reason', [
+    # At start-up the parameter set away from its default is named (defaults: 0.3, 0.9).
+    ({'min_lookahead_dist': 0.95}, None, 'min_lookahead_dist',
+     'must be <= max_lookahead_dist (0.9), got 0.95'),
+    ({'max_lookahead_dist': 0.2}, None, 'max_lookahead_dist',
+     'must be >= min_lookahead_dist (0.3), got 0.2'),
+    # A change names the parameter changed, whatever was set before.
+    ({'min_lookahead_dist': 2.5, 'max_lookahead_dist': 2.0}, {'min_lookahead_dist'},
+     'min_lookahead_dist', 'must be <= max_lookahead_dist (2.0), got 2.5'),
+    ({'min_lookahead_dist': 2.5, 'max_lookahead_dist': 2.0}, {'max_lookahead_dist'},
+     'max_lookahead_dist', 'must be >= min_lookahead_dist (2.5), got 2.0'),
+])
+def test_crossed_lookahead_bounds_name_the_one_set(values, changed, named, reason):
+    with pytest.raises(ParameterError) as raised:
+        planner_config_from(dict(DEFAULTS, **values), changed)
+    assert (raised.value.name, raised.value.reason) == (named, reason)
+
+
 def test_the_certificate_parameter_reaches_the_configuration():
     assert planner_config_from(DEFAULTS).certificate == 'certified'
     assert planner_config_from(dict(DEFAULTS, certificate='cantelli')).certificate == 'cantelli'

@@ -1,9 +1,12 @@
 """Bad input: a one-line error naming the problem, exit code 2, and no child ever started."""
 
+import os
 import pathlib
 import subprocess
 import sys
 
+import numpy as np
+from PIL import Image
 import pytest
 
 from prvo_sim import run_scenario
@@ -67,6 +70,49 @@ def test_missing_scenario_file(tmp_path, marker_command, capsys):
     code, err = run_main([str(missing), '--out', str(tmp_path / 'out')], marker_command, capsys)
     assert code == 2
     assert_one_line_error(err, 'missing.yaml')
+
+
+def test_map_image_declaring_too_many_pixels(tmp_path, marker_command, capsys):
+    # A PGM header declaring 60000 x 60000 pixels, and no pixels.
+    (tmp_path / 'huge.pgm').write_bytes(b'P5\n60000 60000\n255\n')
+    (tmp_path / 'map.yaml').write_text('image: huge.pgm\nresolution: 0.05\n'
+                                       'origin: [-10.0, -10.0, 0.0]\n')
+    scenario = tmp_path / 'mapped.yaml'
+    scenario.write_text(open(HEADON).read() + 'map: map.yaml\n')
+    code, err = run_main([str(scenario), '--out', str(tmp_path / 'out')], marker_command, capsys)
+    assert code == 2
+    assert_one_line_error(err, 'map.yaml', 'image', 'huge.pgm', 'more than 4e+07 pixels')
+
+
+def test_a_map_of_cells_too_small_for_the_planners_is_refused(tmp_path, marker_command, capsys):
+    # 160 x 160 cells of 1e-4 m: every planner would refuse to build a route on it (its reach
+    # of 0.6 m is 6,000 cells), and plan as if there were no map.
+    Image.fromarray(np.full((160, 160), 255, dtype=np.uint8)).save(tmp_path / 'tiny.pgm')
+    (tmp_path / 'map.yaml').write_text('image: tiny.pgm\nresolution: 0.0001\n'
+                                       'origin: [10.0, 10.0, 0.0]\n')
+    scenario = tmp_path / 'mapped.yaml'
+    scenario.write_text(open(HEADON).read() + 'map: map.yaml\n')
+    code, err = run_main([str(scenario), '--out', str(tmp_path / 'out')], marker_command, capsys)
+    assert code == 2
+    assert_one_line_error(err, 'mapped.yaml: map: ', '160 x 160 cells of 0.0001 m',
+                          'cells padded (at most 2.5e+07)')
+
+
+@pytest.mark.parametrize('fifo', ['map.pgm', 'mapped.yaml'])
+def test_a_fifo_for_a_file_is_refused_at_once(tmp_path, fifo):
+    # Reading a FIFO waits for a writer that never comes: refused, not read.
+    (tmp_path / 'map.yaml').write_text('image: map.pgm\nresolution: 0.05\n'
+                                       'origin: [-10.0, -10.0, 0.0]\n')
+    (tmp_path / 'map.pgm').write_bytes(b'P5\n2 2\n255\n\xff\xff\xff\xff')
+    (tmp_path / 'mapped.yaml').write_text(open(HEADON).read() + 'map: map.yaml\n')
+    (tmp_path / fifo).unlink()
+    os.mkfifo(tmp_path / fifo)
+    result = subprocess.run(
+        [sys.executable, '-m', 'prvo_sim.run_scenario', str(tmp_path / 'mapped.yaml'),
+         '--engine', 'inprocess', '--out', str(tmp_path / 'out')],
+        capture_output=True, text=True, timeout=60)
+    assert result.returncode == 2
+    assert_one_line_error(result.stderr, fifo, 'not a regular file')
 
 
 def test_output_folder_that_cannot_be_written(tmp_path, marker_command, capsys):

@@ -255,6 +255,11 @@ BAD_FILES = [
      "robot name 'robot__1' holds '__'"),
     ('  eta: 0.8\n', '  eta: 0.8\n  neighbor_radius: 0.0\n', 'planner.neighbor_radius',
      'retired (got 0.0): neighbours announce their own footprints'),
+    # Crossed lookahead bounds (defaults 0.3, 0.9): the one the file sets is named, where.
+    ('  eta: 0.8\n', '  eta: 0.8\n  min_lookahead_dist: 0.95\n', 'planner.min_lookahead_dist',
+     "must be <= max_lookahead_dist (0.9), got 0.95 (robot 'robot_0')"),
+    ('{eta: 0.95}', '{max_lookahead_dist: 0.2}', 'robots[0].planner.max_lookahead_dist',
+     "must be >= min_lookahead_dist (0.3), got 0.2 (robot 'robot_0')"),
     ('dt: 0.1\n', 'dt: 1e-300\n', 'dt', 'must be in [0.0001, 10], got 1e-300'),
     ('dt: 0.1\n', 'dt: 20.0\n', 'dt', 'must be in [0.0001, 10], got 20.0'),
     ('duration: 5.0\n', 'duration: 1.0e6\n', 'duration', 'more than 1000000 steps'),

@@ -6,6 +6,7 @@ closed formulas or dense sampling, map cells by hand, polygon interiors by matpl
 
 import math
 import re
+import warnings
 
 from matplotlib.path import Path
 import numpy as np
@@ -306,7 +307,11 @@ def test_a_scenario_without_shapes_has_no_grid(tmp_path):
     ('obstacles:\n  - polygon: [[0.0, 3.0], [1.0, 4.0], [1.0, 3.0], [0.0, 4.0]]\n',
      'obstacles[0].polygon', 'edges 0 and 2 cross'),
     ('obstacles:\n  - polygon: [[0.0, 3.0], [2.0, 3.0], [1.0, 3.0]]\n', 'obstacles[0].polygon',
-     'cross'),
+     'its 3 vertices lie on one line: a polygon needs an inside'),
+    ('obstacles:\n  - polygon: [[0.0, 3.0], [2.0, 3.0], [1.0, 3.0], [1.0, 4.0]]\n',
+     'obstacles[0].polygon', 'edges 0 and 1 overlap'),
+    ('obstacles:\n  - polygon: [[0.0, 3.0], [1.0, 3.0], [1.0, 4.0], [0.0, 3.0]]\n',
+     'obstacles[0].polygon', 'vertices 3 and 0 are equal: an edge needs a length'),
     # Start (-2, 0), goal (2, 0), radius 0.3.
     ('walls:\n  - line: [[-2.0, -1.0], [-2.0, 1.0]]\n', 'robots[0].start',
      'inside an obstacle'),
@@ -326,6 +331,21 @@ def test_bad_shapes_are_named(tmp_path, shapes, key, reason):
     assert message.startswith(f'{path}: {key}: '), message
     assert reason in message, message
     assert '\n' not in message
+
+
+@pytest.mark.parametrize('block', ['scripted', 'upstream', 'path'])
+def test_a_last_waypoint_inside_a_wall_is_named_by_its_key(tmp_path, block):
+    # No goal key: the robot's goal is its last waypoint, (2, 0), on the wall.
+    path = tmp_path / 'scenario.yaml'
+    path.write_text(HEADER + 'walls:\n  - line: [[2.0, -1.0], [2.0, 1.0]]\nrobots:\n'
+                    '  - name: robot_0\n    start: [-2.0, 0.0]\n    radius: 0.3\n'
+                    f'    max_speed: 1.0\n    {block}:\n'
+                    '      waypoints: [[-2.0, 2.0], [0.0, 2.0], [2.0, 0.0]]\n')
+    with pytest.raises(ScenarioError) as raised:
+        load_scenario(path)
+    message = str(raised.value)
+    assert message.startswith(f'{path}: robots[0].{block}.waypoints[2]: '), message
+    assert 'inside an obstacle' in message, message
 
 
 MAP = 'image: map.pgm\nresolution: 0.5\norigin: [0.0, 5.0, 0.0]\n'
@@ -362,6 +382,24 @@ def test_an_unreadable_image_is_named(tmp_path):
     (tmp_path / 'map.yaml').write_text(MAP)
     with pytest.raises(ScenarioError, match=re.escape(f'{tmp_path / "map.yaml"}: image: ')):
         load_scenario(scenario_file(tmp_path, 'map: map.yaml\n'))
+
+
+@pytest.mark.parametrize('width, height', [
+    # Above the 4e7-cell bound, above Pillow's warning limit (8.9e7), above its error limit.
+    (7000, 6000), (10000, 10000), (60000, 60000)])
+def test_an_image_declaring_too_many_pixels_is_refused_before_decoding(tmp_path, width, height):
+    # A header alone: decoding it would read pixels that are not there.
+    (tmp_path / 'map.pgm').write_bytes(f'P5\n{width} {height}\n255\n'.encode())
+    (tmp_path / 'map.yaml').write_text(MAP)
+    with warnings.catch_warnings(), pytest.raises(ScenarioError) as raised:
+        # A warning would be a second line on the terminal.
+        warnings.simplefilter('error')
+        load_scenario(scenario_file(tmp_path, 'map: map.yaml\n'))
+    message = str(raised.value)
+    assert message.startswith(f'{tmp_path / "map.yaml"}: image: '), message
+    assert 'more than 4e+07 pixels' in message, message
+    assert str(width * height) in message or f'{width} x {height}' in message, message
+    assert '\n' not in message
 
 
 def test_a_robot_in_a_map_cell_is_refused(tmp_path):

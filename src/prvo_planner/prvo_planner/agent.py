@@ -20,7 +20,13 @@ import numpy as np
 
 from prvo_planner.core import AgentBelief, VelocityLimits, plan_velocity
 from prvo_planner.core.beliefs import validated_share
-from prvo_planner.maps import GridMap, ObstacleIndex, grid_obstacles, occupied_cells
+from prvo_planner.maps import (
+    GridMap,
+    ObstacleIndex,
+    check_route_work,
+    grid_obstacles,
+    occupied_cells,
+)
 from prvo_planner.path_following import carrot, closest_on_path
 from prvo_planner.preferred import (
     GOAL,
@@ -319,8 +325,28 @@ def same_grid(grid, other):
             and np.array_equal(grid.cells, other.cells))
 
 
+def map_key_of(settings, safety_margin):
+    """Return what a `BuiltMap` depends on besides the grid: the map key of these settings."""
+    # The route's cells keep the clearance the planner keeps from a wall of no thickness.
+    return (settings.unknown_is_occupied, settings.obstacle_distance,
+            settings.planning_radius + safety_margin, settings.route_margin)
+
+
+def check_map_work(shape, resolution, built_for):
+    """Raise `maps.MapTooLargeError` if a grid of SHAPE, RESOLUTION is beyond the bounds.
+
+    BUILT_FOR is the map key the grid would be built for (its route's clearance and margin).
+    """
+    _, _, clearance, route_margin = built_for
+    check_route_work(shape, resolution, clearance + route_margin)
+
+
 def build_map(grid, built_for, goal=None):
-    """Return the `BuiltMap` of GRID for the map key BUILT_FOR, with the paths to GOAL (2,)."""
+    """Return the `BuiltMap` of GRID for the map key BUILT_FOR, with the paths to GOAL (2,).
+
+    Raises `maps.MapTooLargeError` at once for a map whose route is beyond the bounds.
+    """
+    check_map_work(grid.shape, grid.resolution, built_for)
     unknown_is_occupied, obstacle_distance, clearance, route_margin = built_for
     route_map = RouteMap(occupied_cells(grid, unknown_is_occupied), grid.resolution,
                          grid.origin, clearance, route_margin)
@@ -986,10 +1012,7 @@ class PlannerAgent:
     @property
     def map_key(self):
         """What a `BuiltMap` depends on besides the grid, for the settings in force."""
-        settings = self.settings
-        # The route's cells keep the clearance the planner keeps from a wall of no thickness.
-        return (settings.unknown_is_occupied, settings.obstacle_distance,
-                settings.planning_radius + self.config.safety_margin, settings.route_margin)
+        return map_key_of(self.settings, self.config.safety_margin)
 
     @property
     def map_outdated(self):

@@ -11,6 +11,7 @@ merged into maximal straight segments (``grid_obstacles``), kept in uniform buck
 """
 
 from dataclasses import dataclass
+import math
 
 import numpy as np
 
@@ -68,6 +69,44 @@ class GridMap:
     def shape(self):
         """Return (height, width) in cells."""
         return self.cells.shape
+
+
+# Bounds on the work that building a map's route (`route.RouteMap`) derives from the message
+# besides its cells: the distance pass (`route.obstacle_distances`) pads the grid by the
+# route's reach (clearance + margin, in cells) on every side and takes a minimum over as many
+# offsets along each axis. At about 5 ns a visit, 2e9 visits are some 10 s of one core; the
+# padded cells cost about 25 bytes each. A 4000 x 4000 map of 0.05 m cells with a reach of 1 m
+# needs 1.6e7 padded cells and 1.3e9 visits.
+MAX_PADDED_CELLS = 25_000_000
+MAX_DISTANCE_VISITS = 2_000_000_000
+
+
+class MapTooLargeError(ValueError):
+    """A map whose route would take more memory or work than the bounds above allow."""
+
+
+def check_route_work(shape, resolution, reach):
+    """
+    Raise MapTooLargeError if a route on a grid would need more than the bounds allow.
+
+    Checked in constant time, before anything is allocated: the route of a grid of SHAPE
+    (height, width) cells of RESOLUTION [m] keeping REACH [m] from obstacles pads the grid by
+    w = REACH / RESOLUTION cells (rounded) on every side, to (height + 2w) (width + 2w) cells
+    (at most ``MAX_PADDED_CELLS``), and visits (2w + 1) ((height + 2w) width + height width)
+    cells (at most ``MAX_DISTANCE_VISITS``).
+    """
+    height, width = shape
+    cells = reach / resolution
+    # Exact integers, however large; cells of 1e-320 m make an infinite window.
+    window = math.floor(cells + 0.5) if math.isfinite(cells) else math.inf
+    padded = (height + 2 * window) * (width + 2 * window)
+    visits = (2 * window + 1) * ((height + 2 * window) * width + height * width)
+    if padded > MAX_PADDED_CELLS or visits > MAX_DISTANCE_VISITS:
+        raise MapTooLargeError(
+            f'{width} x {height} cells of {resolution:g} m: the route keeps {reach:g} m from '
+            f'obstacles, {cells:.3g} cells, which asks for {padded:.3g} cells padded (at most '
+            f'{MAX_PADDED_CELLS:.3g}) and {visits:.3g} cell visits (at most '
+            f'{MAX_DISTANCE_VISITS:.3g})')
 
 
 # A cell holding at least this occupancy [%] is occupied: map_server's default occupied_thresh

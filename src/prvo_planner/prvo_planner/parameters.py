@@ -448,16 +448,24 @@ def checked_parameters(values):
     return {name: check_parameter(name, value) for name, value in values.items()}
 
 
-def planner_config_from(values):
+def planner_config_from(values, changed=None):
     """Return the core's PlannerConfig of VALUES (parameter name -> value) over the defaults.
 
-    Raises ParameterError naming the first parameter the planner cannot use and its value.
+    Raises ParameterError naming the first parameter the planner cannot use and its value. A
+    rule between two parameters names the one of CHANGED, the names just set (None: those
+    VALUES gives away from their defaults, as at start-up), when only one of them is.
     """
     merged = {**DEFAULTS, **checked_parameters(values)}
-    if merged['max_lookahead_dist'] < merged['min_lookahead_dist']:
-        raise ParameterError('max_lookahead_dist', f"must be >= min_lookahead_dist "
-                             f"({_shown(merged['min_lookahead_dist'])}), got "
-                             f"{_shown(merged['max_lookahead_dist'])}")
+    low, high = merged['min_lookahead_dist'], merged['max_lookahead_dist']
+    if high < low:
+        if changed is None:
+            changed = {name for name in ('min_lookahead_dist', 'max_lookahead_dist')
+                       if merged[name] != DEFAULTS[name]}
+        if 'min_lookahead_dist' in changed and 'max_lookahead_dist' not in changed:
+            raise ParameterError('min_lookahead_dist', f'must be <= max_lookahead_dist '
+                                 f'({_shown(high)}), got {_shown(low)}')
+        raise ParameterError('max_lookahead_dist', f'must be >= min_lookahead_dist '
+                             f'({_shown(low)}), got {_shown(high)}')
     k = merged['k']
     seed = merged['seed']
     try:

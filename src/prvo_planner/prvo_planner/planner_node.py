@@ -66,7 +66,7 @@ from prvo_planner.agent import (
     build_map,
     same_grid,
 )
-from prvo_planner.maps import GridMap
+from prvo_planner.maps import GridMap, MapTooLargeError
 from prvo_planner.parameters import (
     PARAMETERS,
     ParameterError,
@@ -234,6 +234,14 @@ class PlannerNode(Node):
             raise ParameterError(
                 '__ns', f'run the planner in a robot namespace (-r __ns:=/robot_0), '
                 f'got namespace {self.get_namespace()!r}')
+        if self._values['preferred_source'] == VELOCITY:
+            # Compared as the graph names them: after the namespace and any remapping.
+            names = [self._values[name] for name in ('cmd_vel_in_topic', 'cmd_vel_out_topic')]
+            upstream, output = (self.resolve_topic_name(name) for name in names)
+            if upstream == output:
+                raise ParameterError(
+                    'cmd_vel_out_topic', f'{names[1]!r} and cmd_vel_in_topic {names[0]!r} are '
+                    f'both {output}: the filter would take its own commands as its input')
 
     def _on_set_parameters(self, parameters):
         """Accept a parameter change only if the whole configuration stays valid."""
@@ -243,7 +251,7 @@ class PlannerNode(Node):
                 if parameter.name in values:
                     values[parameter.name] = check_parameter_update(parameter.name,
                                                                     parameter.value)
-            config = planner_config_from(values)
+            config = planner_config_from(values, {parameter.name for parameter in parameters})
             goal = goal_array(values['goal'])
         except ParameterError as error:
             return SetParametersResult(successful=False, reason=str(error))
@@ -513,10 +521,12 @@ class PlannerNode(Node):
         try:
             built = build.future.result()
         except Exception as error:
-            # Whatever failed (memory, most likely), the plans go on with the map in force.
+            # Whatever failed (a map beyond the bounds, memory), the plans go on with the map in
+            # force. The type tells what else failed (a MemoryError's text may be empty).
             agent.map_pending = False
+            reason = str(error) if isinstance(error, MapTooLargeError) else repr(error)
             self._warnings.warn((self._map_topic, 'build'), f'cannot use the map on '
-                                f'{self._map_topic} (keeping the map in force): {error!r}')
+                                f'{self._map_topic} (keeping the map in force): {reason}')
             return False
         if built.built_for != agent.map_key:
             # The settings changed while it was built: build it again for them.

@@ -5,6 +5,10 @@ A map's YAML names the image and how to read it (`mode`, `negate`, `occupied_thr
 grey levels (a colour image by its luminance), the image's top row the grid's last row.
 """
 
+import os
+import stat
+import warnings
+
 import numpy as np
 from PIL import Image, UnidentifiedImageError
 
@@ -15,16 +19,43 @@ DEFAULT_OCCUPIED_THRESH = 0.65
 DEFAULT_FREE_THRESH = 0.25
 
 
-def read_image(path):
+def check_regular_file(path):
+    """Raise OSError unless PATH is a regular file (or a link to one), with the reason.
+
+    Reading a FIFO would wait for a writer, reading a device might never end: neither is read.
+    """
+    mode = os.stat(path).st_mode
+    if not stat.S_ISREG(mode):
+        kind = ('a FIFO' if stat.S_ISFIFO(mode) else 'a directory' if stat.S_ISDIR(mode)
+                else 'a socket' if stat.S_ISSOCK(mode) else 'a device')
+        raise OSError(f'not a regular file ({kind})')
+
+
+def read_image(path, max_pixels):
     """Return (grey levels (H, W) uint8, alpha (H, W) uint8) of the PGM or PNG image at PATH.
 
     A colour image is read by its luminance (Pillow's ITU-R 601-2 luma), an image without
-    transparency as opaque. Raises OSError (unreadable, not an image) with the reason.
+    transparency as opaque. The size the image's header declares is checked before its pixels
+    are decoded: more than MAX_PIXELS is refused. Raises OSError (unreadable, not an image, too
+    large, not a regular file) with the reason.
     """
     try:
-        with Image.open(path) as image:
+        check_regular_file(path)
+        with warnings.catch_warnings():
+            # Pillow warns of a possible decompression bomb above its own limit; the bound that
+            # applies here is MAX_PIXELS, checked below before decoding.
+            warnings.simplefilter('ignore', Image.DecompressionBombWarning)
+            image = Image.open(path)
+        with image:
+            width, height = image.size
+            if width * height > max_pixels:
+                raise OSError(f'its header declares {width} x {height}, more than '
+                              f'{max_pixels:.3g} pixels')
             image.load()
             grey_alpha = image.convert('LA')
+    except Image.DecompressionBombError as error:
+        # Pillow refuses a header declaring over twice its limit before the size is seen here.
+        raise OSError(f'its header declares more than {max_pixels:.3g} pixels ({error})') from None
     except (UnidentifiedImageError, ValueError, SyntaxError, EOFError) as error:
         # Pillow's readers report a malformed file by any of these.
         raise OSError(f'not an image Pillow reads: {error}') from None

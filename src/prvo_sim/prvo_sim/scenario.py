@@ -34,6 +34,7 @@ from prvo_planner.parameters import (
     KINEMATICS,
     ParameterError,
     check_parameter,
+    planner_config_from,
     type_name,
     unknown_parameter_reason,
 )
@@ -42,6 +43,7 @@ from prvo_sim.map_files import (
     DEFAULT_OCCUPIED_THRESH,
     MODES,
     cells_from_image,
+    check_regular_file,
     read_image,
 )
 from prvo_sim.static_world import StaticWorld, polygon_crossing
@@ -336,6 +338,7 @@ class _Validator:
 
 def _parse(path):
     try:
+        check_regular_file(path)
         text = path.read_text()
     except (OSError, UnicodeDecodeError) as error:
         raise ScenarioError(path, '(file)', f'cannot read: {error}') from None
@@ -412,16 +415,25 @@ def _static_world(check, document, robots):
                    f'the static world spans {width} x {height} cells of '
                    f'{world.grid_layout()[2]:g} m: more than {MAX_GRID_CELLS:.3g}')
     for index, robot in enumerate(robots):
-        for place in ('start', 'goal'):
+        key = f'robots[{index}]'
+        for place, place_key in (('start', f'{key}.start'), ('goal', _goal_key(robot, key))):
             point = getattr(robot, place)
             clearance = float(world.clearance(point)[0])
             if clearance < robot.radius:
                 where = ('inside an obstacle' if clearance <= 0.0 else
                          f'{clearance:g} m from an obstacle, closer than its radius '
                          f'{robot.radius:g} m')
-                check.fail(f'robots[{index}].{place}',
-                           f'{point.tolist()} is {where} (robot {robot.name!r})')
+                check.fail(place_key, f'{point.tolist()} is {where} (robot {robot.name!r})')
     return world
+
+
+def _goal_key(robot, key):
+    """Return the key path that gives ROBOT (at KEY) its goal: its goal or its last waypoint."""
+    for block, name in ((robot.scripted, 'scripted'), (robot.upstream, 'upstream'),
+                        (robot.followed_path, 'path')):
+        if block is not None:
+            return f'{key}.{name}.waypoints[{len(block.waypoints) - 1}]'
+    return f'{key}.goal'
 
 
 def _entries(check, document, key):
@@ -468,10 +480,21 @@ def _polygon(check, entry, key):
                    f'{value!r}')
     vertices = np.array([check.point(point, f'{key}.polygon[{index}]')
                          for index, point in enumerate(value)])
+    sides = vertices[1:] - vertices[0]
+    along = sides[(sides != 0.0).any(axis=1)]
+    if not len(along) or not (along[0, 0] * sides[:, 1] - along[0, 1] * sides[:, 0]).any():
+        # Every edge of such a polygon folds back onto another: it has no inside to solidify.
+        check.fail(f'{key}.polygon', f'its {len(vertices)} vertices lie on one line: a polygon '
+                   'needs an inside')
+    repeated = np.flatnonzero((vertices == np.roll(vertices, -1, axis=0)).all(axis=1))
+    if len(repeated):
+        index = int(repeated[0])
+        check.fail(f'{key}.polygon', f'vertices {index} and {(index + 1) % len(vertices)} are '
+                   'equal: an edge needs a length')
     crossing = polygon_crossing(vertices)
     if crossing is not None:
-        first, second = crossing
-        check.fail(f'{key}.polygon', f'edges {first} and {second} cross (edge i runs from vertex '
+        first, second, how = crossing
+        check.fail(f'{key}.polygon', f'edges {first} and {second} {how} (edge i runs from vertex '
                    'i to the next): a polygon must be simple')
     return vertices
 
@@ -507,12 +530,9 @@ def _map(check, name, key='map'):
         map_check.fail('mode', f'must be one of {", ".join(MODES)}, got {mode!r}')
     image_path = path.parent / image_name
     try:
-        levels, alpha = read_image(image_path)
+        levels, alpha = read_image(image_path, MAX_GRID_CELLS)
     except OSError as error:
         map_check.fail('image', f'cannot read {str(image_path)!r}: {error}')
-    if levels.size > MAX_GRID_CELLS:
-        map_check.fail('image', f'{levels.shape[1]} x {levels.shape[0]} pixels, more than '
-                       f'{MAX_GRID_CELLS:.3g} cells')
     cells = cells_from_image(levels, alpha, mode, bool(negate), **thresholds)
     return GridMap(cells, resolution, corner)
 
@@ -581,13 +601,22 @@ def _robot(check, entry, key, file_noise, file_planner):
     waypoints = next((block.waypoints for block in (path, upstream, followed)
                       if block is not None), None)
     goal = waypoints[-1] if waypoints is not None else check.point(entry['goal'], f'{key}.goal')
+    planner = {}
+    if path is None:
+        own = check.planner(entry.get('planner'), f'{key}.planner')
+        planner = {**file_planner, **own}
+        try:
+            # The rules between parameters (each alone is checked above), as the planner's.
+            planner_config_from(planner)
+        except ParameterError as error:
+            where = (f'{key}.planner.{error.name}' if error.name in own else
+                     f'planner.{error.name}' if error.name in file_planner else f'{key}.planner')
+            check.fail(where, f'{error.reason} (robot {name!r})')
     return RobotSpec(
         name=name, start=start, goal=goal, kinematics=kinematics, start_yaw=start_yaw,
         **limits, radius=radius, max_speed=max_speed,
         noise=NoiseSpec(**{field: noise.get(field, 0.0) for field in _NOISE_KEYS}),
-        planner={} if path is not None else {
-            **file_planner, **check.planner(entry.get('planner'), f'{key}.planner')},
-        scripted=path, upstream=upstream, followed_path=followed)
+        planner=planner, scripted=path, upstream=upstream, followed_path=followed)
 
 
 def _scripted_path(check, value, key, name, max_speed, keys=_SCRIPTED_KEYS):

@@ -468,10 +468,11 @@ def segments_cross(first, second):
 
 
 def polygon_crossing(vertices):
-    """Return (i, j) of two edges of the polygon VERTICES (V, 2) that cross, or None.
+    """Return (i, j, how) of two edges of the polygon VERTICES (V, 2) that meet, or None.
 
     Edge i runs from vertex i to vertex i + 1 (the last back to the first); neighbouring edges
-    share their common vertex only (they may not overlap).
+    share their common vertex only. HOW is 'overlap' for neighbouring edges folding back onto
+    each other, 'cross' for other edges that touch or cross.
     """
     count = len(vertices)
     edges = [(vertices[index], vertices[(index + 1) % count]) for index in range(count)]
@@ -486,8 +487,8 @@ def polygon_crossing(vertices):
                 theirs = edges[j][1] if j == i + 1 else edges[j][0]
                 u, w = mine - shared, theirs - shared
                 if u[0] * w[1] - u[1] * w[0] == 0.0 and float(u @ w) > 0.0:
-                    return i, j
+                    return i, j, 'overlap'
                 continue
             if segments_cross(np.array(edges[i]), np.array(edges[j])):
-                return i, j
+                return i, j, 'cross'
     return None

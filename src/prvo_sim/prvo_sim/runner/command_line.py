@@ -37,6 +37,7 @@ from prvo_sim.runner.session import (
     ENGINES,
     METHODS,
     RunSpec,
+    check_planner_maps,
     run_eta,
     run_once,
 )
@@ -104,6 +105,7 @@ def parse_arguments(argv, environment=None):
     options.domain_id becomes the domain asked for (--domain-id, else ROS_DOMAIN_ID from
     ENVIRONMENT, default os.environ; None for a free one) and options.domain_source says which.
     """
+    from prvo_planner.maps import MapTooLargeError
     from prvo_sim.scenario import (
         MAX_SEED,
         ScenarioError,
@@ -143,6 +145,12 @@ def parse_arguments(argv, environment=None):
         raise UsageError(str(error)) from None
     except OSError as error:
         raise UsageError(f'{options.scenario}: {error.strerror or error}') from None
+    try:
+        check_planner_maps(scenario, options.method, options.eta)
+    except MapTooLargeError as error:
+        key = 'walls' if scenario.static_world.map_grid is None else 'map'
+        raise UsageError(f'{scenario.path}: {key}: the planners cannot build the static world: '
+                         f'{error}') from None
     last_seed = scenario.seed + options.seeds - 1
     if last_seed > MAX_SEED:
         raise UsageError(f'--seeds: {options.seeds} seeds from {scenario.seed} end at seed '

@@ -157,6 +157,25 @@ def planner_values(robot, scenario, method, eta, mode='lockstep'):
         {**DEFAULTS, **runner_planner_values(robot, scenario, method, eta, mode)})
 
 
+def check_planner_maps(scenario, method, eta):
+    """Raise MapTooLargeError if a planner of a run could not build the map the sim publishes.
+
+    Each planner listening on the default map topic builds the static world's grid for its
+    own radius and margins; one beyond the bounds would be refused by the planner, and the
+    robot would plan as if there were no map.
+    """
+    from prvo_planner.agent import AgentSettings, check_map_work, map_key_of
+
+    grid = scenario.static_world.grid
+    if grid is None:
+        return
+    for robot in planned_robots(scenario):
+        values = planner_values(robot, scenario, method, eta)
+        if values['map_topic'] == PLANNER_DEFAULTS['map_topic']:
+            check_map_work(grid.shape, grid.resolution, map_key_of(
+                AgentSettings.from_parameters(values), values['safety_margin']))
+
+
 def planner_parameters(robot, scenario, method, eta, mode='lockstep'):
     """Return the `-p` parameters of ROBOT's planner node, in order, ROS-formatted."""
     values = runner_planner_values(robot, scenario, method, eta, mode)
