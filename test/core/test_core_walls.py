@@ -12,6 +12,7 @@ from prvo_planner.core import AgentBelief, PlannerConfig, plan_velocities, plan_
 from prvo_planner.core.obstacles import StaticObstacles
 from prvo_planner.core.walls import wall_model
 from prvo_planner.parameters import ParameterError, check_parameter
+from prvo_sim.bench.doors import door_approach
 
 HORIZON = 2.0
 EGO_RADIUS = 0.25
@@ -347,44 +348,10 @@ def test_a_far_end_out_of_reach_constrains_nothing_however_far():
     assert plans[1].velocity[0] > 0.8
 
 
-def door_approach(seed):
-    """Return a seeded approach to a door: ego, config, obstacles, heading, grown radius.
-
-    Radius 0.2-0.3, sigma 0.02 or 0.05 on the belief's position and the execution, a door
-    2 r + (6, 8 or 12) sigma wide, its jambs capsules 0.1 thick or frames (the four edges of
-    a 0.1 m deep block, as a map's cells give them), approached at up to 45 degrees, 0.2-1.5 m
-    from the door's centre, 0.2-1 m/s, eta 0.9, 0.95 or 0.99.
-    """
-    rng = np.random.default_rng(seed)
-    radius = float(rng.choice([0.2, 0.25, 0.3]))
-    sigma = float(rng.choice([0.02, 0.05]))
-    width = 2.0 * radius + float(rng.choice([6.0, 8.0, 12.0])) * sigma
-    angle = rng.uniform(-math.pi / 4.0, math.pi / 4.0)
-    heading = np.array([math.cos(angle), math.sin(angle)])
-    position = -rng.uniform(0.2, 1.5) * heading + [0.0, rng.normal(0.0, sigma)]
-    half = 0.5 * width
-    if seed % 2:
-        segments = [[[0.0, -4.0], [0.0, -half - 0.05]], [[0.0, half + 0.05], [0.0, 4.0]]]
-        half_widths = [0.05, 0.05]
-    else:
-        segments = []
-        for sign in (-1.0, 1.0):
-            corners = [[-0.05, sign * half], [0.05, sign * half], [0.05, sign * 4.0],
-                       [-0.05, sign * 4.0]]
-            segments += [[corners[i], corners[(i + 1) % 4]] for i in range(4)]
-        half_widths = [0.0] * len(segments)
-    cov = np.diag([sigma ** 2] * 2 + [sigma ** 2] * 2)
-    ego = AgentBelief(position, rng.uniform(0.2, 1.0) * heading, cov, radius)
-    config = PlannerConfig(eta=float(rng.choice([0.9, 0.95, 0.99])),
-                           actuation_cov=sigma ** 2 * np.eye(2), obstacle_horizon=HORIZON,
-                           certificate='certified', seed=seed)
-    return ego, config, obstacles(segments, half_widths), heading, radius + half_widths[0]
-
-
 @pytest.mark.parametrize('seed', range(24))
 def test_approaches_to_doors_keep_clear_of_each_jamb_with_the_stated_probability(seed):
     """The executed motion (own sampler, the model's noise) avoids each jamb segment."""
-    ego, config, door, heading, grown = door_approach(seed)
+    ego, config, door, heading, grown, _ = door_approach(seed, HORIZON)
     result = plan_velocity(ego, [], heading, config, obstacles=door)
     rng = np.random.default_rng(2000 + seed)
     paths = swept_paths(rng, ego, result.velocity, config.actuation_cov, config.control_period)

@@ -3,6 +3,7 @@
     python -m prvo_sim.bench.doors [--radii 0.2 0.25 0.3] [--stds 0.02 0.05]
                                    [--etas 0.95 0.99] [--angles 0 45] [--seeds 10]
                                    [--json PATH]
+    python -m prvo_sim.bench.doors --monte-carlo N [--samples 20000]
 
 Each case is a wall along x = 0 (THICKNESS thick, 2 WALL_HALF long) with a door centred at the
 origin whose clear width (between the jambs' surfaces) is ``2 r + 6 sigma_p``; one robot of
@@ -13,7 +14,15 @@ seed (consecutive seeds from 1). Per case: the robots through (centre past the w
 by its radius), the wall contacts, the least clearance of a robot from the real walls (the
 simulator's, minus the radius) and the median time through.
 
-Exit codes: 0 every robot through without a contact, 1 one was not, 2 bad input.
+With ``--monte-carlo N`` it plans N seeded approaches to doors (``door_approach``) and samples
+the executed motion as the planner's model states it (the belief's position, then a fresh
+execution error every control period, held for the period) over the obstacle horizon: per
+approach the probability the plan states, the share of sampled paths clear of every jamb
+segment (each segment is an obstacle of its own; the share for the worst one), and quantiles
+of the least clearance from the jambs [m].
+
+Exit codes: 0 every robot through without a contact (every Monte Carlo share at least the
+stated probability, within 4 binomial stds), 1 otherwise, 2 bad input.
 """
 
 import argparse
@@ -25,6 +34,8 @@ import tempfile
 
 import numpy as np
 
+from prvo_planner.core import AgentBelief, PlannerConfig, plan_velocity
+from prvo_planner.core.obstacles import StaticObstacles
 from prvo_sim.engine import InProcessTeam
 from prvo_sim.runner.session import planner_values
 from prvo_sim.scenario import load_scenario
@@ -66,6 +77,100 @@ robots:
     radius: {radius}
     max_speed: 1.0
 """
+
+
+def door_approach(seed, horizon=2.0):
+    """Return a seeded approach to a door: ego, config, obstacles, heading, grown, description.
+
+    Radius 0.2-0.3, sigma 0.02 or 0.05 on the belief's position and the execution, a door
+    2 r + (6, 8 or 12) sigma wide, its jambs capsules THICKNESS thick (odd seeds) or frames
+    (the four edges of a THICKNESS deep block, as a map's cells give them), approached at up
+    to 45 degrees, 0.2-1.5 m from the door's centre, 0.2-1 m/s, eta 0.9, 0.95 or 0.99.
+    ``grown`` is the radius plus the jambs' half-width.
+    """
+    rng = np.random.default_rng(seed)
+    radius = float(rng.choice([0.2, 0.25, 0.3]))
+    sigma = float(rng.choice([0.02, 0.05]))
+    width = 2.0 * radius + float(rng.choice([6.0, 8.0, 12.0])) * sigma
+    angle = rng.uniform(-math.pi / 4.0, math.pi / 4.0)
+    heading = np.array([math.cos(angle), math.sin(angle)])
+    distance = rng.uniform(0.2, 1.5)
+    position = -distance * heading + [0.0, rng.normal(0.0, sigma)]
+    half, depth = 0.5 * width, 0.5 * THICKNESS
+    if seed % 2:
+        segments = [[[0.0, -WALL_HALF], [0.0, -half - depth]],
+                    [[0.0, half + depth], [0.0, WALL_HALF]]]
+        half_widths = [depth, depth]
+    else:
+        segments = []
+        for sign in (-1.0, 1.0):
+            corners = [[-depth, sign * half], [depth, sign * half], [depth, sign * WALL_HALF],
+                       [-depth, sign * WALL_HALF]]
+            segments += [[corners[i], corners[(i + 1) % 4]] for i in range(4)]
+        half_widths = [0.0] * len(segments)
+    speed = rng.uniform(0.2, 1.0)
+    ego = AgentBelief(position, speed * heading, sigma ** 2 * np.eye(4), radius)
+    config = PlannerConfig(eta=float(rng.choice([0.9, 0.95, 0.99])),
+                           actuation_cov=sigma ** 2 * np.eye(2), obstacle_horizon=horizon,
+                           certificate='certified', seed=seed)
+    door = StaticObstacles(np.array(segments), np.array(half_widths), np.zeros((0, 2)),
+                           np.zeros(0))
+    description = {'seed': seed, 'radius': radius, 'sigma': sigma, 'door': width,
+                   'jambs': 'capsules' if seed % 2 else 'frames',
+                   'angle_deg': math.degrees(angle), 'distance': distance, 'speed': speed,
+                   'eta': config.eta}
+    return ego, config, door, heading, radius + half_widths[0], description
+
+
+def _segment_distances(points, start, end):
+    """Distance of POINTS (..., 2) from the segment [START, END]."""
+    along = end - start
+    fraction = np.clip(((points - start) @ along) / (along @ along), 0.0, 1.0)
+    return np.linalg.norm(points - (start + fraction[..., None] * along), axis=-1)
+
+
+def executed_clearances(rng, ego, velocity, config, door, grown, samples, per_period=5):
+    """Sample the executed motion over the horizon; return the least clearances (samples, N).
+
+    The belief's position, then the command VELOCITY with a fresh error ``N(0, S_a)`` every
+    control period, held for the period (PER_PERIOD points a period), over the obstacle
+    horizon rounded up to whole periods; per jamb segment the least distance minus GROWN.
+    """
+    period = config.control_period
+    periods = math.ceil(config.obstacle_horizon / period - 1e-9)
+    start = rng.multivariate_normal(ego.position, ego.covariance[:2, :2], samples)
+    noise = rng.multivariate_normal(np.zeros(2), config.actuation_cov, (samples, periods))
+    times = np.linspace(0.0, periods * period, periods * per_period + 1)
+    index = np.minimum((times / period + 1e-9).astype(int), periods - 1)
+    walked = np.concatenate([np.zeros((samples, 1, 2)), np.cumsum(period * noise, axis=1)],
+                            axis=1)[:, index]
+    paths = (start[:, None, :] + times[None, :, None] * velocity + walked
+             + (times - index * period)[None, :, None] * noise[:, index])
+    return np.stack([_segment_distances(paths, start_, end).min(axis=1) - grown
+                     for start_, end in door.segments], axis=1)
+
+
+def monte_carlo(approaches, samples):
+    """Plan and sample APPROACHES seeded approaches; print the table; return whether all hold."""
+    print('| seed | r | sigma | door [m] | jambs | angle [deg] | from [m] | speed [m/s] | eta '
+          '| stated | sampled clear (worst segment) | least clearance 1% / 5% / 50% [m] |')
+    print('|---|---|---|---|---|---|---|---|---|---|---|---|')
+    holds = True
+    for seed in range(approaches):
+        ego, config, door, heading, grown, case = door_approach(seed)
+        result = plan_velocity(ego, [], heading, config, obstacles=door)
+        clearances = executed_clearances(np.random.default_rng(10_000 + seed), ego,
+                                         result.velocity, config, door, grown, samples)
+        stated = result.obstacle_probability
+        worst = float((clearances >= 0.0).mean(axis=0).min())
+        holds &= worst >= stated - 4.0 * math.sqrt(max(stated * (1.0 - stated), 1e-4) / samples)
+        quantiles = np.quantile(clearances.min(axis=1), [0.01, 0.05, 0.5])
+        print(f"| {seed} | {case['radius']:.2f} | {case['sigma']:.2f} | {case['door']:.2f} "
+              f"| {case['jambs']} | {case['angle_deg']:+.0f} | {case['distance']:.2f} "
+              f"| {case['speed']:.2f} | {case['eta']:.2f} | {stated:.4f} | {worst:.4f} "
+              f"| {quantiles[0]:+.3f} / {quantiles[1]:+.3f} / {quantiles[2]:+.3f} |",
+              flush=True)
+    return holds
 
 
 def run_door(path, seed):
@@ -121,13 +226,17 @@ def main(argv=None):
     parser.add_argument('--angles', type=float, nargs='+', default=[0.0, 45.0])
     parser.add_argument('--seeds', type=int, default=10)
     parser.add_argument('--json', type=pathlib.Path, default=None)
+    parser.add_argument('--monte-carlo', type=int, default=None, metavar='N')
+    parser.add_argument('--samples', type=int, default=20000)
     try:
         options = parser.parse_args(argv)
     except SystemExit as exit_:
         return 2 if exit_.code else 0
-    if options.seeds < 1:
-        print('--seeds must be at least 1', file=sys.stderr)
+    if options.seeds < 1 or options.samples < 1:
+        print('--seeds and --samples must be at least 1', file=sys.stderr)
         return 2
+    if options.monte_carlo is not None:
+        return 0 if monte_carlo(options.monte_carlo, options.samples) else 1
     print('| r [m] | sigma_p [m] | door [m] | eta | angle [deg] | through | contacts '
           '| least clearance [m] | median time through [s] |')
     print('|---|---|---|---|---|---|---|---|---|')
