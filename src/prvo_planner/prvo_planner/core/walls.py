@@ -172,25 +172,51 @@ def crossing_bounds(mean0, std0, walk, horizon, approach):
     spread = np.sqrt(std0 * std0 + walk * horizon)
     first = _below_zero(reach, spread)
     noisy = walk > 0.0
-    safe_walk = np.where(noisy, walk, 1.0)
-    start = mean0 + approach * std0 * std0 / safe_walk
-    # Only a drift towards the line makes the second term depend on t0; without one it is
-    # Phi(-mean0 / S) (t0 may be inf for a tiny walk: 0 * inf is avoided).
-    far = np.where(approach > 0.0, approach * (horizon + 2.0 * std0 * std0 / safe_walk), 0.0)
-    with np.errstate(divide='ignore', invalid='ignore'):
-        ratio = np.where(spread > 0.0, reach / np.where(spread > 0.0, spread, 1.0), 0.0)
-        # Where x0 <= 0 (bound 1) u may be negative; erfcx is not needed there.
-        tail = np.where(spread > 0.0, np.maximum(mean0 + far, 0.0)
-                        / np.where(spread > 0.0, spread, 1.0), 0.0)
-    second = (np.exp(-0.5 * ratio * ratio) / math.sqrt(2.0 * math.pi)
-              * math.sqrt(0.5 * math.pi) * erfcx(tail / math.sqrt(2.0)))
+    if not noisy.any():
+        return first
+    # With a walk the spread is positive; elsewhere any positive stand-in (unused).
+    scale = np.where(noisy, spread, 1.0)
+    before = std0 * std0 / np.where(noisy, walk, 1.0)
+    start = mean0 + approach * before
+    # Only a drift towards the line makes u depend on t0 (which is inf for a vanishing walk).
+    far = mean0 + np.where(approach > 0.0, approach * (horizon + 2.0 * before), 0.0)
+    ratio = reach / scale
+    # phi(ratio) sqrt(pi / 2) = exp(-ratio^2 / 2) / 2; where x0 <= 0 the bound is 1 and u is
+    # not needed (clipped at 0 to keep erfcx finite).
+    second = 0.5 * np.exp(-0.5 * ratio * ratio) * erfcx(np.maximum(far, 0.0) / (scale * _SQRT2))
     bound = np.where(start > 0.0, first + second, 1.0)
     return np.clip(np.where(noisy, bound, first), 0.0, 1.0)
 
 
-# Bisection steps for the largest approach speed a condition accepts: the bracket, at most
-# v_max-sized, shrinks below 1e-12 of it.
-_BISECTIONS = 40
+_SQRT2 = math.sqrt(2.0)
+# Steps of regula falsi (Illinois) for the largest speed towards a line a condition accepts:
+# the bracket is already (z(delta / 2) - z(delta)) S / tau wide (a few mm/s) and the bound is
+# smooth and monotone in it, so a few steps leave it far below any speed's meaning.
+_FALSI_STEPS = 8
+
+
+def _largest_accepted(bound, low, high, limit):
+    """
+    Largest ``a`` in ``[low, high]`` with ``bound(a) <= limit``, from below, elementwise.
+
+    ``bound`` is nondecreasing, ``bound(low) <= limit`` and ``bound(high) >= limit``; the
+    answer is always a point where the bound holds (``low`` at worst).
+    """
+    below, above = bound(low) - limit, bound(high) - limit
+    last = np.zeros(low.shape, dtype=int)
+    for _ in range(_FALSI_STEPS):
+        gap = above - below
+        middle = np.where(gap > 0.0, high - above * (high - low) / np.where(
+            gap > 0.0, gap, 1.0), 0.5 * (low + high))
+        middle = np.clip(middle, low, high)
+        value = bound(middle) - limit
+        accepted = value <= 0.0
+        # Illinois: the end kept twice in a row has its value halved, so both ends move.
+        below = np.where(accepted, value, np.where(last == -1, 0.5 * below, below))
+        above = np.where(accepted, np.where(last == 1, 0.5 * above, above), value)
+        low, high = np.where(accepted, middle, low), np.where(accepted, high, middle)
+        last = np.where(accepted, 1, -1)
+    return low
 
 
 @dataclass(frozen=True)
@@ -243,16 +269,19 @@ class LinearConditions:
         horizon = period * math.ceil(horizon / period - 1e-9)
         still = crossing_bounds(mean0, std0, walk, horizon, np.zeros_like(mean0))
         usable = still < risks
-        # Bisection on the speed towards the line: low always accepted, high never (there the
-        # first term alone is at least 1 - risk >= risk).
-        low = np.zeros_like(mean0)
-        quantile = -ndtri(np.clip(risks, 1e-300, 0.5))
-        high = np.maximum(mean0 + quantile * np.sqrt(std0 * std0 + walk * horizon),
-                          0.0) / horizon + 1e-9
-        for _ in range(_BISECTIONS):
-            middle = 0.5 * (low + high)
-            accepted = crossing_bounds(mean0, std0, walk, horizon, middle) <= risks
-            low, high = np.where(accepted, middle, low), np.where(accepted, high, middle)
+        # The reflected term is at most the first (Mills' ratio falls and u >= (m0 - a tau) / S),
+        # so the bound lies between the first term and twice it: the largest speed towards the
+        # line lies between first-term thresholds at delta / 2 (accepted) and delta (not).
+        spread = np.sqrt(std0 * std0 + walk * horizon)
+        risk = np.clip(risks, 1e-300, 1.0)
+        low = np.maximum(mean0 + ndtri(0.5 * risk) * spread, 0.0) / horizon
+        high = np.maximum(mean0 + ndtri(risk) * spread, 0.0) / horizon
+        active = np.flatnonzero(usable & (high > low))
+        if active.size:
+            arguments = mean0[active], std0[active], walk[active]
+            low[active] = _largest_accepted(
+                lambda approach: crossing_bounds(*arguments, horizon, approach),
+                low[active], high[active], risks[active])
         return cls(normals=normals, mean0=mean0, std0=std0, walk=walk, horizon=horizon,
                    still_risk=still, risks=risks, approach=np.where(usable, low, -np.inf))
 
