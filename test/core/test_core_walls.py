@@ -5,11 +5,14 @@ import math
 
 import numpy as np
 import pytest
+from scipy.optimize import brentq
 from scipy.stats import norm
 
 from prvo_planner.core import AgentBelief, PlannerConfig, plan_velocities, plan_velocity
 from prvo_planner.core.obstacles import StaticObstacles
+from prvo_planner.core.walls import wall_model
 from prvo_planner.parameters import ParameterError, check_parameter
+from prvo_sim.bench.doors import door_approach
 
 HORIZON = 2.0
 EGO_RADIUS = 0.25
@@ -37,12 +40,22 @@ def belief(position, velocity, position_std, velocity_std=0.05):
                        EGO_RADIUS)
 
 
-def swept_paths(rng, ego, velocity, actuation_cov, steps=101):
-    """Sample paths p + t (v + eps), t in [0, HORIZON]: shape (SAMPLES, steps, 2)."""
+def swept_paths(rng, ego, velocity, actuation_cov, period=0.1, per_period=5):
+    """Sample executed paths over [0, HORIZON]: shape (SAMPLES, steps, 2).
+
+    The model's execution: ``p ~ N(mu, S_p)``, then every control PERIOD the command with an
+    error of its own, ``eps_k ~ N(0, S_a)``, held for the period; PER_PERIOD points a period.
+    """
+    periods = math.ceil(HORIZON / period - 1e-9)
     start = rng.multivariate_normal(ego.position, ego.covariance[:2, :2], SAMPLES)
-    noise = rng.multivariate_normal(np.zeros(2), actuation_cov, SAMPLES)
-    times = np.linspace(0.0, HORIZON, steps)
-    return start[:, None, :] + times[None, :, None] * (velocity + noise)[:, None, :]
+    noise = rng.multivariate_normal(np.zeros(2), actuation_cov, (SAMPLES, periods))
+    times = np.linspace(0.0, periods * period, periods * per_period + 1)
+    index = np.minimum((times / period + 1e-9).astype(int), periods - 1)
+    # Displacement by the errors: whole periods before, then the current one's share.
+    before = np.concatenate([np.zeros((SAMPLES, 1, 2)),
+                             np.cumsum(period * noise, axis=1)], axis=1)[:, index]
+    within = (times - index * period)[None, :, None] * noise[:, index]
+    return start[:, None, :] + times[None, :, None] * velocity + before + within
 
 
 def avoided(paths, shape, radius):
@@ -119,19 +132,32 @@ def test_most_encounters_keep_moving():
     assert np.median(speeds) > 0.2
 
 
-def test_speed_towards_a_long_wall_is_the_support_line_quantile():
-    """The fastest certified speed straight at a long wall, from the Gaussian quantile."""
-    position_std, actuation_std, eta, distance = 0.08, 0.1, 0.8, 1.5
+def test_speed_towards_a_long_wall_is_the_reflection_principle_bound():
+    """The fastest certified speed straight at a long wall, from the first-passage bound.
+
+    The gap ``y`` to the grown wall starts ``N(m0, s0^2)`` and then, the command's error drawn
+    every period T, moves as a Brownian motion of variance ``T sigma_a^2`` per second with drift
+    ``-a`` (seen at whole periods). Started at time ``-t0 = -s0^2 / (T sigma_a^2)`` from
+    ``m0 + a t0``, the reflection principle gives the bound; its largest ``a`` at ``1 - eta``.
+    """
+    position_std, actuation_std, eta, distance, period = 0.08, 0.1, 0.8, 1.5, 0.1
     ego = belief([0.0, 0.0], [0.5, 0.0], position_std)
     config = PlannerConfig(eta=eta, actuation_cov=actuation_std ** 2 * np.eye(2),
-                           obstacle_horizon=HORIZON)
+                           obstacle_horizon=HORIZON, control_period=period)
     wall = obstacles([[[distance, -20.0], [distance, 20.0]]])
     result = plan_velocity(ego, [], [1.0, 0.0], config, obstacles=wall)
     mean0 = distance - EGO_RADIUS
-    start_risk = norm.cdf(-mean0 / position_std)
-    quantile = norm.ppf(eta + start_risk)
-    spread = math.hypot(position_std, HORIZON * actuation_std)
-    expected = (mean0 - quantile * spread) / HORIZON
+    walk = period * actuation_std ** 2
+    before = position_std ** 2 / walk
+    spread = math.sqrt(position_std ** 2 + walk * HORIZON)
+
+    def failure(speed):
+        start = mean0 + speed * before
+        reflected = math.exp(2.0 * speed * start / walk + norm.logcdf(
+            -(mean0 + speed * (HORIZON + 2.0 * before)) / spread))
+        return norm.cdf(-(mean0 - speed * HORIZON) / spread) + reflected - (1.0 - eta)
+
+    expected = brentq(failure, 0.0, mean0 / HORIZON + 1.0, xtol=1e-12)
     assert 0.1 < expected < 0.9
     assert result.velocity == pytest.approx([expected, 0.0], abs=1e-7)
     assert result.obstacle_probability == pytest.approx(eta, abs=1e-6)
@@ -305,3 +331,35 @@ def test_acceleration_limits_and_walls_together():
     assert np.linalg.norm(result.velocity - [0.8, 0.0]) <= 0.2 + 1e-9
     # Braking as hard as allowed: nothing reachable is certified, and nothing moves deeper.
     assert result.velocity[0] <= 0.8 - 0.2 + 1e-6
+
+
+def test_a_far_end_out_of_reach_constrains_nothing_however_far():
+    """The far end of a wall, out of reach, whether its bound is tiny or underflows to 0."""
+    config = PlannerConfig(eta=0.95, actuation_cov=0.05 ** 2 * np.eye(2),
+                           obstacle_horizon=HORIZON)
+    ego = belief([-1.0, 0.0], [0.5, 0.0], 0.02)
+    # Past the near end (0, 0.5) of a wall along +y: 3 m long (far end's bound ~1e-200) or
+    # 20 m (exactly 0).
+    plans = [plan_velocity(ego, [], [1.0, 0.0], config,
+                           obstacles=obstacles([[[0.0, 0.5], [0.0, 0.5 + length]]]))
+             for length in (3.0, 20.0)]
+    assert plans[0].velocity == pytest.approx(plans[1].velocity, abs=1e-12)
+    assert plans[0].obstacle_probability == pytest.approx(plans[1].obstacle_probability)
+    assert plans[1].velocity[0] > 0.8
+
+
+@pytest.mark.parametrize('seed', range(24))
+def test_approaches_to_doors_keep_clear_of_each_jamb_with_the_stated_probability(seed):
+    """The executed motion (own sampler, the model's noise) avoids each jamb segment."""
+    ego, config, door, heading, grown, _ = door_approach(seed, HORIZON)
+    result = plan_velocity(ego, [], heading, config, obstacles=door)
+    rng = np.random.default_rng(2000 + seed)
+    paths = swept_paths(rng, ego, result.velocity, config.actuation_cov, config.control_period)
+    stated = result.obstacle_probability
+    tolerance = 4.0 * math.sqrt(max(stated * (1.0 - stated), 1e-4) / SAMPLES)
+    for start, end in door.segments:
+        clearance = point_segment_distance(paths, start, end).min(axis=1) - grown
+        assert (clearance >= 0.0).mean() >= stated - tolerance, (seed, stated)
+    # Clear of the jambs' move-away zone, a feasible plan is certified at eta.
+    if result.feasible and not wall_model(door, ego, config).close.any():
+        assert stated >= config.eta - 1e-9

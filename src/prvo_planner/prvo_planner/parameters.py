@@ -190,7 +190,7 @@ _SPECS = (
     ParameterSpec('time_horizon', FLOAT, 5.0, 'Collisions later than this many seconds do not '
                   'constrain now, > 0; .inf for none.', rule=_positive),
     ParameterSpec('obstacle_horizon', FLOAT, 2.0, 'Walls and static obstacles constrain the '
-                  'straight path over this many seconds [s], in [0.5, 10]: longer keeps further '
+                  'path over this many seconds [s], in [0.5, 10]: longer keeps further '
                   'from walls and slows earlier, shorter passes closer.', (0.5, 10.0)),
     ParameterSpec('neighbor_distance', FLOAT, 10.0, 'Neighbours farther than this [m] are not '
                   'considered, > 0.', (0.0, 1.0e4), rule=_positive),

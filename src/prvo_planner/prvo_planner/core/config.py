@@ -108,7 +108,7 @@ class PlannerConfig:
     control_period : float
         How long a command stays in force, seconds, > 0 (the simulator's ``dt`` by default):
         without a feasible velocity, a neighbour the command would touch within it counts as
-        in contact.
+        in contact; against static obstacles each period's execution error is its own.
     certificate : str
         The bound a velocity must meet ``eta`` with (docs/method.md, section 13):
         ``'cantelli'`` (the margin ``k`` on every condition) or ``'certified'`` (for
@@ -117,7 +117,8 @@ class PlannerConfig:
         Cantelli's margin restored for the neighbours it falls short for).
     obstacle_horizon : float
         ``tau`` against static obstacles, seconds, > 0, finite (as RVO2's ``timeHorizonObst``):
-        a wall is a constraint on the straight path over the next ``tau`` seconds. Longer:
+        a wall is a constraint on the path over the next ``tau`` seconds, the command kept
+        and executed with an error of its own every ``control_period``. Longer:
         robots slow down earlier and keep further from walls; shorter: they pass closer and
         may approach a wall faster than they can stop.
 

@@ -2,18 +2,26 @@
 Chance constraints against static obstacles: wall segments and discs (docs/method.md, walls).
 
 Against a static obstacle only the ego's uncertainty remains: its position ``p ~ N(mu, S_p)``
-and its execution error ``eps ~ N(0, S_a)``. Over the obstacle horizon ``tau`` the ego moves
-along ``p(t) = p + t (v + eps)`` for the command ``v``, and touches a wall ``[a, b]`` of
-half-width ``w`` exactly when its centre enters the capsule of radius ``R = R_i + w + margin``
-around the segment (a disc of radius ``r``: the disc of radius ``R_i + r + margin``).
+and its execution error. The robot re-plans every control period ``T`` and each command is
+executed with an error of its own, so over the obstacle horizon ``tau`` the command ``v`` (the
+plan: keep it) moves the ego along ``p(t) = p + t v + W(t)``, ``W`` the random walk of
+independent steps ``T eps_k``, ``eps_k ~ N(0, S_a)``, linear within each period. (One error held
+for the whole horizon, ``p + t (v + eps)``, made the spread across a door ``tau sigma_a`` where
+the executed motion has ``sqrt(tau T) sigma_a``, 0.10 m instead of 0.022 m at ``tau`` 2 s and
+``sigma_a`` 0.05, and robots stopped at doors they fit through: issue 37.) The ego touches a
+wall ``[a, b]`` of half-width ``w`` exactly when its centre enters the capsule of radius
+``R = R_i + w + margin`` around the segment (a disc of radius ``r``: the disc of radius
+``R_i + r + margin``).
 
-A linear condition ``y(t) = n.p(t) - c >= 0`` at ``t = 0`` and ``t = tau`` keeps the straight
-path out of the half-plane ``n.x < c`` for the whole horizon. Both values are Gaussian:
-``y(0) ~ N(m0, s0^2)`` with ``m0 = n.mu - c``, ``s0^2 = n' S_p n``, and
-``y(tau) ~ N(m0 + tau n.v, s0^2 + tau^2 n' S_a n)``. With ``delta0 = Phi(-m0 / s0)`` and a risk
-``delta > delta0``, the union bound gives ``P(y(0) >= 0 and y(tau) >= 0) >= 1 - delta`` when
-``m0 + tau n.v >= z sqrt(s0^2 + tau^2 n' S_a n)``, ``z = Phi^-1(1 - delta + delta0)``: on a
-ray ``v = t v_max e`` one linear inequality in ``t``. Several conditions certify a piece when
+A linear condition ``y(t) = n.p(t) - c >= 0`` for every ``t`` in ``[0, tau]`` keeps the path
+out of the half-plane ``n.x < c`` for the whole horizon. ``y(0) ~ N(m0, s0^2)`` with
+``m0 = n.mu - c``, ``s0^2 = n' S_p n``; then ``y`` moves with the drift ``n.v`` and, at whole
+periods, as a Brownian motion of variance ``T n' S_a n`` per second, linear in between, so
+``y >= 0`` on ``[0, tau]`` (rounded up to whole periods) fails with probability at most the
+reflection principle's bound (``crossing_bounds``). It grows with the speed towards the line,
+``-n.v``: on a ray ``v = t v_max e`` each condition accepts a half-line of ``t``, its end the
+largest speed towards the line whose bound is at most the risk (bisection). A condition whose
+bound standing still exceeds its risk accepts nothing. Several conditions certify a piece when
 any one of them holds (each with the piece's whole risk); their normals depend on the beliefs
 only, never on the command.
 
@@ -24,7 +32,7 @@ Per wall (``delta = 1 - eta``) a velocity is accepted if either
 * the decomposition holds: the capsule lies in the two end discs and the rectangle
   ``0 < xi < L, |zeta| < R`` (wall coordinates ``xi`` along ``b - a`` from ``a``, ``zeta``
   across); the rectangle is avoided when one of ``zeta >= R``, ``zeta <= -R``, ``xi <= 0``,
-  ``xi >= L`` holds at both ends of the horizon; an end disc (a static obstacle: no velocity,
+  ``xi >= L`` holds over the horizon; an end disc (a static obstacle: no velocity,
   no covariance of its own) when one of its tangent half-planes holds, the normals a fan of
   ``FAN`` directions within ``arccos(R / d)`` of the direction from its centre to ``mu`` (``d``
   the distance), which are the tangents that can hold ``mu``.
@@ -33,16 +41,20 @@ The risk of the decomposition is split by a rule fixed in advance: an end disc t
 reach except with probability at most ``REACH_SHARE delta`` (its a-priori bound) is charged
 that bound; the rest of ``delta`` is split equally between the rectangle and the end discs
 within reach. The a-priori bound of a shape: every point of the path is within
-``|p - mu| + tau (v_max + |eps|)`` of ``mu``, and a 2D Gaussian of largest variance
-``lambda`` exceeds a norm ``r`` with probability at most ``exp(-r^2 / (2 lambda))``; splitting
-``r = dist(mu, shape) - R - tau v_max`` in proportion to the two deviations gives
-``2 exp(-r^2 / (2 (sigma_p + tau sigma_a)^2))``. A wall or disc out of reach in this sense
-constrains nothing and is reported with its a-priori bound. A disc obstacle is certified by
-its fan of tangents at risk ``delta``.
+``|p - mu| + tau v_max + max_t |W(t)|`` of ``mu``; a 2D Gaussian of largest variance
+``lambda`` exceeds a norm ``r`` with probability at most ``exp(-r^2 / (2 lambda))``, and the
+walk's largest excursion exceeds ``r`` less often than one error held over the horizon,
+``tau |eps|``, does: Doob's inequality on two axes gives ``4 exp(-r^2 / (4 tau T lambda))``,
+below ``exp(-r^2 / (2 tau^2 lambda))`` for ``tau >= 4 T`` wherever the bound decides
+(``r >= 4 tau sigma_a``); splitting ``r = dist(mu, shape) - R - tau v_max`` in
+proportion to the two deviations gives ``2 exp(-r^2 / (2 (sigma_p + tau sigma_a)^2))``. A
+wall or disc out of reach in this sense constrains nothing and is reported with its a-priori
+bound. A disc obstacle is certified by its fan of tangents at risk ``delta``.
 
-Close to a shape (the mean within its grown radius, or ``delta0 >= delta`` on the support line,
-the fan's middle normal for a disc) nothing certifies the horizon: only velocities that move
-away with probability ``eta``, ``P(n.(v + eps) >= 0) >= eta``, are accepted.
+Close to a shape (the mean within its grown radius, or the support line's bound standing still
+at least ``delta``, the fan's middle normal's for a disc) nothing certifies the horizon: only
+velocities that move away over the period with probability ``eta``,
+``P(n.(v + eps) >= 0) >= eta``, are accepted.
 
 On a ray each condition accepts a half-line of ``t``, so each piece (any of its conditions)
 accepts ``[0, upper] U [lower, 1]`` and rejects at most one open interval ``(upper, lower)``.
@@ -55,7 +67,7 @@ from dataclasses import dataclass
 import math
 
 import numpy as np
-from scipy.special import ndtr, ndtri
+from scipy.special import erfcx, ndtr, ndtri
 
 from .probability import confidence_ellipse_scale
 
@@ -141,58 +153,150 @@ def _fan(centres, radius, mean):
     return normals, offsets, distance
 
 
+def crossing_bounds(mean0, std0, walk, horizon, approach):
+    """
+    Bound on ``P(min over [0, horizon] of y(t) < 0)`` for ``y(t) = y0 - approach t + W(t)``.
+
+    ``y0 ~ N(mean0, std0^2)`` and ``W`` a Brownian motion of variance ``walk`` per second,
+    independent of ``y0``; ``approach >= 0``. With ``t0 = std0^2 / walk``, ``y`` on
+    ``[0, horizon]`` is the restriction of a Brownian motion with the same drift started at
+    ``x0 = mean0 + approach t0`` at time ``-t0``, so the reflection principle over
+    ``[-t0, horizon]`` bounds it:
+    ``Phi(-(mean0 - approach horizon) / S) + exp(2 approach x0 / walk) Phi(-u)``, with
+    ``S^2 = std0^2 + walk horizon`` and ``u = (mean0 + approach (horizon + 2 t0)) / S``. The
+    second term is computed as ``phi((mean0 - approach horizon) / S) sqrt(pi / 2)
+    erfcx(u / sqrt(2))`` (the same number, without the overflow). Without a walk the path is
+    straight and the bound is exact: ``P(y0 < approach horizon)``. Elementwise; in [0, 1].
+    """
+    reach = mean0 - approach * horizon
+    spread = np.sqrt(std0 * std0 + walk * horizon)
+    first = _below_zero(reach, spread)
+    noisy = walk > 0.0
+    if not noisy.any():
+        return first
+    # With a walk the spread is positive; elsewhere any positive stand-in (unused).
+    scale = np.where(noisy, spread, 1.0)
+    before = std0 * std0 / np.where(noisy, walk, 1.0)
+    start = mean0 + approach * before
+    # Only a drift towards the line makes u depend on t0 (which is inf for a vanishing walk).
+    far = mean0 + np.where(approach > 0.0, approach * (horizon + 2.0 * before), 0.0)
+    ratio = reach / scale
+    # phi(ratio) sqrt(pi / 2) = exp(-ratio^2 / 2) / 2; where x0 <= 0 the bound is 1 and u is
+    # not needed (clipped at 0 to keep erfcx finite).
+    second = 0.5 * np.exp(-0.5 * ratio * ratio) * erfcx(np.maximum(far, 0.0) / (scale * _SQRT2))
+    bound = np.where(start > 0.0, first + second, 1.0)
+    return np.clip(np.where(noisy, bound, first), 0.0, 1.0)
+
+
+_SQRT2 = math.sqrt(2.0)
+# Steps of regula falsi (Illinois) for the largest speed towards a line a condition accepts:
+# the bracket is already (z(delta / 2) - z(delta)) S / tau wide (a few mm/s) and the bound is
+# smooth and monotone in it, so a few steps leave it far below any speed's meaning.
+_FALSI_STEPS = 8
+
+
+def _largest_accepted(bound, low, high, limit):
+    """
+    Largest ``a`` in ``[low, high]`` with ``bound(a) <= limit``, from below, elementwise.
+
+    ``bound`` is nondecreasing, ``bound(low) <= limit`` and ``bound(high) >= limit``; the
+    answer is always a point where the bound holds (``low`` at worst).
+    """
+    below, above = bound(low) - limit, bound(high) - limit
+    last = np.zeros(low.shape, dtype=int)
+    for _ in range(_FALSI_STEPS):
+        gap = above - below
+        middle = np.where(gap > 0.0, high - above * (high - low) / np.where(
+            gap > 0.0, gap, 1.0), 0.5 * (low + high))
+        middle = np.clip(middle, low, high)
+        value = bound(middle) - limit
+        accepted = value <= 0.0
+        # Illinois: the end kept twice in a row has its value halved, so both ends move.
+        below = np.where(accepted, value, np.where(last == -1, 0.5 * below, below))
+        above = np.where(accepted, np.where(last == 1, 0.5 * above, above), value)
+        low, high = np.where(accepted, middle, low), np.where(accepted, high, middle)
+        last = np.where(accepted, 1, -1)
+    return low
+
+
 @dataclass(frozen=True)
 class LinearConditions:
     """
-    Linear conditions ``n.p(t) >= c`` at ``t = 0`` and ``t = tau``, shapes (K, 2) / (K,).
+    Linear conditions ``y(t) = n.p(t) - c >= 0`` for all ``t`` in ``[0, tau]``, (K, 2) / (K,).
+
+    The executed path is ``p(t) = p + t v + W(t)``: the command's error is drawn afresh every
+    control period ``T`` (the robot re-plans, the world executes each command with its own
+    error), so ``W`` is a Gaussian random walk of ``N(0, T^2 S_a)`` steps, piecewise linear
+    between them. Across ``n`` it is the Brownian motion of variance ``T n' S_a n`` per second
+    seen at whole periods, and between them ``y`` is linear: ``crossing_bounds`` over ``tau``
+    rounded up to whole periods bounds the failure. It grows with the speed towards the line
+    ``-n.v``; each condition accepts ``n.v >= -approach``.
 
     Attributes
     ----------
     normals : numpy.ndarray
         ``n``, shape (K, 2).
-    mean0, std0, std_tau : numpy.ndarray
-        ``m0``, ``s0`` and ``sqrt(s0^2 + tau^2 n' S_a n)``, shape (K,).
-    start_risk : numpy.ndarray
-        ``delta0 = P(y(0) < 0)``, shape (K,).
+    mean0, std0, walk : numpy.ndarray
+        ``m0 = n.mu - c``, ``s0 = sqrt(n' S_p n)`` and ``T n' S_a n``, shape (K,).
+    horizon : float
+        ``tau`` rounded up to whole control periods.
+    still_risk : numpy.ndarray
+        The failure bound without a drift towards the line (standing still), shape (K,).
     risks : numpy.ndarray
         The risk each is planned with, shape (K,); 0: not usable.
+    approach : numpy.ndarray
+        The largest speed towards the line accepted (``-inf``: none, not even standing still),
+        shape (K,).
 
     """
 
     normals: np.ndarray
     mean0: np.ndarray
     std0: np.ndarray
-    std_tau: np.ndarray
-    start_risk: np.ndarray
+    walk: np.ndarray
+    horizon: float
+    still_risk: np.ndarray
     risks: np.ndarray
+    approach: np.ndarray
 
     @classmethod
-    def of(cls, normals, offsets, risks, mean, position_cov, actuation_cov, horizon):
+    def of(cls, normals, offsets, risks, mean, position_cov, actuation_cov, horizon, period):
         """Return the conditions of NORMALS and OFFSETS for the ego's belief."""
-        var0 = np.maximum(_quadratic_form(normals, position_cov), 0.0)
         mean0 = normals @ mean - offsets
-        std0 = np.sqrt(var0)
-        return cls(normals=normals, mean0=mean0, std0=std0,
-                   std_tau=np.sqrt(var0 + horizon ** 2 * np.maximum(
-                       _quadratic_form(normals, actuation_cov), 0.0)),
-                   start_risk=_below_zero(mean0, std0), risks=risks)
+        std0 = np.sqrt(np.maximum(_quadratic_form(normals, position_cov), 0.0))
+        walk = period * np.maximum(_quadratic_form(normals, actuation_cov), 0.0)
+        # A partial last period would move less than the walk: cover it whole.
+        horizon = period * math.ceil(horizon / period - 1e-9)
+        still = crossing_bounds(mean0, std0, walk, horizon, np.zeros_like(mean0))
+        usable = still < risks
+        # The reflected term is at most the first (Mills' ratio falls and u >= (m0 - a tau) / S),
+        # so the bound lies between the first term and twice it: the largest speed towards the
+        # line lies between first-term thresholds at delta / 2 (accepted) and delta (not).
+        spread = np.sqrt(std0 * std0 + walk * horizon)
+        risk = np.clip(risks, 1e-300, 1.0)
+        low = np.maximum(mean0 + ndtri(0.5 * risk) * spread, 0.0) / horizon
+        high = np.maximum(mean0 + ndtri(risk) * spread, 0.0) / horizon
+        active = np.flatnonzero(usable & (high > low))
+        if active.size:
+            arguments = mean0[active], std0[active], walk[active]
+            low[active] = _largest_accepted(
+                lambda approach: crossing_bounds(*arguments, horizon, approach),
+                low[active], high[active], risks[active])
+        return cls(normals=normals, mean0=mean0, std0=std0, walk=walk, horizon=horizon,
+                   still_risk=still, risks=risks, approach=np.where(usable, low, -np.inf))
 
-    def accepted(self, directions, horizon, max_speed):
+    def accepted(self, directions, max_speed):
         """
         Each condition's accepted ``t`` on each ray: ``[0, upper] U [lower, 1]``, (K, M).
 
-        ``m0 + tau v_max (n.e) t >= z s_tau`` is ``slope t >= bound``.
+        ``n.v >= -approach`` is ``v_max (n.e) t >= -approach``.
         """
-        usable = self.start_risk < self.risks
-        quantile = ndtri(np.where(usable, 1.0 - self.risks + self.start_risk, 0.5))
-        bound = np.where(usable, quantile * self.std_tau - self.mean0, np.inf)
-        return half_lines((horizon * max_speed) * (self.normals @ directions.T),
-                          bound[:, None])
+        return half_lines(max_speed * (self.normals @ directions.T), -self.approach[:, None])
 
-    def failures(self, velocity, horizon):
-        """Union bound on each condition failing at VELOCITY, ``delta0 + P(y(tau) < 0)``."""
-        end = _below_zero(self.mean0 + horizon * (self.normals @ velocity), self.std_tau)
-        return np.minimum(self.start_risk + end, 1.0)
+    def failures(self, velocity):
+        """Return the bound on each condition failing at VELOCITY (``crossing_bounds``)."""
+        return crossing_bounds(self.mean0, self.std0, self.walk, self.horizon,
+                               np.maximum(-(self.normals @ velocity), 0.0))
 
 
 def half_lines(slope, bound):
@@ -232,6 +336,9 @@ class WallModel:
         near disc its fan of tangents: ``n (5 + 2 FAN) + q FAN`` in all.
     end_bounds : numpy.ndarray
         A-priori bound charged for each end out of reach (0 within reach), shape (n, 2).
+    end_in_reach : numpy.ndarray
+        Whether each end is within reach, shape (n, 2): an end out of reach may have a bound
+        of 0 (underflow, or no noise), so the bound cannot tell.
     close : numpy.ndarray
         Per near wall then near disc, whether only moving away is accepted, shape (n + q,).
     away_normals, away_thresholds : numpy.ndarray
@@ -252,6 +359,7 @@ class WallModel:
     disc_radius: np.ndarray
     conditions: LinearConditions
     end_bounds: np.ndarray
+    end_in_reach: np.ndarray
     close: np.ndarray
     away_normals: np.ndarray
     away_thresholds: np.ndarray
@@ -353,17 +461,19 @@ def wall_model(obstacles, ego, config):
         offsets = np.concatenate([offsets.ravel(), fan_offsets[2 * count:].ravel()])
         risks = np.concatenate([risks.ravel(), np.full(discs * FAN, delta)])
     conditions = LinearConditions.of(normals.reshape(-1, 2), offsets.ravel(), risks.ravel(),
-                                     mean, position_cov, actuation_cov, horizon)
-    start_risk = conditions.start_risk
+                                     mean, position_cov, actuation_cov, horizon,
+                                     config.control_period)
+    still_risk = conditions.still_risk
     close = np.concatenate([wall_distance, fan_distance[2 * count:]]) <= np.concatenate(
         [wall_radius, disc_radius])
-    close[:count] |= start_risk[:count * _PER_WALL:_PER_WALL] >= delta
-    close[count:] |= start_risk[count * _PER_WALL + FAN_HALF::FAN] >= delta
+    close[:count] |= still_risk[:count * _PER_WALL:_PER_WALL] >= delta
+    close[count:] |= still_risk[count * _PER_WALL + FAN_HALF::FAN] >= delta
     away_normals = np.concatenate([support, fans[2 * count:, FAN_HALF]]) if discs else support
     return WallModel(
         mean_position=mean, clearance=clearance, far_bounds=bounds[~near],
         segments=segments, radius=wall_radius, distance=wall_distance, centres=centres,
-        disc_radius=disc_radius, conditions=conditions, end_bounds=end_bounds, close=close,
+        disc_radius=disc_radius, conditions=conditions, end_bounds=end_bounds,
+        end_in_reach=in_reach, close=close,
         away_normals=away_normals,
         away_thresholds=ndtri(eta) * np.sqrt(np.maximum(
             _quadratic_form(away_normals, actuation_cov), 0.0)),
@@ -389,7 +499,7 @@ def rejected_intervals(model, directions):
     """
     rays = directions.shape[0]
     count = len(model.segments)
-    upper, lower = model.conditions.accepted(directions, model.horizon, model.max_speed)
+    upper, lower = model.conditions.accepted(directions, model.max_speed)
     split = count * _PER_WALL
     wall_upper = upper[:split].reshape(count, _PER_WALL, rays)
     wall_lower = lower[:split].reshape(count, _PER_WALL, rays)
@@ -400,7 +510,7 @@ def rejected_intervals(model, directions):
                              wall_lower[:, _START_FAN].min(axis=1),
                              wall_lower[:, _END_FAN].min(axis=1)], axis=1)
     # An end out of reach rejects nothing; the decomposition rejects where any piece does.
-    pieces_upper[:, 1:][model.end_bounds > 0.0] = np.inf
+    pieces_upper[:, 1:][~model.end_in_reach] = np.inf
     # A wall rejects where the support line and the decomposition both do.
     wall_upper = np.maximum(wall_upper[:, :1], pieces_upper)
     wall_lower = np.minimum(wall_lower[:, :1], pieces_lower)
@@ -544,18 +654,18 @@ def obstacle_probability(model, velocity):
     """
     Return the probability certified against the obstacles at VELOCITY: the smallest over them.
 
-    Per near wall the larger of the support line's and the decomposition's union bounds:
-    ``1 - delta0 - P(y(tau) < 0)`` of the support line, and one minus the sum over the pieces
+    Per near wall the larger of the support line's and the decomposition's: one minus the
+    support line's ``crossing_bounds``, and one minus the sum over the pieces
     of each piece's best condition's (an end out of reach: its a-priori bound); per near disc
     its best tangent's; per shape out of reach one minus its a-priori bound. Clipped to
     [0, 1]; 1 without obstacles.
 
     """
-    failure = model.conditions.failures(velocity, model.horizon)
+    failure = model.conditions.failures(velocity)
     count = len(model.segments)
     walls = failure[:count * _PER_WALL].reshape(count, _PER_WALL)
     ends = np.stack([walls[:, _START_FAN].min(axis=1), walls[:, _END_FAN].min(axis=1)], axis=1)
-    ends = np.where(model.end_bounds > 0.0, model.end_bounds, ends)
+    ends = np.where(model.end_in_reach, ends, model.end_bounds)
     decomposition = walls[:, _RECTANGLE].min(axis=1) + ends.sum(axis=1)
     risks = np.concatenate([np.minimum(walls[:, 0], decomposition),
                             failure[count * _PER_WALL:].reshape(-1, FAN).min(axis=1, initial=1.0),
