@@ -20,8 +20,10 @@ periods, as a Brownian motion of variance ``T n' S_a n`` per second, linear in b
 ``y >= 0`` on ``[0, tau]`` (rounded up to whole periods) fails with probability at most the
 reflection principle's bound (``crossing_bounds``). It grows with the speed towards the line,
 ``-n.v``: on a ray ``v = t v_max e`` each condition accepts a half-line of ``t``, its end the
-largest speed towards the line whose bound is at most the risk (bisection). A condition whose
-bound standing still exceeds its risk accepts nothing. Several conditions certify a piece when
+largest speed towards the line whose bound is at most the risk (the reflected term is at most
+the first, so it lies between the first term's thresholds at half the risk and at the risk;
+regula falsi from there). A condition whose bound standing still exceeds its risk accepts
+nothing. Several conditions certify a piece when
 any one of them holds (each with the piece's whole risk); their normals depend on the beliefs
 only, never on the command.
 
