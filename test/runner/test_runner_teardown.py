@@ -182,7 +182,9 @@ def test_a_full_disk_costs_the_views_not_the_results(tmp_path, runners):
 
 def test_results_get_the_mode_of_the_umask(tmp_path, runners):
     out = tmp_path / 'out'
-    runner = start_runner([HEADON, '--engine', 'inprocess', '--out', str(out), '--quiet'],
+    # Two seconds write every file a whole run does (a run that reaches its duration completes).
+    runner = start_runner([str(far_headon(tmp_path, duration=2.0)), '--engine', 'inprocess',
+                           '--out', str(out), '--quiet'],
                           tmp_path, preexec_fn=lambda: os.umask(0o002))
     runners.append(runner)
     assert runner.wait(timeout=300) == 0, output(runner)
