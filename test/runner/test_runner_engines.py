@@ -7,6 +7,7 @@ import pathlib
 import pytest
 from rosbags.highlevel import AnyReader
 from runner_testing import output, start_runner
+import yaml
 
 SCENARIOS = pathlib.Path(__file__).resolve().parents[2] / 'src/prvo_sim/scenarios'
 # A robot and a walker that crosses its path, back and forth, avoiding nobody.
@@ -111,3 +112,35 @@ def serialized_messages(folder):
         for connection, timestamp, data in reader.messages():
             messages[connection.topic].append((timestamp, bytes(data)))
     return messages
+
+
+def test_a_run_that_reaches_its_duration_ends_at_the_same_step_on_both_engines(tmp_path,
+                                                                                 runners):
+    """Both engines record the state at the duration and the commands answering it.
+
+    The ROS simulator publishes the state at t = duration and its planners answer it; the
+    in-process engine stopped one step earlier (headon2 with duration 2.0 recorded t = 2.0 on
+    ROS and ended at t = 1.9 in process).
+    """
+    document = yaml.safe_load((SCENARIOS / 'headon2.yaml').read_text())
+    document['duration'] = 2.0
+    path = tmp_path / 'short_headon2.yaml'
+    path.write_text(yaml.safe_dump(document))
+    rows, metrics = {}, {}
+    for engine in ('inprocess', 'ros'):
+        out = tmp_path / engine
+        runner = start_runner([str(path), '--engine', engine, '--out', str(out), '--quiet',
+                               '--no-animation', '--no-bag'], tmp_path, label=engine)
+        runners.append(runner)
+        assert runner.wait(timeout=300) == 0, output(runner)
+        rows[engine] = rows_of(out / 'trajectories.csv')
+        metrics[engine] = json.loads((out / 'metrics.json').read_text())
+    assert set(rows['inprocess']) == set(rows['ros'])
+    assert max(float(time) for time, _ in rows['inprocess']) == pytest.approx(2.0, abs=1e-9)
+    for key, values in rows['inprocess'].items():
+        assert None not in values and None not in rows['ros'][key], key
+        assert max(abs(value - ros_value) for value, ros_value in zip(
+            values, rows['ros'][key], strict=True)) <= 1e-9, (key, values, rows['ros'][key])
+    for engine in metrics:
+        assert metrics[engine]['ending'] == 'duration'
+        assert metrics[engine]['sim_time'] == pytest.approx(2.0, abs=1e-9)

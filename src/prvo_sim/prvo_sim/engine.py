@@ -229,10 +229,12 @@ class InProcessTeam:
         """
         return _decoded(serialized_odometry(self.world))
 
-    def do_step(self):
+    def do_step(self, advance=True):
         """Plan every robot on the current state, then move the world by one dt.
 
-        Returns the `StepRecord` of the state planned on.
+        Returns the `StepRecord` of the state planned on. With ADVANCE false the world stays
+        where it is: the last step of a run that reaches its duration, whose state the ROS
+        simulator publishes and its planners answer before the run ends.
         """
         world = self.world
         now = world.time
@@ -289,7 +291,7 @@ class InProcessTeam:
         # One call plans the team: each planned robot is charged an equal share of it.
         plan_ms = np.full(len(self._planned), (time.perf_counter() - started) * 1e3
                           / max(len(self._planned), 1))
-        contacts = world.step(executed)
+        contacts = world.step(executed) if advance else ()
         self.last_odometry, self.last_commands = tuple(odometry), tuple(planned)
         self.last_requests = tuple(requests)
         # Per robot: whether its command met every constraint (a scripted robot has none).

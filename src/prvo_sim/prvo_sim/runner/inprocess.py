@@ -93,9 +93,12 @@ def run_steps(spec, team, messages, steps, progress):
     started = time.monotonic()
     next_progress = started
     while True:
+        # The state at the duration is recorded with the plans that answer it, as on the ROS
+        # engine, and the world is not moved past it.
+        final = team.finished
         if messages is not None:
             messages.add_state()
-        step = team.do_step()
+        step = team.do_step(advance=not final)
         steps.append(step)
         if messages is not None:
             messages.add_step(step)
@@ -106,5 +109,5 @@ def run_steps(spec, team, messages, steps, progress):
             next_progress = now + PROGRESS_PERIOD
         if ends:
             return Ending.ARRIVED
-        if team.finished:
+        if final:
             return Ending.DURATION
