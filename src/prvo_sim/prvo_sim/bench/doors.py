@@ -1,8 +1,8 @@
-"""Doors benchmark: one robot alone at a door it fits through, three position stds to spare.
+"""Doors benchmark: a robot alone in a door or a corridor it fits, three position stds to spare.
 
     python -m prvo_sim.bench.doors [--radii 0.2 0.25 0.3] [--stds 0.02 0.05]
-                                   [--etas 0.95 0.99] [--angles 0 45] [--seeds 10]
-                                   [--json PATH]
+                                   [--etas 0.95 0.99] [--angles 0 45 | --corridor]
+                                   [--seeds 10] [--json PATH]
     python -m prvo_sim.bench.doors --monte-carlo N [--samples 20000]
 
 Each case is a wall along x = 0 (THICKNESS thick, 2 WALL_HALF long) with a door centred at the
@@ -13,6 +13,10 @@ and heads for the point opposite. Every case runs on the in-process engine for D
 seed (consecutive seeds from 1). Per case: the robots through (centre past the wall's far face
 by its radius), the wall contacts, the least clearance of a robot from the real walls (the
 simulator's, minus the radius) and the median time through.
+
+With ``--corridor`` each case is instead an L-shaped corridor of the same clear width, closed at
+both ends, whose centre line runs LEG east from the start, then LEG north to the goal (10 m);
+the robot is through when it arrives (within the goal tolerance), DURATION_CORRIDOR at most.
 
 With ``--monte-carlo N`` it plans N seeded approaches to doors (``door_approach``) and samples
 the executed motion as the planner's model states it (the belief's position, then a fresh
@@ -44,6 +48,33 @@ THICKNESS = 0.1
 WALL_HALF = 4.0
 APPROACH = 3.0
 DURATION = 30.0
+LEG = 5.0
+DURATION_CORRIDOR = 60.0
+
+
+def _scenario(name, description, duration, walls, start, goal, radius, noise, eta):
+    """Return the YAML text of one robot alone among WALLS (segments [[x, y], [x, y]])."""
+    planner = '' if eta is None else f'planner:\n  eta: {eta}\n'
+    lines = ''.join(f'  - line: [[{a[0]}, {a[1]}], [{b[0]}, {b[1]}]]\n'
+                    f'    thickness: {THICKNESS}\n' for a, b in walls)
+    return f"""name: {name}
+description: {description}
+seed: 1
+dt: 0.1
+duration: {duration}
+goal_tolerance: 0.2
+noise:
+  position_std: {noise}
+  velocity_std: {noise}
+  actuation_std: {noise}
+{planner}walls:
+{lines}robots:
+  - name: robot_0
+    start: [{start[0]:.6f}, {start[1]:.6f}]
+    goal: [{goal[0]:.6f}, {goal[1]:.6f}]
+    radius: {radius}
+    max_speed: 1.0
+"""
 
 
 def door_scenario(radius, clear_width, noise, angle=0.0, eta=None):
@@ -53,30 +84,26 @@ def door_scenario(radius, clear_width, noise, angle=0.0, eta=None):
     """
     tip = 0.5 * clear_width + 0.5 * THICKNESS
     heading = np.array([math.cos(angle), math.sin(angle)])
-    start, goal = -APPROACH * heading, APPROACH * heading
-    planner = '' if eta is None else f'planner:\n  eta: {eta}\n'
-    return f"""name: door
-description: One robot, one door of clear width {clear_width:.3f} m.
-seed: 1
-dt: 0.1
-duration: {DURATION}
-goal_tolerance: 0.2
-noise:
-  position_std: {noise}
-  velocity_std: {noise}
-  actuation_std: {noise}
-{planner}walls:
-  - line: [[0.0, {WALL_HALF}], [0.0, {tip}]]
-    thickness: {THICKNESS}
-  - line: [[0.0, {-WALL_HALF}], [0.0, {-tip}]]
-    thickness: {THICKNESS}
-robots:
-  - name: robot_0
-    start: [{start[0]:.6f}, {start[1]:.6f}]
-    goal: [{goal[0]:.6f}, {goal[1]:.6f}]
-    radius: {radius}
-    max_speed: 1.0
-"""
+    return _scenario('door', f'One robot, one door of clear width {clear_width:.3f} m.',
+                     DURATION, [((0.0, WALL_HALF), (0.0, tip)), ((0.0, -WALL_HALF), (0.0, -tip))],
+                     -APPROACH * heading, APPROACH * heading, radius, noise, eta)
+
+
+def corridor_scenario(radius, clear_width, noise, eta=None):
+    """Return the YAML text of one robot in an L-shaped corridor of CLEAR_WIDTH [m].
+
+    The centre line runs from the start (0, 0) LEG east, then LEG north to the goal. The ends
+    are closed half a width behind the start and the goal: open, the way round the outside of
+    the bend would be shorter than the corridor, and the route would take it.
+    """
+    offset = 0.5 * clear_width + 0.5 * THICKNESS
+    outer, inner = LEG + offset, LEG - offset
+    walls = [((-offset, -offset), (outer, -offset)), ((outer, -offset), (outer, outer)),
+             ((-offset, offset), (inner, offset)), ((inner, offset), (inner, outer)),
+             ((-offset, -offset), (-offset, offset)), ((inner, outer), (outer, outer))]
+    return _scenario('corridor', 'One robot, an L-shaped corridor of clear width '
+                     f'{clear_width:.3f} m.', DURATION_CORRIDOR, walls, (0.0, 0.0), (LEG, LEG),
+                     radius, noise, eta)
 
 
 def door_approach(seed, horizon=2.0):
@@ -173,11 +200,21 @@ def monte_carlo(approaches, samples):
     return holds
 
 
-def run_door(path, seed):
+def past_the_door(scenario, state):
+    """Whether the ground-truth STATE's centre is past the wall's far face by the radius."""
+    return state[0] > 0.5 * THICKNESS + scenario.robots[0].radius
+
+
+def at_the_goal(scenario, state):
+    """Whether the ground-truth STATE's centre is within the goal tolerance."""
+    return np.linalg.norm(state[:2] - scenario.robots[0].goal) <= scenario.goal_tolerance
+
+
+def run_alone(path, seed, through):
     """Run the scenario file PATH once in process: (time through or None, contacts, clearance).
 
-    The clearance is the least of the robot's [m]. Through: the ground-truth centre past the
-    wall's far face by the radius; the run stops there.
+    The clearance is the least of the robot's [m]. Through: ``THROUGH(scenario, state)`` of the
+    ground-truth state planned on (``past_the_door``, ``at_the_goal``); the run stops there.
     """
     scenario = load_scenario(path, seed=seed)
     values = [planner_values(robot, scenario, 'prvo', None) for robot in scenario.robots]
@@ -190,17 +227,22 @@ def run_door(path, seed):
         contacts += len(world.last_wall_contacts)
         clearance = min(clearance, float(world.static_world.clearance(
             world.positions[:1])[0]) - radius)
-        if step.states[0, 0] > 0.5 * THICKNESS + radius:
+        if through(scenario, step.states[0]):
             return step.time, contacts, clearance
     return None, contacts, clearance
 
 
 def run_case(folder, radius, sigma, eta, angle_deg, seeds):
-    """Run one case over SEEDS; return its row (a dict)."""
+    """Run one case over SEEDS; return its row (a dict). ANGLE_DEG None: the L corridor."""
     width = 2.0 * radius + 6.0 * sigma
-    path = pathlib.Path(folder) / f'door_{radius}_{sigma}_{eta}_{angle_deg}.yaml'
-    path.write_text(door_scenario(radius, width, sigma, math.radians(angle_deg), eta))
-    runs = [run_door(path, seed) for seed in seeds]
+    path = pathlib.Path(folder) / f'case_{radius}_{sigma}_{eta}_{angle_deg}.yaml'
+    if angle_deg is None:
+        text, through = corridor_scenario(radius, width, sigma, eta), at_the_goal
+    else:
+        text = door_scenario(radius, width, sigma, math.radians(angle_deg), eta)
+        through = past_the_door
+    path.write_text(text)
+    runs = [run_alone(path, seed, through) for seed in seeds]
     times = [through for through, _, _ in runs if through is not None]
     return {'radius': radius, 'sigma_p': sigma, 'eta': eta, 'angle_deg': angle_deg,
             'clear_width': width, 'seeds': len(runs), 'through': len(times),
@@ -209,10 +251,20 @@ def run_case(folder, radius, sigma, eta, angle_deg, seeds):
             'median_time': float(np.median(times)) if times else None}
 
 
+def _header(corridor):
+    """Return the table's header (two lines) for the corridor or the doors."""
+    columns = (['r [m]', 'sigma_p [m]', 'corridor [m]', 'eta', 'arrived'] if corridor
+               else ['r [m]', 'sigma_p [m]', 'door [m]', 'eta', 'angle [deg]', 'through'])
+    columns += ['contacts', 'least clearance [m]',
+                f'median time {"to the goal" if corridor else "through"} [s]']
+    return f"| {' | '.join(columns)} |\n|{'---|' * len(columns)}"
+
+
 def _row(row):
     time_through = 'n/a' if row['median_time'] is None else f"{row['median_time']:.1f}"
+    angle = '' if row['angle_deg'] is None else f"| {row['angle_deg']:g} "
     return (f"| {row['radius']:.2f} | {row['sigma_p']:.2f} | {row['clear_width']:.2f} "
-            f"| {row['eta']:.2f} | {row['angle_deg']:g} | {row['through']}/{row['seeds']} "
+            f"| {row['eta']:.2f} {angle}| {row['through']}/{row['seeds']} "
             f"| {row['contacts']} | {row['min_clearance']:.3f} | {time_through} |")
 
 
@@ -223,7 +275,9 @@ def main(argv=None):
     parser.add_argument('--radii', type=float, nargs='+', default=[0.2, 0.25, 0.3])
     parser.add_argument('--stds', type=float, nargs='+', default=[0.02, 0.05])
     parser.add_argument('--etas', type=float, nargs='+', default=[0.95, 0.99])
-    parser.add_argument('--angles', type=float, nargs='+', default=[0.0, 45.0])
+    passage = parser.add_mutually_exclusive_group()
+    passage.add_argument('--angles', type=float, nargs='+', default=[0.0, 45.0])
+    passage.add_argument('--corridor', action='store_true')
     parser.add_argument('--seeds', type=int, default=10)
     parser.add_argument('--json', type=pathlib.Path, default=None)
     parser.add_argument('--monte-carlo', type=int, default=None, metavar='N')
@@ -237,15 +291,14 @@ def main(argv=None):
         return 2
     if options.monte_carlo is not None:
         return 0 if monte_carlo(options.monte_carlo, options.samples) else 1
-    print('| r [m] | sigma_p [m] | door [m] | eta | angle [deg] | through | contacts '
-          '| least clearance [m] | median time through [s] |')
-    print('|---|---|---|---|---|---|---|---|---|')
+    print(_header(options.corridor))
+    angles = [None] if options.corridor else options.angles
     rows = []
     with tempfile.TemporaryDirectory() as folder:
         for radius in options.radii:
             for sigma in options.stds:
                 for eta in options.etas:
-                    for angle in options.angles:
+                    for angle in angles:
                         rows.append(run_case(folder, radius, sigma, eta, angle,
                                              range(1, options.seeds + 1)))
                         print(_row(rows[-1]), flush=True)
