@@ -22,6 +22,7 @@ import numpy as np
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.clock import Clock, ClockType
 from rclpy.exceptions import InvalidParameterTypeException, InvalidParameterValueException
+from rclpy.impl.implementation_singleton import rclpy_implementation
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 
@@ -38,6 +39,7 @@ from prvo_msgs_util import (
     CommandsAfterAnnouncements,
     MessageFault,
     QosWatch,
+    SerializedPathReader,
     ThrottledWarnings,
     declare_parameters,
     filtered_twist,
@@ -45,7 +47,6 @@ from prvo_msgs_util import (
     make_point_stamped,
     occupancy_grid_to_parts,
     parameter_descriptor,
-    path_to_waypoints,
     pose_stamped_to_goal,
     quiet_after_shutdown,
     quiet_publisher_events,
@@ -80,6 +81,7 @@ from prvo_planner.parameters import (
 from prvo_planner.preferred import GOAL, PATH, VELOCITY, UpstreamCommand
 from prvo_planner.reports import PlanReporter, command_message
 
+RCLError = rclpy_implementation.RCLError
 _WARN_PERIOD_SECONDS = 2.0
 _ODOMETRY_TYPE = 'nav_msgs/msg/Odometry'
 _TWIST_TYPES = {Twist: 'geometry_msgs/msg/Twist', TwistStamped: 'geometry_msgs/msg/TwistStamped'}
@@ -195,12 +197,44 @@ class PlannerNode(Node):
             self._lookahead_publisher = self.create_publisher(
                 PointStamped, LOOKAHEAD_POINT, CMD_VEL_QOS,
                 event_callbacks=quiet_publisher_events())
-            return [self.create_subscription(Path, self._values['path_topic'], self._on_path,
-                                             GOAL_QOS, event_callbacks=quiet()),
+            # Serialized (raw): a path's length is read before its poses, and the same path
+            # again is one comparison of bytes (`SerializedPathReader`).
+            self._path_reader = SerializedPathReader(self._values['frame_id'])
+            return [self._subscribe_parameter_topic('path_topic', Path, self._on_path, GOAL_QOS,
+                                                    raw=True),
                     self._lookahead_publisher]
         return [self.create_subscription(
             self._twist_type, self._values['cmd_vel_in_topic'], self._on_upstream, CMD_VEL_QOS,
             event_callbacks=quiet())]
+
+    def _subscribe_parameter_topic(self, parameter, msg_type, callback, qos, raw=False):
+        """Subscribe to the topic PARAMETER names; return the subscription.
+
+        A topic the graph knows only with other types (the planner's own odometry, say) raises
+        ParameterError, logged: rcl cannot subscribe with another type to a topic of the
+        process's own, and fails with an 'invalid allocator' error.
+        """
+        topic = self._values[parameter]
+        name = self._resolved(topic)
+        wanted = f'{msg_type.__module__.split(".")[0]}/msg/{msg_type.__name__}'
+        known = next((types for graph_name, types in self.get_topic_names_and_types()
+                      if graph_name == name), [])
+        if known and wanted not in known:
+            named = name if topic == name else f'{topic!r} is {name}, which'
+            self._refuse(parameter, f'{named} carries {", ".join(known)}, not {wanted}')
+        try:
+            return self.create_subscription(msg_type, topic, callback, qos, raw=raw,
+                                            event_callbacks=quiet_subscription_events())
+        except RCLError as error:
+            # Whatever else rcl refuses (a conflict the graph did not list): one line, exit 2.
+            self._refuse(parameter, f'cannot subscribe to {name} as {wanted}: '
+                         f'{str(error).split(", at ")[0]}')
+
+    def _refuse(self, parameter, reason):
+        """Log PARAMETER's REASON as the fatal 'invalid parameter: ...'; raise ParameterError."""
+        error = ParameterError(parameter, reason)
+        self.get_logger().fatal(f'invalid parameter: {error}')
+        raise error
 
     def _resolved(self, topic):
         """Return TOPIC as the graph names it (resolved in the node's namespace)."""
@@ -358,13 +392,17 @@ class PlannerNode(Node):
         self.get_logger().info(f'new goal {goal.tolist()}')
 
     @quiet_after_shutdown
-    def _on_path(self, msg):
+    def _on_path(self, data):
         topic = self._resolved(self._values['path_topic'])
         try:
-            waypoints = path_to_waypoints(msg, expected_frame=self._values['frame_id'])
+            waypoints = self._path_reader.read(data)
+            if waypoints is None:
+                # The path in force, sent again.
+                return
             self._agent.set_path(waypoints)
         except ValueError as fault:
-            self._warnings.warn((topic, 'path'), f'ignoring path on {topic}: {fault}')
+            self._warnings.warn((topic, 'path'), f'ignoring path on {topic} (keeping the path '
+                                f'in force): {fault}')
             return
         self._announce()
         self.get_logger().info(f'following a path of {len(waypoints)} poses' if len(waypoints)
@@ -443,9 +481,8 @@ class PlannerNode(Node):
         self._published_route = None
         self._plan_publisher = None if self._source != GOAL else self.create_publisher(
             Path, PLAN, PLAN_QOS, event_callbacks=quiet_publisher_events())
-        subscription = self.create_subscription(
-            OccupancyGrid, self._map_topic, self._on_map, MAP_QOS,
-            event_callbacks=quiet_subscription_events())
+        subscription = self._subscribe_parameter_topic('map_topic', OccupancyGrid, self._on_map,
+                                                       MAP_QOS)
         return [subscription] + ([] if self._plan_publisher is None else [self._plan_publisher])
 
     @quiet_after_shutdown
