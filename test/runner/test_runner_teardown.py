@@ -143,7 +143,7 @@ def test_a_24_robot_lockstep_ros_run_ends_with_its_results(tmp_path, runners):
 
 
 def test_the_inprocess_time_limit_holds_within_a_step_that_never_ends(tmp_path, monkeypatch):
-    def hang(_team):
+    def hang(_team, advance=True):
         time.sleep(3600)
 
     monkeypatch.setattr(inprocess.InProcessTeam, 'do_step', hang)
