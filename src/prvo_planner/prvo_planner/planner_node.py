@@ -39,7 +39,6 @@ from prvo_msgs_util import (
     CommandsAfterAnnouncements,
     MessageFault,
     QosWatch,
-    SerializedPathReader,
     ThrottledWarnings,
     declare_parameters,
     filtered_twist,
@@ -47,6 +46,7 @@ from prvo_msgs_util import (
     make_point_stamped,
     occupancy_grid_to_parts,
     parameter_descriptor,
+    path_to_waypoints,
     pose_stamped_to_goal,
     quiet_after_shutdown,
     quiet_publisher_events,
@@ -197,17 +197,13 @@ class PlannerNode(Node):
             self._lookahead_publisher = self.create_publisher(
                 PointStamped, LOOKAHEAD_POINT, CMD_VEL_QOS,
                 event_callbacks=quiet_publisher_events())
-            # Serialized (raw): a path's length is read before its poses, and the same path
-            # again is one comparison of bytes (`SerializedPathReader`).
-            self._path_reader = SerializedPathReader(self._values['frame_id'])
-            return [self._subscribe_parameter_topic('path_topic', Path, self._on_path, GOAL_QOS,
-                                                    raw=True),
+            return [self._subscribe_parameter_topic('path_topic', Path, self._on_path, GOAL_QOS),
                     self._lookahead_publisher]
         return [self.create_subscription(
             self._twist_type, self._values['cmd_vel_in_topic'], self._on_upstream, CMD_VEL_QOS,
             event_callbacks=quiet())]
 
-    def _subscribe_parameter_topic(self, parameter, msg_type, callback, qos, raw=False):
+    def _subscribe_parameter_topic(self, parameter, msg_type, callback, qos):
         """Subscribe to the topic PARAMETER names; return the subscription.
 
         A topic the graph knows only with other types (the planner's own odometry, say) raises
@@ -223,7 +219,7 @@ class PlannerNode(Node):
             named = name if topic == name else f'{topic!r} is {name}, which'
             self._refuse(parameter, f'{named} carries {", ".join(known)}, not {wanted}')
         try:
-            return self.create_subscription(msg_type, topic, callback, qos, raw=raw,
+            return self.create_subscription(msg_type, topic, callback, qos,
                                             event_callbacks=quiet_subscription_events())
         except RCLError as error:
             # Whatever else rcl refuses (a conflict the graph did not list): one line, exit 2.
@@ -392,17 +388,13 @@ class PlannerNode(Node):
         self.get_logger().info(f'new goal {goal.tolist()}')
 
     @quiet_after_shutdown
-    def _on_path(self, data):
+    def _on_path(self, msg):
         topic = self._resolved(self._values['path_topic'])
         try:
-            waypoints = self._path_reader.read(data)
-            if waypoints is None:
-                # The path in force, sent again.
-                return
+            waypoints = path_to_waypoints(msg, expected_frame=self._values['frame_id'])
             self._agent.set_path(waypoints)
         except ValueError as fault:
-            self._warnings.warn((topic, 'path'), f'ignoring path on {topic} (keeping the path '
-                                f'in force): {fault}')
+            self._warnings.warn((topic, 'path'), f'ignoring path on {topic}: {fault}')
             return
         self._announce()
         self.get_logger().info(f'following a path of {len(waypoints)} poses' if len(waypoints)
