@@ -22,7 +22,6 @@ import numpy as np
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.clock import Clock, ClockType
 from rclpy.exceptions import InvalidParameterTypeException, InvalidParameterValueException
-from rclpy.impl.implementation_singleton import rclpy_implementation
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 
@@ -81,7 +80,6 @@ from prvo_planner.parameters import (
 from prvo_planner.preferred import GOAL, PATH, VELOCITY, UpstreamCommand
 from prvo_planner.reports import PlanReporter, command_message
 
-RCLError = rclpy_implementation.RCLError
 _WARN_PERIOD_SECONDS = 2.0
 _ODOMETRY_TYPE = 'nav_msgs/msg/Odometry'
 _TWIST_TYPES = {Twist: 'geometry_msgs/msg/Twist', TwistStamped: 'geometry_msgs/msg/TwistStamped'}
@@ -197,40 +195,12 @@ class PlannerNode(Node):
             self._lookahead_publisher = self.create_publisher(
                 PointStamped, LOOKAHEAD_POINT, CMD_VEL_QOS,
                 event_callbacks=quiet_publisher_events())
-            return [self._subscribe_parameter_topic('path_topic', Path, self._on_path, GOAL_QOS),
+            return [self.create_subscription(Path, self._values['path_topic'], self._on_path,
+                                             GOAL_QOS, event_callbacks=quiet()),
                     self._lookahead_publisher]
         return [self.create_subscription(
             self._twist_type, self._values['cmd_vel_in_topic'], self._on_upstream, CMD_VEL_QOS,
             event_callbacks=quiet())]
-
-    def _subscribe_parameter_topic(self, parameter, msg_type, callback, qos):
-        """Subscribe to the topic PARAMETER names; return the subscription.
-
-        A topic the graph knows only with other types (the planner's own odometry, say) raises
-        ParameterError, logged: rcl cannot subscribe with another type to a topic of the
-        process's own, and fails with an 'invalid allocator' error.
-        """
-        topic = self._values[parameter]
-        name = self._resolved(topic)
-        wanted = f'{msg_type.__module__.split(".")[0]}/msg/{msg_type.__name__}'
-        known = next((types for graph_name, types in self.get_topic_names_and_types()
-                      if graph_name == name), [])
-        if known and wanted not in known:
-            named = name if topic == name else f'{topic!r} is {name}, which'
-            self._refuse(parameter, f'{named} carries {", ".join(known)}, not {wanted}')
-        try:
-            return self.create_subscription(msg_type, topic, callback, qos,
-                                            event_callbacks=quiet_subscription_events())
-        except RCLError as error:
-            # Whatever else rcl refuses (a conflict the graph did not list): one line, exit 2.
-            self._refuse(parameter, f'cannot subscribe to {name} as {wanted}: '
-                         f'{str(error).split(", at ")[0]}')
-
-    def _refuse(self, parameter, reason):
-        """Log PARAMETER's REASON as the fatal 'invalid parameter: ...'; raise ParameterError."""
-        error = ParameterError(parameter, reason)
-        self.get_logger().fatal(f'invalid parameter: {error}')
-        raise error
 
     def _resolved(self, topic):
         """Return TOPIC as the graph names it (resolved in the node's namespace)."""
@@ -473,8 +443,9 @@ class PlannerNode(Node):
         self._published_route = None
         self._plan_publisher = None if self._source != GOAL else self.create_publisher(
             Path, PLAN, PLAN_QOS, event_callbacks=quiet_publisher_events())
-        subscription = self._subscribe_parameter_topic('map_topic', OccupancyGrid, self._on_map,
-                                                       MAP_QOS)
+        subscription = self.create_subscription(
+            OccupancyGrid, self._map_topic, self._on_map, MAP_QOS,
+            event_callbacks=quiet_subscription_events())
         return [subscription] + ([] if self._plan_publisher is None else [self._plan_publisher])
 
     @quiet_after_shutdown
