@@ -88,6 +88,35 @@ class Observer:
             return [line for line in self.logs if text in line]
 
 
+class MappedPlanner:
+    """robot_0's planner as a process, taking the map; the probe feeds it odometry at START."""
+
+    def __init__(self, children, ros2_executable, probe, observer, *parameters):
+        self.children, self.probe, self.observer = children, probe, observer
+        self.odometry = probe.node.create_publisher(
+            Odometry, robot_topic('robot_0', 'odom'), ODOM_QOS)
+        self.process = children.start('planner', [
+            ros2_executable('prvo_planner', 'planner'), '--ros-args', '-r', '__ns:=/robot_0',
+            '-p', f'goal:=[{GOAL[0]}, {GOAL[1]}]', '-p', "neighbors:=['']", *parameters])
+        self.stamp = 0.0
+        probe.wait_until(lambda: self.alive(lambda: observer.logged('map 80 x 60 cells of 0.1 m')),
+                         30.0, 'the planner taking the map')
+
+    def alive(self, condition):
+        """Return CONDITION(), failing at once with the planner's output if it has exited."""
+        assert self.process.poll() is None, self.children.output(self.process)
+        return condition()
+
+    def command(self):
+        """Send odometry 0.1 s after the last; return the command (2,) that answers it."""
+        self.stamp = stamp = round(self.stamp + 0.1, 6)
+        self.odometry.publish(make_odometry(stamp, START, [0.0, 0.0], COVARIANCE, COVARIANCE,
+                                            child_frame_id='robot_0/base_link'))
+        self.probe.wait_until(lambda: self.alive(lambda: stamp in self.observer.commands), 10.0,
+                              f'the command for {stamp} s')
+        return self.observer.commands[stamp]
+
+
 def test_a_latched_map_before_the_planner_gives_a_route_and_bad_maps_are_named(
         children, ros2_executable, probe):
     node = probe.node
@@ -95,29 +124,11 @@ def test_a_latched_map_before_the_planner_gives_a_route_and_bad_maps_are_named(
     # Published once, before the planner exists: only a transient-local subscriber gets it.
     map_publisher.publish(make_occupancy_grid(0.0, walled_room(), 0.1, [0.0, 0.0]))
     observer = Observer(probe)
-    odometry = node.create_publisher(Odometry, robot_topic('robot_0', 'odom'), ODOM_QOS)
     goal_pose = node.create_publisher(
         type(make_pose_stamped(0.0, GOAL)), robot_topic('robot_0', 'goal_pose'), GOAL_QOS)
-    planner = children.start('planner', [
-        ros2_executable('prvo_planner', 'planner'), '--ros-args', '-r', '__ns:=/robot_0',
-        '-p', f'goal:=[{GOAL[0]}, {GOAL[1]}]', '-p', "neighbors:=['']",
-        '-p', 'obstacle_distance:=0.5', '-p', 'status_period:=0.0'])
-
-    def alive(condition):
-        assert planner.poll() is None, children.output(planner)
-        return condition()
-
-    probe.wait_until(lambda: alive(lambda: observer.logged('map 80 x 60 cells of 0.1 m')), 30.0,
-                     'the planner taking the map')
-    stamp = [0.0]
-
-    def command():
-        stamp[0] = round(stamp[0] + 0.1, 6)
-        odometry.publish(make_odometry(stamp[0], START, [0.0, 0.0], COVARIANCE, COVARIANCE,
-                                       child_frame_id='robot_0/base_link'))
-        probe.wait_until(lambda: alive(lambda: stamp[0] in observer.commands), 10.0,
-                         f'the command for {stamp[0]} s')
-        return observer.commands[stamp[0]]
+    planner = MappedPlanner(children, ros2_executable, probe, observer,
+                            '-p', 'obstacle_distance:=0.5', '-p', 'status_period:=0.0')
+    alive, command = planner.alive, planner.command
 
     velocity = command()
     probe.wait_until(lambda: alive(lambda: observer.paths), 10.0, 'a route on /robot_0/plan')
@@ -163,7 +174,7 @@ def test_a_latched_map_before_the_planner_gives_a_route_and_bad_maps_are_named(
     probe.wait_until(lambda: observer.routes[-1] == 'unreachable', 10.0,
                      'diagnostics of an unreachable goal')
     probe.wait_until(lambda: len(observer.paths[-1].poses) == 0, 10.0, 'an empty route')
-    assert children.interrupt(planner) == 0
+    assert children.interrupt(planner.process) == 0
 
 
 @pytest.mark.parametrize('resolution', [1e-4, 1e-9])
@@ -175,26 +186,8 @@ def test_a_map_of_tiny_cells_is_refused_at_once_keeping_the_map_in_force(
     map_publisher = node.create_publisher(OccupancyGrid, '/map', MAP_QOS)
     map_publisher.publish(make_occupancy_grid(0.0, walled_room(), 0.1, [0.0, 0.0]))
     observer = Observer(probe)
-    odometry = node.create_publisher(Odometry, robot_topic('robot_0', 'odom'), ODOM_QOS)
-    planner = children.start('planner', [
-        ros2_executable('prvo_planner', 'planner'), '--ros-args', '-r', '__ns:=/robot_0',
-        '-p', f'goal:=[{GOAL[0]}, {GOAL[1]}]', '-p', "neighbors:=['']"])
-
-    def alive(condition):
-        assert planner.poll() is None, children.output(planner)
-        return condition()
-
-    probe.wait_until(lambda: alive(lambda: observer.logged('map 80 x 60 cells of 0.1 m')), 30.0,
-                     'the planner taking the map')
-    stamp = [0.0]
-
-    def command():
-        stamp[0] = round(stamp[0] + 0.1, 6)
-        odometry.publish(make_odometry(stamp[0], START, [0.0, 0.0], COVARIANCE, COVARIANCE,
-                                       child_frame_id='robot_0/base_link'))
-        probe.wait_until(lambda: alive(lambda: stamp[0] in observer.commands), 10.0,
-                         f'the command for {stamp[0]} s')
-        return observer.commands[stamp[0]]
+    planner = MappedPlanner(children, ros2_executable, probe, observer)
+    alive, command = planner.alive, planner.command
 
     heading = command()
     map_publisher.publish(make_occupancy_grid(0.0, np.zeros((160, 160), dtype=np.int8),
@@ -206,4 +199,4 @@ def test_a_map_of_tiny_cells_is_refused_at_once_keeping_the_map_in_force(
     again = command()
     np.testing.assert_allclose(again / np.linalg.norm(again),
                                heading / np.linalg.norm(heading), atol=0.05)
-    assert children.interrupt(planner) == 0
+    assert children.interrupt(planner.process) == 0

@@ -72,13 +72,19 @@ def test_missing_scenario_file(tmp_path, marker_command, capsys):
     assert_one_line_error(err, 'missing.yaml')
 
 
+def mapped_headon(tmp_path, image, resolution, origin):
+    """Return headon2 with map.yaml of IMAGE (cells of RESOLUTION m, origin (ORIGIN, ORIGIN))."""
+    (tmp_path / 'map.yaml').write_text(f'image: {image}\nresolution: {resolution}\n'
+                                       f'origin: [{origin}, {origin}, 0.0]\n')
+    scenario = tmp_path / 'mapped.yaml'
+    scenario.write_text(open(HEADON).read() + 'map: map.yaml\n')
+    return scenario
+
+
 def test_map_image_declaring_too_many_pixels(tmp_path, marker_command, capsys):
     # A PGM header declaring 60000 x 60000 pixels, and no pixels.
     (tmp_path / 'huge.pgm').write_bytes(b'P5\n60000 60000\n255\n')
-    (tmp_path / 'map.yaml').write_text('image: huge.pgm\nresolution: 0.05\n'
-                                       'origin: [-10.0, -10.0, 0.0]\n')
-    scenario = tmp_path / 'mapped.yaml'
-    scenario.write_text(open(HEADON).read() + 'map: map.yaml\n')
+    scenario = mapped_headon(tmp_path, 'huge.pgm', 0.05, -10.0)
     code, err = run_main([str(scenario), '--out', str(tmp_path / 'out')], marker_command, capsys)
     assert code == 2
     assert_one_line_error(err, 'map.yaml', 'image', 'huge.pgm', 'more than 4e+07 pixels')
@@ -88,10 +94,7 @@ def test_a_map_of_cells_too_small_for_the_planners_is_refused(tmp_path, marker_c
     # 160 x 160 cells of 1e-4 m: every planner would refuse to build a route on it (its reach
     # of 0.6 m is 6,000 cells), and plan as if there were no map.
     Image.fromarray(np.full((160, 160), 255, dtype=np.uint8)).save(tmp_path / 'tiny.pgm')
-    (tmp_path / 'map.yaml').write_text('image: tiny.pgm\nresolution: 0.0001\n'
-                                       'origin: [10.0, 10.0, 0.0]\n')
-    scenario = tmp_path / 'mapped.yaml'
-    scenario.write_text(open(HEADON).read() + 'map: map.yaml\n')
+    scenario = mapped_headon(tmp_path, 'tiny.pgm', 0.0001, 10.0)
     code, err = run_main([str(scenario), '--out', str(tmp_path / 'out')], marker_command, capsys)
     assert code == 2
     assert_one_line_error(err, 'mapped.yaml: map: ', '160 x 160 cells of 0.0001 m',
