@@ -4,15 +4,20 @@ import signal
 import threading
 
 from geometry_msgs.msg import PolygonStamped, TwistStamped, Vector3Stamped
+from nav_msgs.msg import Path
 import numpy as np
 import pytest
+from rclpy.serialization import serialize_message
 
 from prvo_msgs_util import (
     ANNOUNCEMENT_QOS,
     CMD_VEL_QOS,
+    GOAL_QOS,
+    MAX_PATH_POSES,
     ODOM_QOS,
     footprint_message,
     make_odometry,
+    make_path,
     robot_topic,
     share_message,
     stamp_to_seconds,
@@ -195,6 +200,32 @@ def test_a_duplicate_odometry_stamp_is_answered_again_once(fed_planner):
     planner.wait_answer(1.1)
     # The answers come in order: all copies have been handled by now.
     assert planner.answered(1.0) == 2
+
+
+def test_a_path_beyond_the_bound_is_ignored_keeping_the_path_in_force(fed_planner, children,
+                                                                      probe):
+    planner = fed_planner(preferred_source='path')
+    publisher = probe.node.create_publisher(Path, robot_topic('robot_0', 'plan'), GOAL_QOS)
+    probe.wait_until(lambda: publisher.get_subscription_count() > 0, timeout=60.0,
+                     what='the planner subscribing its path')
+
+    def logged(text):
+        return text in children.output(planner.process) or planner.process.poll() is not None
+
+    publisher.publish(make_path(0.0, [[0.0, 0.0], [5.0, 0.0]]))
+    probe.wait_until(lambda: logged('following a path of 2 poses'), timeout=30.0,
+                     what='the path followed')
+    # Deserialized, 100,000 poses took 5 s of the control loop's thread, each time sent.
+    count = 10 * MAX_PATH_POSES
+    long_path = serialize_message(make_path(0.0, np.column_stack(
+        [np.linspace(0.0, 5.0, count), np.zeros(count)])))
+    publisher.publish(long_path)
+    refusal = (f'ignoring path on /robot_0/plan (keeping the path in force): the path has '
+               f'{count} poses, more than {MAX_PATH_POSES}')
+    probe.wait_until(lambda: logged(refusal), timeout=30.0, what='the long path refused')
+    planner.send_step(1.0)
+    planner.wait_answer(1.0)
+    assert f'following a path of {count}' not in children.output(planner.process)
 
 
 @pytest.mark.parametrize('moment', ['warm-up', 'planning'])

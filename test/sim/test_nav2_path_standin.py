@@ -13,7 +13,7 @@ import pytest
 from prvo_planner.agent import AgentSettings, PlannerAgent
 from prvo_planner.core import PlannerConfig
 from prvo_sim.engine import InProcessTeam
-from prvo_sim.planned_path import PlannedPath, path_poses
+from prvo_sim.planned_path import PlannedPath, path_poses, pose_count
 from prvo_sim.runner.session import planner_values
 from prvo_sim.scenario import ScenarioError, find_scenario, load_scenario
 
@@ -67,6 +67,15 @@ def test_poses_lie_on_the_route_at_most_spacing_apart_through_every_waypoint():
     np.testing.assert_array_equal(path_poses([[1.0, 2.0]]), [[1.0, 2.0]])
 
 
+def test_the_pose_count_is_that_of_the_poses():
+    rng = np.random.default_rng(8)
+    for count in (1, 2, 5, 12):
+        waypoints = rng.uniform(-3.0, 3.0, (count, 2))
+        # A repeated waypoint adds no pose.
+        waypoints = np.insert(waypoints, count // 2, waypoints[count // 2], axis=0)
+        assert pose_count(waypoints) == len(path_poses(waypoints))
+
+
 def test_a_route_is_published_again_only_when_it_changes():
     path = PlannedPath(0.5)
     first = path.replan([[0.0, 0.0], [1.0, 0.0]])
@@ -110,6 +119,10 @@ def test_the_same_path_again_keeps_the_progress_and_wait_for_path_waits():
      'unknown key (allowed: waypoints)'),
     ('    path: {waypoints: [[1.0, .nan]]}\n', 'robots[0].path.waypoints[0][1]',
      'expected a finite number, got nan'),
+    # 600 m at 5 cm a pose: the planner would ignore it (ROS) or follow it (in process).
+    ('    path: {waypoints: [[300.0, 0.0], [-300.0, 0.0]]}\n', 'robots[0].path.waypoints',
+     "the path of robot 'robot_0' is 12001 poses (one every 0.05 m), more than the 10000 a "
+     'planner takes'),
 ])
 def test_a_bad_path_block_is_named_in_one_line(tmp_path, block, key, reason):
     path = tmp_path / 'paths.yaml'

@@ -38,6 +38,7 @@ from prvo_msgs_util import (
     CommandsAfterAnnouncements,
     MessageFault,
     QosWatch,
+    SerializedPathReader,
     ThrottledWarnings,
     declare_parameters,
     filtered_twist,
@@ -45,7 +46,6 @@ from prvo_msgs_util import (
     make_point_stamped,
     occupancy_grid_to_parts,
     parameter_descriptor,
-    path_to_waypoints,
     pose_stamped_to_goal,
     quiet_after_shutdown,
     quiet_publisher_events,
@@ -195,8 +195,11 @@ class PlannerNode(Node):
             self._lookahead_publisher = self.create_publisher(
                 PointStamped, LOOKAHEAD_POINT, CMD_VEL_QOS,
                 event_callbacks=quiet_publisher_events())
+            # Serialized (raw): a path's length is read before its poses, and the same path
+            # again is one comparison of bytes (`SerializedPathReader`).
+            self._path_reader = SerializedPathReader(self._values['frame_id'])
             return [self.create_subscription(Path, self._values['path_topic'], self._on_path,
-                                             GOAL_QOS, event_callbacks=quiet()),
+                                             GOAL_QOS, raw=True, event_callbacks=quiet()),
                     self._lookahead_publisher]
         return [self.create_subscription(
             self._twist_type, self._values['cmd_vel_in_topic'], self._on_upstream, CMD_VEL_QOS,
@@ -358,13 +361,17 @@ class PlannerNode(Node):
         self.get_logger().info(f'new goal {goal.tolist()}')
 
     @quiet_after_shutdown
-    def _on_path(self, msg):
+    def _on_path(self, data):
         topic = self._resolved(self._values['path_topic'])
         try:
-            waypoints = path_to_waypoints(msg, expected_frame=self._values['frame_id'])
+            waypoints = self._path_reader.read(data)
+            if waypoints is None:
+                # The path in force, sent again.
+                return
             self._agent.set_path(waypoints)
         except ValueError as fault:
-            self._warnings.warn((topic, 'path'), f'ignoring path on {topic}: {fault}')
+            self._warnings.warn((topic, 'path'), f'ignoring path on {topic} (keeping the path '
+                                f'in force): {fault}')
             return
         self._announce()
         self.get_logger().info(f'following a path of {len(waypoints)} poses' if len(waypoints)

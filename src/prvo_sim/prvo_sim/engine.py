@@ -27,9 +27,9 @@ from prvo_msgs_util import (
     make_occupancy_grid,
     make_path,
     occupancy_grid_to_parts,
-    path_to_waypoints,
     radius_of_footprint,
     serialized_odometry_to_measurement,
+    serialized_path_to_waypoints,
     share_of,
     world_to_body,
 )
@@ -154,9 +154,9 @@ class InProcessTeam:
         # them before its first plan (wait_for_path).
         for index, robot in enumerate(scenario.robots):
             if robot.followed_path is not None:
-                received = _received(make_path(0.0, path_of(robot).poses, WORLD_FRAME))
-                self.agents[index].set_path(path_to_waypoints(received,
-                                                              expected_frame=WORLD_FRAME))
+                sent = serialize_message(make_path(0.0, path_of(robot).poses, WORLD_FRAME))
+                self.agents[index].set_path(serialized_path_to_waypoints(
+                    sent, expected_frame=WORLD_FRAME))
         # The Nav2 stand-ins of the robots driven upstream (their planners filter), by index.
         self._upstreams = {index: upstream_of(robot, scenario)
                            for index, robot in enumerate(scenario.robots)

@@ -44,6 +44,12 @@ def path_poses(waypoints, spacing=SPACING):
     return np.concatenate(poses)
 
 
+def pose_count(waypoints, spacing=SPACING):
+    """Return how many poses `path_poses(WAYPOINTS, SPACING)` has, without making them."""
+    lengths = np.hypot(*np.diff(np.asarray(waypoints, dtype=float), axis=0).T)
+    return 1 + int(np.ceil(lengths[lengths > 0.0] / spacing).sum())
+
+
 class PlannedPath:
     """The path one robot is given: the poses of its route, published when they change."""
 

@@ -25,6 +25,7 @@ from prvo_msgs_util import (
     GOAL_POSE,
     GROUND_TRUTH,
     MARKERS,
+    MAX_PATH_POSES,
     ODOM,
     validate_robot_name,
 )
@@ -46,6 +47,7 @@ from prvo_sim.map_files import (
     check_regular_file,
     read_image,
 )
+from prvo_sim.planned_path import SPACING, pose_count
 from prvo_sim.static_world import StaticWorld, polygon_crossing
 
 _SCENARIO_NAME = re.compile(r'[A-Za-z0-9_-]+')
@@ -598,6 +600,12 @@ def _robot(check, entry, key, file_noise, file_planner):
             check.fail(f'{key}.path', f'robot {name!r} follows path.waypoints: it has no {other}')
         followed = _scripted_path(check, entry['path'], f'{key}.path', name, max_speed,
                                   _PATH_KEYS)
+        poses = pose_count(followed.waypoints)
+        if poses > MAX_PATH_POSES:
+            # A planner ignores a longer path.
+            check.fail(f'{key}.path.waypoints', f'the path of robot {name!r} is {poses} poses '
+                       f'(one every {SPACING:g} m), more than the {MAX_PATH_POSES} a planner '
+                       'takes')
     waypoints = next((block.waypoints for block in (path, upstream, followed)
                       if block is not None), None)
     goal = waypoints[-1] if waypoints is not None else check.point(entry['goal'], f'{key}.goal')
