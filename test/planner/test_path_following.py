@@ -170,11 +170,13 @@ def path_node(ros_domain):
 
 
 def test_node_follows_a_path_message_and_publishes_the_carrot(path_node):
+    from rclpy.serialization import serialize_message
+
     from prvo_msgs_util import make_path, serialize_odometry
 
     node, carrots = path_node
     assert node.count_subscribers('/robot_0/goal_pose') == 0
-    node._on_path(make_path(0.0, L_ROUTE))
+    node._on_path(serialize_message(make_path(0.0, L_ROUTE)))
     np.testing.assert_array_equal(node._agent.goal, L_ROUTE[-1])
     node._on_own_odometry(serialize_odometry(0.1, [3.5, 0.0], [0.0, 0.0], 1e-4 * np.eye(2),
                                              1e-4 * np.eye(2)))
@@ -182,7 +184,7 @@ def test_node_follows_a_path_message_and_publishes_the_carrot(path_node):
     np.testing.assert_allclose([carrots[0].point.x, carrots[0].point.y],
                                [4.0, np.sqrt(0.75)], atol=1e-9)
     # A path in another frame is refused; an empty one cancels.
-    node._on_path(make_path(0.0, L_ROUTE, frame_id='odom'))
+    node._on_path(serialize_message(make_path(0.0, L_ROUTE, frame_id='odom')))
     np.testing.assert_array_equal(node._agent.goal, L_ROUTE[-1])
-    node._on_path(make_path(0.0, np.zeros((0, 2))))
+    node._on_path(serialize_message(make_path(0.0, np.zeros((0, 2)))))
     assert node._agent.goal is None
