@@ -225,6 +225,53 @@ def test_node_passes_random_twists_bit_for_bit(filter_node):
     assert all(isinstance(message, TwistStamped if stamped else Twist) for message in published)
 
 
+def test_node_answers_every_input_arriving_faster_than_its_state(filter_node):
+    """Inputs at 20 Hz, states at 10 Hz: each input has its own output, in order.
+
+    A stamped input later than the newest state waits for the state of its stamp; when the next
+    input comes first, the waiting one is answered from the state in hand, not dropped.
+    """
+    from geometry_msgs.msg import Twist, TwistStamped
+
+    from prvo_msgs_util import seconds_to_stamp, serialize_odometry
+
+    node, published, stamped = filter_node
+    sent = []
+    for period in range(20):
+        node._on_own_odometry(serialize_odometry(
+            0.1 * period, [0.04 * period, 0.0], [0.4, 0.0], 1e-4 * np.eye(2), 1e-4 * np.eye(2)))
+        for offset in (0.02, 0.07):
+            twist = Twist()
+            twist.linear.x = 0.4 + 0.001 * len(sent)
+            message = twist
+            if stamped:
+                message = TwistStamped(twist=twist)
+                message.header.stamp = seconds_to_stamp(0.1 * period + offset)
+            sent.append(_fields(message))
+            node._on_upstream(message)
+    # The last input is answered with the next state.
+    node._on_own_odometry(serialize_odometry(2.0, [0.8, 0.0], [0.4, 0.0], 1e-4 * np.eye(2),
+                                             1e-4 * np.eye(2)))
+    assert [_fields(message) for message in published] == sent
+
+
+def test_a_waiting_command_is_answered_before_another_step_replaces_it():
+    agent = _filter_agent()
+    agent.receive_upstream(UpstreamCommand((0.4, 0.0), 0.0, stamp=0.1), 0.0)
+    # Before the first own state nothing can answer it.
+    assert not agent.upstream_superseded(0.2, 0.0)
+    agent.receive_own(_Measurement(0.0, np.zeros(2), np.zeros(2), COVARIANCE), 0.0)
+    assert agent.upstream_answer(0.0) == 'plan'
+    agent.plan()
+    agent.receive_upstream(UpstreamCommand((0.4, 0.0), 0.0, stamp=0.12), 0.05)
+    assert agent.upstream_answer(0.05) == 'wait'
+    # The same step sent again replaces it; another step or an unstamped command does not.
+    assert not agent.upstream_superseded(0.12, 0.06)
+    assert agent.upstream_superseded(0.17, 0.06) and agent.upstream_superseded(None, 0.06)
+    # Nor while the own state is stale (the new command is answered by zero instead).
+    assert not agent.upstream_superseded(0.17, 0.06 + agent.settings.state_timeout)
+
+
 def test_node_names_the_topic_of_a_type_mismatch(filter_node, probe):
     import time
 

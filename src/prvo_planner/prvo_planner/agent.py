@@ -754,6 +754,20 @@ class PlannerAgent:
             self.repeat_last_stamp()
         return 'plan' if self.ready(now) else 'wait'
 
+    def upstream_superseded(self, stamp, now):
+        """Whether the command waiting for its answer is to be answered before a newer one.
+
+        STAMP is the newer command's (None: unstamped), NOW its arrival. A stamped command waits
+        for the own state of its stamp (or for the neighbours); when a command of another step
+        comes first, the waiting one is answered from the states in hand (`repeat_last_stamp`,
+        then `plan`), so that every command gets its own answer. The same step sent again
+        replaces it (one step, one answer). Not before the first own state nor while it is stale.
+        """
+        waiting = self._upstream
+        return (waiting is not None and self._own_track is not None
+                and not self.own_state_stale(now)
+                and (stamp is None or waiting.stamp is None or stamp != waiting.stamp))
+
     @property
     def upstream_waiting(self):
         """Whether an upstream command waits for its answer."""

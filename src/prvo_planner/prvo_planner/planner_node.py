@@ -390,9 +390,12 @@ class PlannerNode(Node):
             return
         now = time.monotonic()
         agent = self._agent
-        agent.receive_upstream(UpstreamCommand(
-            linear, angular, msg,
-            stamp_to_seconds(msg.header.stamp) if self._stamped else None), now)
+        stamp = stamp_to_seconds(msg.header.stamp) if self._stamped else None
+        if agent.upstream_superseded(stamp, now):
+            # One output per input: the one still waiting is answered before it is replaced.
+            agent.repeat_last_stamp()
+            self._plan()
+        agent.receive_upstream(UpstreamCommand(linear, angular, msg, stamp), now)
         answer = agent.upstream_answer(now)
         if answer == 'stale':
             self._warnings.warn('stale', f'no state on {self._own_odom_topic} within '
