@@ -363,3 +363,52 @@ def test_approaches_to_doors_keep_clear_of_each_jamb_with_the_stated_probability
     # Clear of the jambs' move-away zone, a feasible plan is certified at eta.
     if result.feasible and not wall_model(door, ego, config).close.any():
         assert stated >= config.eta - 1e-9
+
+
+def _frame_door(clear_width, depth=0.1, length=4.0):
+    """Return a door's two jambs as a map's cells give them: each the four edges of a block."""
+    half, thick = 0.5 * clear_width, 0.5 * depth
+    segments = []
+    for sign in (-1.0, 1.0):
+        corners = [[-thick, sign * half], [thick, sign * half], [thick, sign * length],
+                   [-thick, sign * length]]
+        segments += [[corners[i], corners[(i + 1) % 4]] for i in range(4)]
+    return obstacles(segments)
+
+
+@pytest.mark.parametrize('distance', [2.0, 1.5, 1.0, 0.6, 0.3])
+def test_a_robot_heads_straight_through_a_door_it_fits_at_full_speed(distance):
+    """Three position stds to spare on each side: no slowing down on the way in (issue 37).
+
+    The jambs' end discs are certified by their tangents parallel to the motion, which the
+    straight path keeps its distance to; before, only tangents fixed by the beliefs were
+    tried, all slanting towards the path, and the speed fell with the distance to the door.
+    The executed motion (own sampler) keeps clear of every jamb segment with the probability
+    stated, which is at least eta.
+    """
+    sigma = 0.05
+    door = _frame_door(2.0 * EGO_RADIUS + 6.0 * sigma)
+    ego = belief([-distance, 0.0], [1.0, 0.0], sigma, sigma)
+    config = PlannerConfig(eta=0.95, actuation_cov=sigma ** 2 * np.eye(2),
+                           obstacle_horizon=HORIZON, certificate='certified', seed=1)
+    result = plan_velocity(ego, [], np.array([1.0, 0.0]), config, obstacles=door)
+    np.testing.assert_allclose(result.velocity, [config.max_speed, 0.0], atol=1e-9)
+    assert result.obstacle_probability >= config.eta
+    paths = swept_paths(np.random.default_rng(7), ego, result.velocity, config.actuation_cov)
+    for start, end in door.segments:
+        clear = avoided(paths, (start, end), EGO_RADIUS).mean()
+        assert clear >= result.obstacle_probability - 4.0 * math.sqrt(0.05 * 0.95 / SAMPLES)
+
+
+def test_a_robot_passes_a_pillar_beside_its_way_at_full_speed():
+    """A pillar 3 position stds clear of the straight path: certified by the parallel tangent."""
+    sigma = 0.05
+    pillar = obstacles(centres=[[0.0, EGO_RADIUS + 0.2 + 3.0 * sigma]], radii=[0.2])
+    ego = belief([-1.0, 0.0], [1.0, 0.0], sigma, sigma)
+    config = PlannerConfig(eta=0.95, actuation_cov=sigma ** 2 * np.eye(2),
+                           obstacle_horizon=HORIZON, certificate='certified', seed=1)
+    result = plan_velocity(ego, [], np.array([1.0, 0.0]), config, obstacles=pillar)
+    np.testing.assert_allclose(result.velocity, [config.max_speed, 0.0], atol=1e-9)
+    paths = swept_paths(np.random.default_rng(8), ego, result.velocity, config.actuation_cov)
+    clear = avoided(paths, pillar.disc_centres[0], EGO_RADIUS + 0.2).mean()
+    assert clear >= result.obstacle_probability >= config.eta

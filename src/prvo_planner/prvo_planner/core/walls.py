@@ -25,7 +25,7 @@ the first, so it lies between the first term's thresholds at half the risk and a
 regula falsi from there). A condition whose bound standing still exceeds its risk accepts
 nothing. Several conditions certify a piece when
 any one of them holds (each with the piece's whole risk); their normals depend on the beliefs
-only, never on the command.
+and, for a disc's tangent parallel to a ray (``parallel_failures``), on the ray's direction.
 
 Per wall (``delta = 1 - eta``) a velocity is accepted if either
 
@@ -37,7 +37,8 @@ Per wall (``delta = 1 - eta``) a velocity is accepted if either
   ``xi >= L`` holds over the horizon; an end disc (a static obstacle: no velocity,
   no covariance of its own) when one of its tangent half-planes holds, the normals a fan of
   ``FAN`` directions within ``arccos(R / d)`` of the direction from its centre to ``mu`` (``d``
-  the distance), which are the tangents that can hold ``mu``.
+  the distance), which are the tangents that can hold ``mu``, and on each ray the tangent
+  parallel to it (``parallel_failures``), which a straight path through a door keeps to.
 
 The risk of the decomposition is split by a rule fixed in advance: an end disc the ego cannot
 reach except with probability at most ``REACH_SHARE delta`` (its a-priori bound) is charged
@@ -51,7 +52,8 @@ below ``exp(-r^2 / (2 tau^2 lambda))`` for ``tau >= 4 T`` wherever the bound dec
 (``r >= 4 tau sigma_a``); splitting ``r = dist(mu, shape) - R - tau v_max`` in
 proportion to the two deviations gives ``2 exp(-r^2 / (2 (sigma_p + tau sigma_a)^2))``. A
 wall or disc out of reach in this sense constrains nothing and is reported with its a-priori
-bound. A disc obstacle is certified by its fan of tangents at risk ``delta``.
+bound. A disc obstacle is certified by its fan of tangents, or the tangent parallel to the
+ray, at risk ``delta``.
 
 Close to a shape (the mean within its grown radius, or the support line's bound standing still
 at least ``delta``, the fan's middle normal's for a disc) nothing certifies the horizon: only
@@ -348,6 +350,8 @@ class WallModel:
         ``Phi^-1(eta) sqrt(n' S_a n)`` (n + q,).
     horizon, max_speed : float
         ``tau`` and ``v_max``.
+    position_cov, walk_cov : numpy.ndarray
+        ``S_p`` and ``T S_a`` as planned with, shape (2, 2): the parallel tangents' spreads.
 
     """
 
@@ -367,6 +371,8 @@ class WallModel:
     away_thresholds: np.ndarray
     horizon: float
     max_speed: float
+    position_cov: np.ndarray
+    walk_cov: np.ndarray
 
 
 def _planning_covariances(ego, config):
@@ -479,7 +485,28 @@ def wall_model(obstacles, ego, config):
         away_normals=away_normals,
         away_thresholds=ndtri(eta) * np.sqrt(np.maximum(
             _quadratic_form(away_normals, actuation_cov), 0.0)),
-        horizon=horizon, max_speed=max_speed)
+        horizon=horizon, max_speed=max_speed, position_cov=position_cov,
+        walk_cov=config.control_period * actuation_cov)
+
+
+def parallel_failures(model, centres, radius, directions):
+    """
+    Failure bounds of the discs' tangents parallel to each ray, shape (K, M).
+
+    Moving along ``e`` (a ray's direction), the tangent to a disc whose normal is across ``e``
+    (on the side of ``mu``) is the one the motion keeps its distance to: the drift towards it
+    is zero at every speed, so on the ray it holds at every ``t`` or at none, with
+    ``crossing_bounds`` of its margin and no approach. A door's jamb, passed straight through,
+    is certified by it where the fan's tangents, fixed by the beliefs, slant towards the path
+    and limit the speed. CENTRES (K, 2) and RADIUS (K,) grown; DIRECTIONS (M, 2) unit.
+    """
+    across = np.stack([-directions[:, 1], directions[:, 0]], axis=1)
+    side = (model.mean_position - centres) @ across.T
+    margin = np.abs(side) - radius[:, None]
+    std0 = np.sqrt(np.maximum(_quadratic_form(across, model.position_cov), 0.0))
+    walk = np.maximum(_quadratic_form(across, model.walk_cov), 0.0)
+    return crossing_bounds(margin, std0[None], walk[None], model.conditions.horizon,
+                           np.zeros_like(margin))
 
 
 def rejected_intervals(model, directions):
@@ -511,13 +538,26 @@ def rejected_intervals(model, directions):
     pieces_lower = np.stack([wall_lower[:, _RECTANGLE].min(axis=1),
                              wall_lower[:, _START_FAN].min(axis=1),
                              wall_lower[:, _END_FAN].min(axis=1)], axis=1)
-    # An end out of reach rejects nothing; the decomposition rejects where any piece does.
+    # An end out of reach rejects nothing; one in reach holds on a ray its parallel tangent
+    # certifies (at the end's share of the risk), at any speed.
+    end_risks = model.conditions.risks[:split].reshape(count, _PER_WALL)[
+        :, [_START_FAN.start, _END_FAN.start]]
+    reach = np.nonzero(model.end_in_reach)
+    if reach[0].size:
+        held = parallel_failures(model, model.segments[reach[0], reach[1]],
+                                 model.radius[reach[0]], directions) <= end_risks[reach][:, None]
+        pieces_upper[reach[0], 1 + reach[1]] = np.where(
+            held, np.inf, pieces_upper[reach[0], 1 + reach[1]])
     pieces_upper[:, 1:][~model.end_in_reach] = np.inf
     # A wall rejects where the support line and the decomposition both do.
     wall_upper = np.maximum(wall_upper[:, :1], pieces_upper)
     wall_lower = np.minimum(wall_lower[:, :1], pieces_lower)
     disc_upper = upper[split:].reshape(-1, FAN, rays).max(axis=1)
     disc_lower = lower[split:].reshape(-1, FAN, rays).min(axis=1)
+    if len(model.centres):
+        held = parallel_failures(model, model.centres, model.disc_radius, directions) \
+            <= model.conditions.risks[split::FAN][:, None]
+        disc_upper = np.where(held, np.inf, disc_upper)
     if model.close.any():
         # Close: moving away, v_max (n.e) t >= Phi^-1(eta) sqrt(n' S_a n), and nothing else.
         away_upper, away_lower = half_lines(
@@ -667,9 +707,17 @@ def obstacle_probability(model, velocity):
     count = len(model.segments)
     walls = failure[:count * _PER_WALL].reshape(count, _PER_WALL)
     ends = np.stack([walls[:, _START_FAN].min(axis=1), walls[:, _END_FAN].min(axis=1)], axis=1)
+    discs = failure[count * _PER_WALL:].reshape(-1, FAN).min(axis=1, initial=1.0)
+    speed = math.hypot(velocity[0], velocity[1])
+    if speed > 0.0:
+        # Moving, the tangents parallel to the motion certify too.
+        direction = (np.asarray(velocity, dtype=float) / speed)[None]
+        ends = np.minimum(ends, parallel_failures(
+            model, model.segments.reshape(-1, 2), np.repeat(model.radius, 2),
+            direction).reshape(count, 2))
+        discs = np.minimum(discs, parallel_failures(model, model.centres, model.disc_radius,
+                                                    direction)[:, 0])
     ends = np.where(model.end_in_reach, ends, model.end_bounds)
     decomposition = walls[:, _RECTANGLE].min(axis=1) + ends.sum(axis=1)
-    risks = np.concatenate([np.minimum(walls[:, 0], decomposition),
-                            failure[count * _PER_WALL:].reshape(-1, FAN).min(axis=1, initial=1.0),
-                            model.far_bounds])
+    risks = np.concatenate([np.minimum(walls[:, 0], decomposition), discs, model.far_bounds])
     return float(np.clip(1.0 - np.max(risks, initial=0.0), 0.0, 1.0))
