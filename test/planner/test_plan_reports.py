@@ -2,6 +2,7 @@
 
 import dataclasses
 
+from diagnostic_msgs.msg import DiagnosticStatus
 import numpy as np
 
 from prvo_msgs_util import diagnostic_values
@@ -21,12 +22,18 @@ class Measurement:
     yaw: float = 0.0
 
 
-def head_on(agent, rng, steps, first=0):
-    """Feed AGENT measurements of itself and a neighbour head-on from step FIRST; plan each."""
+# (robot, x at 0 s [m], velocity along x [m/s]): a neighbour comes head-on.
+HEAD_ON = (('self', -2.0, 0.8), ('other', 2.0, -0.8))
+# The robot is held in place (by its wheels, say) with a neighbour standing before it.
+BLOCKED = (('self', -2.0, 0.0), ('other', -1.2, 0.0))
+
+
+def head_on(agent, rng, steps, first=0, robots=HEAD_ON):
+    """Feed AGENT measurements of ROBOTS on y = 0 from step FIRST, 0.1 s apart; plan each."""
     commands = []
     for step in range(first, first + steps):
         stamp = round(0.1 * step, 9)
-        for robot, start, velocity in (('self', -2.0, 0.8), ('other', 2.0, -0.8)):
+        for robot, start, velocity in robots:
             position = np.array([start + velocity * stamp, 0.0]) + rng.normal(0.0, 0.02, 2)
             measurement = Measurement(stamp, position, np.array([velocity, 0.0]),
                                       4e-4 * np.eye(4))
@@ -78,3 +85,34 @@ def test_the_status_reports_the_certificate_mode_and_the_lowest_certified_bound(
     assert result.bound_kinds == ('certified',)
     assert float(status['min_certified_probability']) == float(result.neighbour_bounds[0])
     assert float(status['eta_bound']) == result.eta_bound >= 0.95
+
+
+def test_a_stalled_robot_warns_with_its_position_and_the_conditions_that_bind():
+    rng = np.random.default_rng(9)
+    config = PlannerConfig(eta=0.95, max_speed=1.0, actuation_cov=0.0025 * np.eye(2))
+    agent = PlannerAgent('self', config, AgentSettings(), goal=[3.0, 0.0])
+    commands = head_on(agent, rng, 121, robots=BLOCKED)
+    began = [command.stamp for command in commands if command.stall.began]
+    # Stalled once the 10 s window is full: 10 s without gaining 0.5 m toward the goal.
+    assert began == [10.0]
+    before = plan_status('self', commands[99], 1.0, 'prvo', 0.3)
+    assert before.level == DiagnosticStatus.OK or not commands[99].result.feasible
+    assert diagnostic_values(before)['stalled'] == 'false'
+    assert 'stall_x' not in diagnostic_values(before)
+    status = plan_status('self', commands[-1], 1.0, 'prvo', 0.3)
+    values = diagnostic_values(status)
+    assert status.level == DiagnosticStatus.WARN and 'stalled for 2.0 s' in status.message
+    assert (values['stalled'], values['stalls']) == ('true', '1')
+    assert float(values['stall_since']) == 10.0
+    assert float(values['stall_duration']) == float(values['longest_stall']) == 2.0
+    assert abs(float(values['stall_x']) + 2.0) < 0.05 and abs(float(values['stall_y'])) < 0.05
+    assert abs(float(values['stall_distance_to_goal']) - 5.0) < 0.05
+    assert abs(float(values['stall_gained'])) < 0.05
+    # Near its spot since it started: 12 s.
+    assert float(values['longest_dwell']) == 12.0
+    # The neighbour in its way binds: its gap is the means' 0.8 m less the radii, 0.2 m.
+    assert values['stall.binding.0.neighbour'] == 'other'
+    assert abs(float(values['stall.binding.0.gap']) - 0.2) < 0.05
+    result = commands[-1].result
+    assert float(values['stall.binding.0.bound']) == round(float(result.neighbour_bounds[0]), 4)
+    assert values['stall.binding.0.kind'] in ('cantelli', 'certified')

@@ -38,6 +38,7 @@ from prvo_planner.preferred import (
     path_preferred_velocity,
 )
 from prvo_planner.route import RouteMap, path_length
+from prvo_planner.stalls import StallMonitor, binding_conditions
 from prvo_planner.tracking import TrackingModel, tracking_command
 from prvo_planner.tracks import TrackTable, fuse
 
@@ -400,7 +401,9 @@ class Command:
     it goes on unchanged (nothing constrained it) and `published` whether the answer is sent
     (`FilterGate`). `route` (K, 2) is the way to the goal the plan followed (None without a map
     or a way) and `route_status` ROUTE_NONE (no map, no goal or another preferred source),
-    ROUTE_FOUND or ROUTE_UNREACHABLE (the robot holds its place).
+    ROUTE_FOUND or ROUTE_UNREACHABLE (the robot holds its place). `stall` is the robot's
+    `stalls.StallStatus` at `stamp` and `binding` the plan's `stalls.binding_conditions` while
+    it is stalled (empty otherwise).
     """
 
     stamp: float
@@ -420,6 +423,8 @@ class Command:
     published: bool = True
     route: np.ndarray = None
     route_status: str = ROUTE_NONE
+    stall: object = None
+    binding: tuple = ()
 
     def announcement_values(self):
         """Return {'neighbour.<robot>.radius': m, 'neighbour.<robot>.avoidance_share': a}."""
@@ -441,7 +446,7 @@ class PlanRequest:
     there is none; `upstream` the `UpstreamCommand` answered (velocity mode) and `passed_through`
     whether it goes on unchanged. `obstacles` are the `StaticObstacles` of its map near it,
     passed as `plan_velocity(*problem, obstacles=obstacles)`, None without a map or with
-    nothing near; `route` and `route_status` as in `Command`.
+    nothing near; `route`, `route_status` and `stall` as in `Command`.
     """
 
     stamp: float
@@ -457,6 +462,7 @@ class PlanRequest:
     obstacles: object = None
     route: np.ndarray = None
     route_status: str = ROUTE_NONE
+    stall: object = None
 
 
 class PlannerAgent:
@@ -523,6 +529,7 @@ class PlannerAgent:
         # a team's processes start at different speeds, and a run begins with all of them.
         self._first_own_at = None
         self.tally = PlanTally()
+        self.stall_monitor = StallMonitor()
         # The path followed (path mode); the upstream command waiting for its answer, when it
         # came and the last one answered (velocity mode); when the own state was last received.
         self._path = None
@@ -963,6 +970,8 @@ class PlannerAgent:
         own = self._own_track.belief_at(stamp)
         max_speed = self.config.max_speed
         v_pref, self.arrived, distance_to_goal = self._preference(own)
+        stall = self.stall_monitor.update(stamp, own.mean[:2], self.goal,
+                                          self.settings.goal_tolerance, distance_to_goal)
         route_status = self._route_status
         route = self._route if route_status == ROUTE_FOUND else None
         upstream, self._upstream = self._upstream, None
@@ -985,7 +994,7 @@ class PlannerAgent:
             return self._unplanned_request(PlanRequest(
                 stamp=stamp, own=own, neighbours=neighbour_beliefs, neighbour_names=names,
                 announcements=announcements, problem=None, arrival=arrival, upstream=upstream,
-                obstacles=obstacles), v_pref, tracks)
+                obstacles=obstacles, stall=stall), v_pref, tracks)
         if self.goal is not None:
             # At its goal the robot keeps planning, with v_pref = 0: it stands while nobody
             # comes and takes its share of the avoidance when someone does, over the whole
@@ -999,7 +1008,7 @@ class PlannerAgent:
         return PlanRequest(stamp=stamp, own=own, neighbours=neighbour_beliefs,
                            neighbour_names=names, announcements=announcements,
                            problem=problem, arrival=arrival, obstacles=obstacles, route=route,
-                           route_status=route_status)
+                           route_status=route_status, stall=stall)
 
     # Map and route -----------------------------------------------------------------------------
 
@@ -1139,7 +1148,8 @@ class PlannerAgent:
                        announcements=request.announcements, drive=drive,
                        arrival=request.arrival, tally=self.tally, upstream=request.upstream,
                        passed_through=request.passed_through, published=published,
-                       route=request.route, route_status=request.route_status)
+                       route=request.route, route_status=request.route_status,
+                       stall=request.stall, binding=_binding(request, result))
 
     def _period(self, request):
         """Return the time [s] the command for REQUEST will be in force (0 before any)."""
@@ -1201,6 +1211,13 @@ def _unconstrained(problem, obstacles=None):
     result = plan_velocity(ego, neighbours, v_pref, dataclasses.replace(
         config, inertia=0.0, passing_bias=0.0, progress_weight=0.0), obstacles=obstacles)
     return result.feasible and float(np.hypot(*(result.velocity - v_pref))) <= _PASSING_SLACK
+
+
+def _binding(request, result):
+    """Return the `stalls.binding_conditions` of REQUEST's plan RESULT while stalled, else ()."""
+    if request.stall is None or not request.stall.stalled or result is None:
+        return ()
+    return tuple(binding_conditions(request.problem, request.neighbour_names, result))
 
 
 def _is_zero(request, velocity, drive):

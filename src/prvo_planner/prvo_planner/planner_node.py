@@ -79,6 +79,7 @@ from prvo_planner.parameters import (
 )
 from prvo_planner.preferred import GOAL, PATH, VELOCITY, UpstreamCommand
 from prvo_planner.reports import PlanReporter, command_message
+from prvo_planner.stalls import STALL_WINDOW
 
 _WARN_PERIOD_SECONDS = 2.0
 _ODOMETRY_TYPE = 'nav_msgs/msg/Odometry'
@@ -631,6 +632,11 @@ class PlannerNode(Node):
             self._warnings.warn(
                 'infeasible', f'no velocity meets k={self._config.effective_k:.2f}; best '
                 f'achieves k={result.achieved_k:.2f} (P >= {result.eta_bound:.2f})')
+        stall = command.stall
+        if stall is not None and stall.began:
+            self._warnings.warn('stalled', f'stalled at ({stall.position[0]:.2f}, '
+                                f'{stall.position[1]:.2f}), {stall.distance_to_goal:.2f} m from '
+                                f'the goal: gained {stall.gained:.2f} m in {STALL_WINDOW:g} s')
         self._reporter.report(
             time.monotonic(), self._values['status_period'], command, plan_time_ms,
             self._config, self._agent.settings.planning_radius, self._values['frame_id'])

@@ -51,7 +51,7 @@ def plan_status(robot, command, plan_time_ms, model, planning_radius):
     nearest static obstacle grown by the planning radius (inf without obstacles) and
     `obstacle_probability` the probability certified against static obstacles (1 without).
     `route` is the way to the goal: 'none' without a map, 'ok' or 'unreachable' (the robot
-    holds its place).
+    holds its place). The stall keys are `stall_values`'; a stalled robot's status is a WARN.
     """
     result = command.result
     feasible = True if result is None else bool(result.feasible)
@@ -61,9 +61,12 @@ def plan_status(robot, command, plan_time_ms, model, planning_radius):
         bound for bound, kind in zip(result.neighbour_bounds, result.bound_kinds, strict=True)
         if kind == 'certified']
     tally = command.tally
+    stalled = command.stall is not None and command.stall.stalled
+    messages = [] if feasible else ['no velocity meets the chance constraint']
+    if stalled:
+        messages.append(stall_message(command.stall))
     return make_diagnostic_status(
-        f'prvo_planner/{robot}',
-        'ok' if feasible else 'no velocity meets the chance constraint',
+        f'prvo_planner/{robot}', '; '.join(messages) or 'ok',
         {'achieved_k': achieved_k, 'eta_bound': eta_bound, 'feasible': feasible,
          'neighbours_tracked': len(command.neighbours), 'plan_time_ms': plan_time_ms,
          'arrived': command.arrived, 'model': model, 'planning_radius': planning_radius,
@@ -74,9 +77,46 @@ def plan_status(robot, command, plan_time_ms, model, planning_radius):
          'obstacle_probability': 1.0 if result is None else result.obstacle_probability,
          'plans': tally.plans, 'infeasible_plans': tally.infeasible,
          'min_achieved_eta': _or_none(tally.min_achieved_eta),
-         'tally_stamp': _or_none(tally.last_stamp), **command.announcement_values()},
-        level=DiagnosticStatus.OK if feasible else DiagnosticStatus.WARN,
+         'tally_stamp': _or_none(tally.last_stamp), **stall_values(command),
+         **command.announcement_values()},
+        level=DiagnosticStatus.OK if feasible and not stalled else DiagnosticStatus.WARN,
         hardware_id=robot)
+
+
+def stall_message(stall):
+    """Return the status message of STALL, a stalled robot's `stalls.StallStatus`."""
+    return (f'stalled for {stall.duration:.1f} s at ({stall.position[0]:.2f}, '
+            f'{stall.position[1]:.2f}), {stall.distance_to_goal:.2f} m from the goal')
+
+
+def stall_values(command):
+    """Return the stall keys of COMMAND's status (`prvo_planner.stalls`).
+
+    `stalled` (true or false), `stalls` (since the planner started), `longest_stall` [s],
+    `longest_dwell` [s] (the longest time within SPOT_RADIUS of one spot away from the goal);
+    while stalled also `stall_since` [s, the plan stamps' clock], `stall_duration` [s],
+    `stall_x`, `stall_y` [m], `stall_distance_to_goal` [m], `stall_gained` [m over the window]
+    and the conditions that bind most: `stall.binding.<i>.neighbour`, `.gap` [m], `.bound`
+    and `.kind`, lowest bound first (the wall's are `obstacle_clearance` and
+    `obstacle_probability`).
+    """
+    stall = command.stall
+    if stall is None:
+        return {'stalled': False, 'stalls': 0, 'longest_stall': 0.0, 'longest_dwell': 0.0}
+    values = {'stalled': stall.stalled, 'stalls': stall.stalls,
+              'longest_stall': float(stall.longest_stall),
+              'longest_dwell': float(stall.longest_dwell)}
+    if stall.stalled:
+        values.update({'stall_since': float(stall.since), 'stall_duration': stall.duration,
+                       'stall_x': float(stall.position[0]), 'stall_y': float(stall.position[1]),
+                       'stall_distance_to_goal': float(stall.distance_to_goal),
+                       'stall_gained': float(stall.gained)})
+        for index, item in enumerate(command.binding):
+            values.update({f'stall.binding.{index}.neighbour': item['neighbour'],
+                           f'stall.binding.{index}.gap': item['gap_m'],
+                           f'stall.binding.{index}.bound': item['bound'],
+                           f'stall.binding.{index}.kind': item['kind']})
+    return values
 
 
 def _or_none(value):
