@@ -6,6 +6,7 @@ import math
 import numpy as np
 import pytest
 
+from prvo_planner import stalls
 from prvo_planner.parameters import DEFAULTS
 from prvo_sim.bench import crowds as bench_crowds
 from prvo_sim.bench import team as bench_team
@@ -214,7 +215,7 @@ def test_binding_constraints_name_the_neighbours_nearest_their_limits():
         step = team.do_step()
     binding = bench_crowds.binding_constraints(team, 0)
     names = [robot.name for robot in scenario.robots]
-    assert binding and len(binding) <= bench_crowds.BINDING_COUNT
+    assert binding and len(binding) <= stalls.BINDING_COUNT
     bounds = [item['bound'] for item in binding]
     assert bounds == sorted(bounds)
     result = team.last_commands[0].result
@@ -242,3 +243,14 @@ def test_sweep_teams_are_seeded_heterogeneous_teams_of_6_to_20():
             index, count, bench_crowds.SWEEP_SEED)['robots']
     assert len({bench_crowds.sweep_team_document(index)['name'] for index in range(50)}) == 50
     assert len(sizes) >= 10
+
+
+def test_a_run_row_has_the_stall_columns_of_the_planners_rule(tmp_path):
+    scenario = _two_robot_scenario(tmp_path)
+    row = bench_crowds.prvo_run('two', scenario, 'prvo')
+    assert row['all_arrived'] and row['stalls'] == len(row['stall_reports']) == 0
+    assert row['longest_stall_s'] == 0.0
+    # Driving at up to 1 m/s, 0.5 s apart: near one spot only while slowing into its goal.
+    assert 0.0 <= row['longest_dwell_s'] < 2.0
+    heading = bench_crowds.table([row], bench_crowds.COLUMNS).splitlines()[0]
+    assert 'longest stall s' in heading and 'longest near one spot s' in heading

@@ -113,6 +113,9 @@ def test_a_hand_made_trajectory_is_measured_against_the_walls_and_the_robots(tmp
     assert row['min_wall_clearance_m'] == pytest.approx(0.0, abs=1e-12)
     assert row['wall_contacts'] == 1
     assert row['plan_ms_per_robot_step'] == 2.0
+    # Nobody stalls; a drives through, near one spot for half a metre at the most (0.5 s).
+    assert (row['stalls'], row['longest_stall_s']) == (0, 0.0)
+    assert 0.0 < row['longest_dwell_s'] <= 0.5
 
 
 def test_the_peers_are_given_the_walls_and_obstacles_of_the_scenario(tmp_path):
@@ -141,6 +144,8 @@ def test_without_peers_the_command_skips_each_in_one_line_and_runs_prvo(tmp_path
     assert [(row['planner'], row['noise']) for row in result['runs']] == [
         ('prvo --method prvo', 'none'), ('prvo --method prvo', '0.01')]
     assert all(row['arrivals'] == '2/2' for row in result['runs'])
+    assert all(row['stalls'] == 0 and row['longest_stall_s'] == 0.0 and row['longest_dwell_s'] >= 0
+               for row in result['runs'])
     assert len(result['notes']) == 3 and code == 0
 
 

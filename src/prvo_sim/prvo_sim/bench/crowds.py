@@ -28,9 +28,11 @@ run it prints one Markdown row: arrivals, makespan (the last robot's arrival) an
 the straight-line time (the longest start-to-goal distance over max speed), the mean time to
 goal over the mean straight-line time, the paths' length (each up to its arrival) over the
 straight lines', the minimum surface-to-surface separation, contacts, the fraction of planned
-robot-steps without a feasible velocity, and the stalls (`StallMonitor`: a robot that gains
-less than 0.5 m toward its goal in 10 s), each also printed with its time, position, command
-reversals and binding constraints.
+robot-steps without a feasible velocity, the stalls (`StallMonitor`, the planner's rule of
+`prvo_planner.stalls`: a robot away from its goal that gains less than 0.5 m toward it in
+10 s), each also printed with its time, position, command reversals and binding constraints,
+the longest stall [s] and the longest time a robot stayed within 0.5 m of one spot away from
+its goal [s] (`prvo_planner.stalls`' dwell).
 
 Exit codes: 0 every robot of the circles and teams arrived, 1 one did not, 2 bad input, 130
 when interrupted.
@@ -45,8 +47,8 @@ import sys
 
 import numpy as np
 
+from prvo_planner import stalls
 from prvo_planner.core.config import CERTIFICATES, RISKS
-from prvo_planner.core.encounter import build_encounter
 from prvo_planner.parameters import DEFAULTS
 from prvo_sim.bench.engine import run_team, table
 from prvo_sim.bench.team import DT, GOAL_TOLERANCE, NOISE_STD, circle_document, write_scenario
@@ -63,9 +65,6 @@ TEAM_SPACING = 0.4  # of the half-side
 TEAM_DURATION = 90.0  # s
 SWEEP_SEED = 4242
 SWEEP_SIZES = (6, 20)  # robots, both included
-STALL_WINDOW = 10.0  # s of sim time
-STALL_PROGRESS = 0.5  # m toward the goal a robot gains within STALL_WINDOW, or it stalls
-BINDING_COUNT = 3  # neighbours reported per stall: those whose conditions are nearest failing
 # What the circles and teams plan with unless the command line says otherwise.
 PLANNER_DEFAULTS = {name: DEFAULTS[name] for name in ('eta', 'certificate', 'risk')}
 FALLBACK_CIRCLE = (20, 5.0)  # robots, radius [m]: noise-free, --method rvo
@@ -136,93 +135,66 @@ def sweep_team_document(index, seed=SWEEP_SEED):
 
 
 class StallMonitor:
-    """Finds robots that gain less than STALL_PROGRESS m toward their goals in STALL_WINDOW s.
+    """Finds the robots of a team that stall (`prvo_planner.stalls`: the planner's own rule).
 
-    Called after every step (`run_team`'s observer). A robot that stayed farther than the goal
-    tolerance from its goal over the last STALL_WINDOW seconds and whose distance to it fell by
-    less than STALL_PROGRESS (or, from closer, by less than the way left to the tolerance) over
-    them stalls; each stall is reported once, when first seen: it lasts until the robot has come
-    STALL_PROGRESS closer to its goal than it was then, or arrives. A robot at its goal that
-    steps aside for a passing neighbour and comes back does not stall: it was within the
-    tolerance during the window. A report holds the time, the robot's position and distance to
-    its goal, how often its command reversed (turned by more than 90 degrees from one step to the
-    next) within the window, its mean command, and the binding constraints of its last plan:
-    the BINDING_COUNT neighbours whose bounds at the chosen velocity are lowest, with their
-    surface-to-surface gaps.
+    Called after every step (`run_team`'s observer), it watches every planned robot's true
+    position with a `prvo_planner.stalls.StallMonitor`. Each stall is reported once, when first
+    seen; a report holds the time, the robot's position and distance to its goal, the distance
+    gained over the window, how often its command reversed (turned by more than 90 degrees from
+    one step to the next) within the window, its mean command, and the binding constraints of
+    its last plan (`binding_constraints`).
     """
 
     def __init__(self, scenario):
         self.names = [robot.name for robot in scenario.robots]
         self.goals = np.array([robot.goal for robot in scenario.robots])
         self.tolerance = scenario.goal_tolerance
-        self.planned = [index for index, robot in enumerate(scenario.robots)
-                        if robot.scripted is None]
-        self.history = collections.deque()  # (time, distances (N,), commands (N, 2))
-        self.stalled = {}  # robot -> its distance to its goal when its stall was reported
+        self.monitors = {index: stalls.StallMonitor()
+                         for index, robot in enumerate(scenario.robots)
+                         if robot.scripted is None}
+        self.commands = collections.deque()  # (time, commands (N, 2)) of the last window
+        self.stalled = {}  # robot -> its StallStatus while stalled
         self.stalls = []
 
     def __call__(self, team, step):
         """Take STEP of TEAM; record the stalls it shows."""
-        distances = np.linalg.norm(step.states[:, :2] - self.goals, axis=1)
-        self.history.append((step.time, distances, step.commands))
-        # Keep the latest entry at least a window old as the window's start.
-        while len(self.history) > 1 and self.history[1][0] <= step.time - STALL_WINDOW + 1e-9:
-            self.history.popleft()
-        then, before, _ = self.history[0]
-        if step.time - then < STALL_WINDOW - 1e-9:
-            return
-        gained = before - distances
-        needed = np.minimum(STALL_PROGRESS, before - self.tolerance)
-        away = np.all([entry[1] > self.tolerance for entry in self.history], axis=0)
-        for robot in self.planned:
-            if robot in self.stalled:
-                if (distances[robot] <= self.tolerance
-                        or distances[robot] <= self.stalled[robot] - STALL_PROGRESS):
-                    del self.stalled[robot]
-            elif gained[robot] < needed[robot] and away[robot]:
-                self.stalled[robot] = distances[robot]
-                self.stalls.append(self.report(team, step, robot, distances[robot],
-                                               gained[robot]))
+        self.commands.append((step.time, step.commands))
+        while (len(self.commands) > 1
+               and self.commands[1][0] <= step.time - stalls.STALL_WINDOW + 1e-9):
+            self.commands.popleft()
+        for robot, monitor in self.monitors.items():
+            status = monitor.update(step.time, step.states[robot, :2], self.goals[robot],
+                                    self.tolerance)
+            self.stalled.pop(robot, None)
+            if status.stalled:
+                self.stalled[robot] = status
+            if status.began:
+                self.stalls.append(self.report(team, robot, status))
 
-    def report(self, team, step, robot, distance, gained):
-        """Return the record of ROBOT's stall seen at STEP."""
-        commands = np.array([commands[robot] for _, _, commands in self.history])
+    def report(self, team, robot, status):
+        """Return the record of ROBOT's stall, first seen with STATUS."""
+        commands = np.array([commands[robot] for _, commands in self.commands])
         turns = np.einsum('ij,ij->i', commands[1:], commands[:-1])
-        record = {'robot': self.names[robot], 'time_s': round(float(step.time), 2),
-                  'position': [round(float(value), 3) for value in step.states[robot, :2]],
-                  'distance_to_goal_m': round(float(distance), 3),
-                  'gained_m': round(float(gained), 3),
-                  'command_reversals': int((turns < 0.0).sum()),
-                  'mean_command': [round(float(value), 3) for value in commands.mean(axis=0)],
-                  'binding': binding_constraints(team, robot)}
-        return record
+        return {'robot': self.names[robot], 'time_s': round(float(status.time), 2),
+                'position': [round(float(value), 3) for value in status.position],
+                'distance_to_goal_m': round(float(status.distance_to_goal), 3),
+                'gained_m': round(float(status.gained), 3),
+                'command_reversals': int((turns < 0.0).sum()),
+                'mean_command': [round(float(value), 3) for value in commands.mean(axis=0)],
+                'binding': binding_constraints(team, robot)}
 
 
 def binding_constraints(team, robot):
-    """Return ROBOT's last plan's BINDING_COUNT neighbours with the lowest bounds, lowest first.
+    """Return ROBOT's last plan's `stalls.binding_conditions`: the neighbours nearest failing.
 
-    Each as {neighbour, gap_m (mean surface-to-surface), bound, kind}; [] when the robot did not
-    plan (it stood at its goal with nobody coming) or nobody was near.
+    [] when the robot did not plan (it stood at its goal with nobody coming) or nobody was near.
     """
     command = team.last_commands[robot]
     if command is None or command.result is None:
         return []
     request = team.last_requests[[index for index, agent in enumerate(team.agents)
                                   if agent is not None].index(robot)]
-    ego, neighbours, _, config = request.problem[:4]
-    encounter = build_encounter(ego, neighbours, config)
-    # The encounter keeps the neighbours within reach, in order: match them by position.
-    offsets = np.array([ego.position - neighbour.position for neighbour in neighbours])
-    rows = [int(np.argmin(np.linalg.norm(offsets - origin[:2], axis=1)))
-            for origin in encounter.origin]
-    result = command.result
-    order = np.argsort(result.neighbour_bounds, kind='stable')[:BINDING_COUNT]
-    return [{'neighbour': request.neighbour_names[rows[row]],
-             'gap_m': round(float(np.hypot(*encounter.origin[row, :2])
-                                  - encounter.combined_radius[row]), 3),
-             'bound': round(float(result.neighbour_bounds[row]), 4),
-             'kind': result.bound_kinds[row], 'feasible': bool(result.feasible)}
-            for row in order]
+    return stalls.binding_conditions(request.problem, request.neighbour_names, command.result)
 
 
 def arrival_times(times, positions, goals, tolerance):
@@ -301,7 +273,7 @@ def prvo_run(label, scenario, method):
     row['contacts'] = contact_count(states[:, :, :2], radii)
     row['infeasible_fraction'] = round(float((moving & ~feasible).sum() / max(moving.sum(), 1)),
                                        4)
-    row['stalls'] = len(monitor.stalls)
+    row.update(stalls.stall_summary(monitor.monitors.values()))
     row['stall_reports'] = monitor.stalls
     return row
 
@@ -383,6 +355,7 @@ def peer_run(peer, count, radius):
     row = run_row(f'circle{count} r={radius:g} noise-free', peer, np.array(times), trajectory,
                   starts, goals, radii, np.full(count, max_speed), GOAL_TOLERANCE)
     row['contacts'] = contact_count(trajectory, radii)
+    row.update(stalls.trajectory_stalls(np.array(times), trajectory, goals, GOAL_TOLERANCE))
     return row
 
 
@@ -390,7 +363,7 @@ COLUMNS = (('run', 'run'), ('planner', 'planner'), ('arrived', 'arrived'),
            ('makespan_s', 'makespan s'), ('makespan_ratio', 'makespan / straight'),
            ('mean_time_ratio', 'mean time / straight'), ('path_ratio', 'path / straight'),
            ('min_separation_m', 'min separation m'), ('contacts', 'contacts'),
-           ('infeasible_fraction', 'infeasible steps'), ('stalls', 'stalls'))
+           ('infeasible_fraction', 'infeasible steps'), *stalls.SUMMARY_COLUMNS)
 
 
 def build_parser():
@@ -470,8 +443,8 @@ def stall_text(stall):
     return (f"{stall['robot']} at t = {stall['time_s']:.1f} s at "
             f"({stall['position'][0]:.2f}, {stall['position'][1]:.2f}), "
             f"{stall['distance_to_goal_m']:.2f} m from its goal, gained {stall['gained_m']:.2f} m "
-            f"in {STALL_WINDOW:g} s, {stall['command_reversals']} command reversals, binding: "
-            f'{binding}')
+            f"in {stalls.STALL_WINDOW:g} s, {stall['command_reversals']} command reversals, "
+            f'binding: {binding}')
 
 
 def main(argv=None):

@@ -23,8 +23,11 @@ planner's agent does. Every row is measured from its trajectory by the runner's 
 arrivals (a robot's first time within the goal tolerance) and the makespan, the least
 robot-robot separation (centre distance minus the radii) and robot-robot contacts, the least
 wall clearance (`StaticWorld.clearance` minus the radius) and wall contacts (clearance at most
-the contact tolerance), and the planning time per robot-step [ms of wall time: prvo's agents'
-share of the team's planning, RVO2's `doStep`, navground's `World.update` with its sensing].
+the contact tolerance), the planning time per robot-step [ms of wall time: prvo's agents'
+share of the team's planning, RVO2's `doStep`, navground's `World.update` with its sensing],
+and the stalls by the planner's rule (`prvo_planner.stalls`: a robot away from its goal that
+gains less than 0.5 m toward it in 10 s), the longest stall [s] and the longest time a robot
+stayed within 0.5 m of one spot away from its goal [s].
 
 Exit codes: 0 every prvo robot (method prvo) arrived, 1 one did not, 2 bad input, 130 when
 interrupted.
@@ -42,6 +45,7 @@ import time
 import numpy as np
 
 from prvo_planner.parameters import DEFAULTS
+from prvo_planner.stalls import SUMMARY_COLUMNS, trajectory_stalls
 from prvo_sim.bench.crowds import preferred_velocities
 from prvo_sim.bench.engine import run_team, table
 from prvo_sim.metrics import run_metrics, wall_metrics
@@ -256,6 +260,7 @@ def trajectory_row(scenario, times, positions, plan_ms):
         'min_wall_clearance_m': walls['min_wall_clearance'],
         'wall_contacts': walls['wall_contacts'],
         'plan_ms_per_robot_step': float(np.mean(plan_ms)) if len(plan_ms) else None,
+        **trajectory_stalls(times, positions, goals, scenario.goal_tolerance),
     }
 
 
@@ -275,6 +280,9 @@ def combined(rows):
         'wall_contacts': sum(row['wall_contacts'] for row in rows),
         'plan_ms_per_robot_step': float(np.mean([row['plan_ms_per_robot_step']
                                                  for row in rows])),
+        'stalls': sum(row['stalls'] for row in rows),
+        'longest_stall_s': max(row['longest_stall_s'] for row in rows),
+        'longest_dwell_s': max(row['longest_dwell_s'] for row in rows),
     }
 
 
@@ -316,7 +324,7 @@ COLUMNS = (('scenario', 'scenario'), ('planner', 'planner'), ('noise', 'noise'),
            ('seeds', 'seeds'), ('arrivals', 'arrived'), ('makespan_s', 'makespan s'),
            ('min_separation_m', 'min robot separation m'), ('contacts', 'robot contacts'),
            ('min_wall_clearance_m', 'min wall clearance m'), ('wall_contacts', 'wall contacts'),
-           ('plan_ms_per_robot_step', 'plan ms / robot-step'))
+           ('plan_ms_per_robot_step', 'plan ms / robot-step'), *SUMMARY_COLUMNS)
 
 
 def build_parser():
