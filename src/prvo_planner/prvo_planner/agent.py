@@ -27,6 +27,7 @@ from prvo_planner.maps import (
     grid_obstacles,
     occupied_cells,
 )
+from prvo_planner.passages import narrow_passage
 from prvo_planner.path_following import carrot, closest_on_path
 from prvo_planner.preferred import (
     GOAL,
@@ -403,7 +404,8 @@ class Command:
     or a way) and `route_status` ROUTE_NONE (no map, no goal or another preferred source),
     ROUTE_FOUND or ROUTE_UNREACHABLE (the robot holds its place). `stall` is the robot's
     `stalls.StallStatus` at `stamp` and `binding` the plan's `stalls.binding_conditions` while
-    it is stalled (empty otherwise).
+    it is stalled (empty otherwise); `narrow_passage` the `passages.NarrowPassage` ahead that
+    it is stalled in front of, found when the stall began (None otherwise).
     """
 
     stamp: float
@@ -425,6 +427,7 @@ class Command:
     route_status: str = ROUTE_NONE
     stall: object = None
     binding: tuple = ()
+    narrow_passage: object = None
 
     def announcement_values(self):
         """Return {'neighbour.<robot>.radius': m, 'neighbour.<robot>.avoidance_share': a}."""
@@ -530,6 +533,8 @@ class PlannerAgent:
         self._first_own_at = None
         self.tally = PlanTally()
         self.stall_monitor = StallMonitor()
+        # The passage too narrow to certify that the stall in progress is in front of.
+        self._narrow_passage = None
         # The path followed (path mode); the upstream command waiting for its answer, when it
         # came and the last one answered (velocity mode); when the own state was last received.
         self._path = None
@@ -1149,7 +1154,21 @@ class PlannerAgent:
                        arrival=request.arrival, tally=self.tally, upstream=request.upstream,
                        passed_through=request.passed_through, published=published,
                        route=request.route, route_status=request.route_status,
-                       stall=request.stall, binding=_binding(request, result))
+                       stall=request.stall, binding=_binding(request, result),
+                       narrow_passage=self._passage_ahead(request))
+
+    def _passage_ahead(self, request):
+        """Return the `NarrowPassage` REQUEST's stall is in front of (None: none, not stalled).
+
+        Looked for once, when the stall begins, along the preferred velocity.
+        """
+        stall = request.stall
+        if stall is None or not stall.stalled:
+            self._narrow_passage = None
+        elif stall.began and request.obstacles is not None and request.problem is not None:
+            ego, _, v_pref, config = request.problem[:4]
+            self._narrow_passage = narrow_passage(request.obstacles, ego, config, v_pref)
+        return self._narrow_passage
 
     def _period(self, request):
         """Return the time [s] the command for REQUEST will be in force (0 before any)."""

@@ -78,7 +78,7 @@ from prvo_planner.parameters import (
     planner_config_from,
 )
 from prvo_planner.preferred import GOAL, PATH, VELOCITY, UpstreamCommand
-from prvo_planner.reports import PlanReporter, command_message
+from prvo_planner.reports import PlanReporter, command_message, passage_message
 from prvo_planner.stalls import STALL_WINDOW
 
 _WARN_PERIOD_SECONDS = 2.0
@@ -637,6 +637,8 @@ class PlannerNode(Node):
             self._warnings.warn('stalled', f'stalled at ({stall.position[0]:.2f}, '
                                 f'{stall.position[1]:.2f}), {stall.distance_to_goal:.2f} m from '
                                 f'the goal: gained {stall.gained:.2f} m in {STALL_WINDOW:g} s')
+            if command.narrow_passage is not None:
+                self._warnings.warn('narrow', passage_message(command.narrow_passage))
         self._reporter.report(
             time.monotonic(), self._values['status_period'], command, plan_time_ms,
             self._config, self._agent.settings.planning_radius, self._values['frame_id'])

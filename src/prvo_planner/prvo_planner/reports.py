@@ -65,6 +65,8 @@ def plan_status(robot, command, plan_time_ms, model, planning_radius):
     messages = [] if feasible else ['no velocity meets the chance constraint']
     if stalled:
         messages.append(stall_message(command.stall))
+        if command.narrow_passage is not None:
+            messages.append(passage_message(command.narrow_passage))
     return make_diagnostic_status(
         f'prvo_planner/{robot}', '; '.join(messages) or 'ok',
         {'achieved_k': achieved_k, 'eta_bound': eta_bound, 'feasible': feasible,
@@ -89,6 +91,13 @@ def stall_message(stall):
             f'{stall.position[1]:.2f}), {stall.distance_to_goal:.2f} m from the goal')
 
 
+def passage_message(passage):
+    """Return the line that names PASSAGE, a `passages.NarrowPassage` a robot holds before."""
+    return (f'the way at ({passage.point[0]:.2f}, {passage.point[1]:.2f}) is '
+            f'{passage.width:.2f} m wide; certifying it needs at least {passage.needed:.2f} m '
+            '(holding)')
+
+
 def stall_values(command):
     """Return the stall keys of COMMAND's status (`prvo_planner.stalls`).
 
@@ -98,7 +107,8 @@ def stall_values(command):
     `stall_x`, `stall_y` [m], `stall_distance_to_goal` [m], `stall_gained` [m over the window]
     and the conditions that bind most: `stall.binding.<i>.neighbour`, `.gap` [m], `.bound`
     and `.kind`, lowest bound first (the wall's are `obstacle_clearance` and
-    `obstacle_probability`).
+    `obstacle_probability`); in front of a passage too narrow to certify also `passage_x`,
+    `passage_y` [m], `passage_width` [m] and `passage_needed` [m] (`passages`).
     """
     stall = command.stall
     if stall is None:
@@ -116,6 +126,11 @@ def stall_values(command):
                            f'stall.binding.{index}.gap': item['gap_m'],
                            f'stall.binding.{index}.bound': item['bound'],
                            f'stall.binding.{index}.kind': item['kind']})
+        passage = command.narrow_passage
+        if passage is not None:
+            values.update({'passage_x': float(passage.point[0]),
+                           'passage_y': float(passage.point[1]),
+                           'passage_width': passage.width, 'passage_needed': passage.needed})
     return values
 
 

@@ -386,6 +386,39 @@ def _planning_covariances(ego, config):
     return np.zeros((2, 2)), np.zeros((2, 2)), growth
 
 
+def certifiable_width(ego, config):
+    """
+    Return the clear width of a passage below which nothing certifies EGO's way through [m].
+
+    Beside a wall moving along it, the best condition is a line parallel to the motion (the
+    support line of the wall beside it, or an end's parallel tangent, ``parallel_failures``)
+    at most at the whole risk ``delta``: its margin ``m`` on each side must bring
+    ``crossing_bounds(m, s0, T s_a^2, tau, 0)`` down to ``delta``, with ``s0`` and ``s_a`` the
+    largest position and execution stds (any direction). The width is ``2 (R + m)``, ``R`` the
+    planning radius grown by ``safety_margin`` (and, for ``inflate``, by its confidence
+    ellipse). A narrower door cannot be certified and the robot holds in front of it; a wider
+    one can still be too narrow where the ends of a short jamb share the risk.
+    """
+    position_cov, actuation_cov, growth = _planning_covariances(ego, config)
+    std0 = _largest_std(position_cov)
+    walk = config.control_period * _largest_std(actuation_cov) ** 2
+    horizon = config.control_period * math.ceil(config.obstacle_horizon / config.control_period
+                                                - 1e-9)
+    risk = 1.0 - config.effective_eta
+    def fails(margin):
+        return crossing_bounds(np.array([margin]), np.array([std0]), np.array([walk]), horizon,
+                               np.zeros(1))[0] > risk
+
+    low, high = 0.0, 10.0 * (std0 + math.sqrt(walk * horizon)) + 1e-9
+    if not fails(low):
+        high = low
+    # Bisection: the bound falls as the margin grows; HIGH always holds.
+    while high - low > 1e-6:
+        middle = 0.5 * (low + high)
+        low, high = (middle, high) if fails(middle) else (low, middle)
+    return 2.0 * (ego.radius + config.safety_margin + growth + high)
+
+
 def wall_model(obstacles, ego, config):
     """
     Build one plan's conditions against OBSTACLES (a ``StaticObstacles``).
@@ -608,7 +641,7 @@ def cut_by_walls(gap_ray, lower, upper, wall_ray, wall_upper, wall_lower):
     return rays[kept], points[kept], points[kept + 1]
 
 
-def _segment_distances(points, starts, ends):
+def segment_distances(points, starts, ends):
     """Distance of points (K, 1, 2) from segments (starts, ends) (.., N, 2): shape (K, N)."""
     along = ends - starts
     length_sq = np.sum(along * along, axis=-1)
@@ -659,10 +692,10 @@ def wall_intrusion(model, velocities, period):
     path_end = (start + period * velocities)[:, None, :]
     wall_a, wall_b = segments[None, :, 0], segments[None, :, 1]
     separation = np.minimum.reduce([
-        _segment_distances(path_start, wall_a, wall_b),
-        _segment_distances(path_end, wall_a, wall_b),
-        _segment_distances(wall_a, path_start, path_end),
-        _segment_distances(wall_b, path_start, path_end)])
+        segment_distances(path_start, wall_a, wall_b),
+        segment_distances(path_end, wall_a, wall_b),
+        segment_distances(wall_a, path_start, path_end),
+        segment_distances(wall_b, path_start, path_end)])
     wall_along, path_along = wall_b - wall_a, path_end - path_start
     crossing = ((_cross(wall_along, path_start - wall_a) * _cross(wall_along, path_end - wall_a)
                  < 0.0)
@@ -671,7 +704,7 @@ def wall_intrusion(model, velocities, period):
     separation = np.where(crossing, 0.0, separation)
     walls = np.maximum(np.minimum(distance, radius) - separation, 0.0)
     discs = np.maximum(np.minimum(disc_start, disc_radius)
-                       - _segment_distances(centres[None], path_start, path_end), 0.0)
+                       - segment_distances(centres[None], path_start, path_end), 0.0)
     return np.max(np.concatenate([walls, discs], axis=1), axis=1, initial=0.0)
 
 
