@@ -13,8 +13,6 @@ that tree without searching again.
 import math
 
 import numpy as np
-from scipy.sparse import coo_matrix
-from scipy.sparse.csgraph import dijkstra
 
 
 def _edge_distances_squared(offsets):
@@ -147,6 +145,9 @@ class RouteMap:
         sources, targets = np.concatenate(sources), np.concatenate(targets)
         weights = np.concatenate(weights)
         # Both directions stored once: an undirected search would symmetrise on every call.
+        # scipy.sparse is imported here, not with the module: it costs a process 0.2-0.3 s of
+        # CPU, and most planners (those without a map) never build a route.
+        from scipy.sparse import coo_matrix
         self._graph = coo_matrix(
             (np.concatenate([weights, weights]),
              (np.concatenate([sources, targets]), np.concatenate([targets, sources]))),
@@ -241,6 +242,7 @@ class RouteMap:
         cell = None if self.blocked(goal) else self.snapped(goal)
         if cell is None:
             return RouteTree(self, np.asarray(goal, dtype=float), None, None, None)
+        from scipy.sparse.csgraph import dijkstra
         distances, predecessors = dijkstra(self._graph, directed=True, indices=cell,
                                            return_predecessors=True)
         return RouteTree(self, np.asarray(goal, dtype=float), cell, distances, predecessors)

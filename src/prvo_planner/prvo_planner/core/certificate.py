@@ -62,9 +62,9 @@ from dataclasses import dataclass
 import math
 
 import numpy as np
-from scipy.special import ndtri
 
 from .moments import rvo_moments
+from .special import ndtri
 
 DEFAULT_WEDGES = 64
 MIN_WEDGES = 4

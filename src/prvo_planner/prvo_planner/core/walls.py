@@ -71,9 +71,9 @@ from dataclasses import dataclass
 import math
 
 import numpy as np
-from scipy.special import erfcx, ndtr, ndtri
 
 from .probability import confidence_ellipse_scale
+from .special import erfcx, ndtr, ndtri
 
 # An end disc whose a-priori bound is at most this share of a wall's risk is out of reach.
 REACH_SHARE = 0.01
