@@ -30,17 +30,31 @@ def ros_domain():
         yield domain_id
 
 
-@pytest.fixture
-def ros_env(ros_domain):
-    """Environment for child processes: the private domain, localhost discovery, no buffering."""
+@pytest.fixture(scope='module')
+def module_ros_domain():
+    """Claim a ROS_DOMAIN_ID for the tests of one module that share a team (`module_children`)."""
+    from prvo_sim.run_scenario import claimed_domain
+
+    with claimed_domain(None, candidates=worker_domain_ids()) as domain_id:
+        yield domain_id
+
+
+def child_environment(domain_id):
+    """Environment for child processes: DOMAIN_ID, localhost discovery, no buffering."""
     env = dict(os.environ)
-    env['ROS_DOMAIN_ID'] = str(ros_domain)
+    env['ROS_DOMAIN_ID'] = str(domain_id)
     env['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
     env['PYTHONUNBUFFERED'] = '1'
     env['RCUTILS_LOGGING_BUFFERED_STREAM'] = '0'
     env.setdefault('OPENBLAS_NUM_THREADS', '1')
     env.setdefault('FASTDDS_BUILTIN_TRANSPORTS', 'UDPv4')
     return env
+
+
+@pytest.fixture
+def ros_env(ros_domain):
+    """Environment for child processes: the private domain, localhost discovery, no buffering."""
+    return child_environment(ros_domain)
 
 
 def executable(package, name):
@@ -123,6 +137,18 @@ class ChildProcesses:
 def children(ros_env, tmp_path):
     """Start child processes on the test's private domain; all are killed at teardown."""
     group = ChildProcesses(ros_env, tmp_path)
+    yield group
+    group.kill_all()
+
+
+@pytest.fixture(scope='module')
+def module_children(module_ros_domain, tmp_path_factory):
+    """Child processes one module's tests share, on its own domain; killed after its last test.
+
+    For a team started once and observed by several tests, each asserting one property of it.
+    """
+    group = ChildProcesses(child_environment(module_ros_domain),
+                           tmp_path_factory.mktemp('module_children'))
     yield group
     group.kill_all()
 
@@ -240,13 +266,21 @@ def probe(ros_domain):
     ros_probe.close()
 
 
+@pytest.fixture(scope='module')
+def module_probe(module_ros_domain):
+    """Probe node on the domain of `module_children`, for the tests of one module."""
+    ros_probe = Probe(module_ros_domain)
+    yield ros_probe
+    ros_probe.close()
+
+
 @pytest.fixture
 def python_executable():
     """Return the interpreter running the tests (the project's venv under ./run.sh test)."""
     return sys.executable
 
 
-@pytest.fixture
+@pytest.fixture(scope='session')
 def ros2_executable():
     """Return `executable`: the path of a package's executable as 'ros2 run' finds it."""
     return executable

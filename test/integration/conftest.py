@@ -161,16 +161,31 @@ def make_team(children, ros2_executable, tmp_path):
     return lambda scenario_name: Team(children, ros2_executable, scenario_name, tmp_path)
 
 
+def observe_through(probe, team):
+    """Return a `TeamObserver` of TEAM subscribed through PROBE, which the simulator awaits."""
+    observer = TeamObserver(probe, [spec.name for spec in team.scenario.robots])
+    # The simulator takes no step before the probe listens (its `observers` parameter).
+    team.observers.append(probe.node.get_fully_qualified_name())
+    return observer
+
+
 @pytest.fixture
 def observe(probe):
     """Return a factory of `TeamObserver`s of a team, subscribed through the probe."""
-    def observe(team):
-        observer = TeamObserver(probe, [spec.name for spec in team.scenario.robots])
-        # The simulator takes no step before the probe listens (its `observers` parameter).
-        team.observers.append(probe.node.get_fully_qualified_name())
-        return observer
+    return lambda team: observe_through(probe, team)
 
-    return observe
+
+@pytest.fixture(scope='module')
+def module_observe(module_probe):
+    """Return a factory of `TeamObserver`s of a module's team, through the module's probe."""
+    return lambda team: observe_through(module_probe, team)
+
+
+@pytest.fixture(scope='module')
+def make_module_team(module_children, ros2_executable, tmp_path_factory):
+    """Return a factory of `Team`s the tests of one module share (see `module_children`)."""
+    return lambda scenario_name: Team(module_children, ros2_executable, scenario_name,
+                                      tmp_path_factory.mktemp('team'))
 
 
 @pytest.fixture(autouse=True)

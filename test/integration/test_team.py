@@ -70,13 +70,32 @@ def test_lockstep_is_reproducible(make_team, observe, probe, children):
         np.testing.assert_array_equal(first, second, err_msg=robot)
 
 
-def test_topics_are_inspectable(make_team, observe, probe):
-    team = make_team('headon2')
-    observe(team)
-    # In realtime, as a user inspects a team: a lockstep team can finish its run before a
-    # probe has subscribed.
+@pytest.fixture(scope='module')
+def realtime_headon(make_module_team, module_observe, module_probe):
+    """Return one realtime headon2 team, its probe and what robot_0 published from the start.
+
+    Realtime, as a user inspects a team: a lockstep team can finish its run before a probe has
+    subscribed. Started once for the tests of its topics and its markers; the probe records
+    robot_0's commands and markers before the simulator starts (markers are built only for a
+    subscriber: this one).
+    """
+    team = make_module_team('headon2')
+    module_observe(team)
+    commands = module_probe.record(TwistStamped, '/robot_0/cmd_vel', qos=CMD_VEL_QOS)
+    markers = module_probe.record(MarkerArray, '/robot_0/prvo_markers', qos=MARKER_QOS)
     team.start_sim(mode='realtime')
     team.start_planners()
+    return team, module_probe, commands, markers
+
+
+def first_recorded(probe, received, predicate, timeout, what):
+    """Return the first message in RECEIVED (a `Probe.record` list) satisfying PREDICATE."""
+    return probe.wait_until(lambda: next((msg for msg in received if predicate(msg)), None),
+                            timeout=timeout, what=what)
+
+
+def test_topics_are_inspectable(realtime_headon):
+    _, probe, commands, _ = realtime_headon
     expected = {
         '/robot_0/odom': 'nav_msgs/msg/Odometry',
         '/robot_0/ground_truth': 'nav_msgs/msg/Odometry',
@@ -88,28 +107,24 @@ def test_topics_are_inspectable(make_team, observe, probe):
     }
 
     def listed():
-        # What 'ros2 topic list -t' prints: every topic with its types.
+        # What 'ros2 topic list -t' prints: every topic with its types, and published by the
+        # team (the probe's own subscriptions list some of them too).
         topics = dict(probe.node.get_topic_names_and_types())
-        return all(expected[name] in topics.get(name, []) for name in expected)
+        return all(expected[name] in topics.get(name, []) and any(
+            info.topic_type == expected[name]
+            for info in probe.node.get_publishers_info_by_topic(name)) for name in expected)
 
     probe.wait_until(listed, timeout=20.0, what='every topic to appear with its type')
-    command = probe.wait_for_message(
-        TwistStamped, '/robot_0/cmd_vel', lambda msg: msg.twist.linear.x > 0.1, timeout=20.0,
-        qos=CMD_VEL_QOS)
+    command = first_recorded(probe, commands, lambda msg: msg.twist.linear.x > 0.1, 20.0,
+                             'a command on /robot_0/cmd_vel heading right')
     # robot_0 starts at x = -4 with its goal at x = +4: it heads right, within its speed limit.
     assert math.hypot(command.twist.linear.x, command.twist.linear.y) <= 1.0 + 1e-9
 
 
-def test_markers_show_each_neighbour_with_its_confidence_ellipse(make_team, observe, probe):
-    team = make_team('headon2')
-    observe(team)
-    # Realtime: the planners are still planning when the probe subscribes.
-    team.start_sim(mode='realtime')
-    team.start_planners()
-    # Markers are built only for a subscriber: this one.
-    markers = probe.wait_for_message(
-        MarkerArray, '/robot_0/prvo_markers', lambda msg: len(msg.markers) == 4, timeout=30.0,
-        qos=MARKER_QOS)
+def test_markers_show_each_neighbour_with_its_confidence_ellipse(realtime_headon):
+    _, probe, _, recorded = realtime_headon
+    markers = first_recorded(probe, recorded, lambda msg: len(msg.markers) == 4, 30.0,
+                             'markers of robot_0 showing its neighbour')
     delete_all, arrow, ellipse, label = markers.markers
     assert delete_all.action == Marker.DELETEALL and arrow.type == Marker.ARROW
     # The size and share robot_1 announced (on its way: reciprocal).
