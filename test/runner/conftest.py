@@ -30,6 +30,15 @@ def runners():
         kill_tree(process)
 
 
+@pytest.fixture(scope='module')
+def module_runners():
+    """Runners the tests of one module share; each tree is killed after the module's last test."""
+    started = []
+    yield started
+    for process in started:
+        kill_tree(process)
+
+
 @pytest.fixture
 def released_domain():
     """Return a domain id free for a runner the test starts (see free_domain)."""

@@ -17,11 +17,20 @@ SCHEMA_KEYS = {'scenario', 'method', 'eta', 'seed', 'mode', 'engine', 'ending', 
                'deadline_misses', 'sim_time', 'wall_time'}
 
 
-def test_headon2_both_arrive_without_contact(tmp_path, runners):
-    out = tmp_path / 'out'
-    runner = start_runner([HEADON, '--out', str(out)], tmp_path)
-    runners.append(runner)
-    assert runner.wait(timeout=600) == 0, output(runner)
+@pytest.fixture(scope='module')
+def headon2_run(tmp_path_factory, module_runners):
+    """Return the runner of one whole ROS run of headon2 and its output folder, once it ended."""
+    folder = tmp_path_factory.mktemp('headon2_run')
+    out = folder / 'out'
+    runner = start_runner([HEADON, '--out', str(out)], folder)
+    module_runners.append(runner)
+    runner.wait(timeout=600)
+    return runner, out
+
+
+def test_headon2_both_arrive_without_contact(headon2_run):
+    runner, out = headon2_run
+    assert runner.returncode == 0, output(runner)
     assert processes_with_token(runner.token) == []
     recorded = json.loads((out / 'metrics.json').read_text())
     assert set(recorded) == SCHEMA_KEYS
@@ -57,6 +66,20 @@ def test_headon2_both_arrive_without_contact(tmp_path, runners):
     assert times[0] == '0'
     unanswered = {row['time'] for row in rows if row['cmd_vx'] == '' or row['cmd_vy'] == ''}
     assert unanswered <= {times[-1]}, sorted(unanswered, key=float)[:5]
+
+
+def test_identical_lockstep_runs_record_identical_trajectories(headon2_run, tmp_path, runners):
+    # The end is the step at which everyone has been home for the settle time, not the wall
+    # time at which the runner noticed it. The second run writes no bag and no animation: what
+    # the runner records is the same without them.
+    first, first_out = headon2_run
+    assert first.returncode == 0, output(first)
+    runner = start_runner([HEADON, '--out', str(tmp_path / 'second'), '--quiet', '--no-bag',
+                           '--no-animation'], tmp_path, label='second')
+    runners.append(runner)
+    assert runner.wait(timeout=300) == 0, output(runner)
+    assert ((tmp_path / 'second' / 'trajectories.csv').read_bytes()
+            == (first_out / 'trajectories.csv').read_bytes())
 
 
 def test_sigint_during_a_real_run_leaves_no_process(tmp_path, runners):

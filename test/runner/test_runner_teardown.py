@@ -110,19 +110,6 @@ def test_a_double_ctrl_c_after_a_run_keeps_its_results(tmp_path, runners):
     assert processes_with_token(runner.token) == []
 
 
-def test_identical_lockstep_runs_record_identical_trajectories(tmp_path, runners):
-    # The end is the step at which everyone has been home for the settle time, not the wall
-    # time at which the runner noticed it.
-    recorded = []
-    for label in ('first', 'second'):
-        runner = start_runner([HEADON, '--out', str(tmp_path / label), '--quiet', '--no-bag',
-                               '--no-animation'], tmp_path, label=label)
-        runners.append(runner)
-        assert runner.wait(timeout=300) == 0, output(runner)
-        recorded.append((tmp_path / label / 'trajectories.csv').read_bytes())
-    assert recorded[0] == recorded[1]
-
-
 def circle24(tmp_path):
     """Write the README's 24-robot crowd circle (6 m, noise 0.05); return its path."""
     path = tmp_path / 'circle24.yaml'
