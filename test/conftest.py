@@ -5,6 +5,7 @@ on one machine never see each other's topics), observe them through a probe node
 background thread, and wait on events with timeouts, never on fixed sleeps.
 """
 
+import contextlib
 import os
 import pathlib
 import signal
@@ -24,15 +25,6 @@ os.environ.setdefault('FASTDDS_BUILTIN_TRANSPORTS', 'UDPv4')
 @pytest.fixture
 def ros_domain():
     """Claim a ROS_DOMAIN_ID no test or scenario run on this machine holds; release it after."""
-    from prvo_sim.run_scenario import claimed_domain
-
-    with claimed_domain(None, candidates=worker_domain_ids()) as domain_id:
-        yield domain_id
-
-
-@pytest.fixture(scope='module')
-def module_ros_domain():
-    """Claim a ROS_DOMAIN_ID for the tests of one module that share a team (`module_children`)."""
     from prvo_sim.run_scenario import claimed_domain
 
     with claimed_domain(None, candidates=worker_domain_ids()) as domain_id:
@@ -137,18 +129,6 @@ class ChildProcesses:
 def children(ros_env, tmp_path):
     """Start child processes on the test's private domain; all are killed at teardown."""
     group = ChildProcesses(ros_env, tmp_path)
-    yield group
-    group.kill_all()
-
-
-@pytest.fixture(scope='module')
-def module_children(module_ros_domain, tmp_path_factory):
-    """Child processes one module's tests share, on its own domain; killed after its last test.
-
-    For a team started once and observed by several tests, each asserting one property of it.
-    """
-    group = ChildProcesses(child_environment(module_ros_domain),
-                           tmp_path_factory.mktemp('module_children'))
     yield group
     group.kill_all()
 
@@ -267,11 +247,27 @@ def probe(ros_domain):
 
 
 @pytest.fixture(scope='module')
-def module_probe(module_ros_domain):
-    """Probe node on the domain of `module_children`, for the tests of one module."""
-    ros_probe = Probe(module_ros_domain)
-    yield ros_probe
-    ros_probe.close()
+def module_domains(tmp_path_factory):
+    """Return a factory of (`ChildProcesses`, `Probe`) pairs, each on a ROS domain of its own.
+
+    For a team started once and observed by several tests of a module, each asserting one
+    property of it. Every pair lives until the module's last test: its children are killed,
+    its probe closed and its domain released then.
+    """
+    from prvo_sim.run_scenario import claimed_domain
+
+    with contextlib.ExitStack() as stack:
+        def open_domain():
+            domain_id = stack.enter_context(
+                claimed_domain(None, candidates=worker_domain_ids()))
+            group = ChildProcesses(child_environment(domain_id),
+                                   tmp_path_factory.mktemp('module_children'))
+            stack.callback(group.kill_all)
+            ros_probe = Probe(domain_id)
+            stack.callback(ros_probe.close)
+            return group, ros_probe
+
+        yield open_domain
 
 
 @pytest.fixture

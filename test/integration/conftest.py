@@ -176,16 +176,17 @@ def observe(probe):
 
 
 @pytest.fixture(scope='module')
-def module_observe(module_probe):
-    """Return a factory of `TeamObserver`s of a module's team, through the module's probe."""
-    return lambda team: observe_through(module_probe, team)
+def module_team(module_domains, ros2_executable, tmp_path_factory):
+    """Return a factory of (`Team`, its `TeamObserver`, the probe), each on a domain of its own.
 
+    For the tests of one module that share a team (see `module_domains`).
+    """
+    def make(scenario_name):
+        group, ros_probe = module_domains()
+        team = Team(group, ros2_executable, scenario_name, tmp_path_factory.mktemp('team'))
+        return team, observe_through(ros_probe, team), ros_probe
 
-@pytest.fixture(scope='module')
-def make_module_team(module_children, ros2_executable, tmp_path_factory):
-    """Return a factory of `Team`s the tests of one module share (see `module_children`)."""
-    return lambda scenario_name: Team(module_children, ros2_executable, scenario_name,
-                                      tmp_path_factory.mktemp('team'))
+    return make
 
 
 @pytest.fixture(autouse=True)

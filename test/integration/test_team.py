@@ -34,31 +34,58 @@ def test_headon_both_arrive_without_contact(make_team, observe, probe):
     assert int(observer.sim_status['contacts']) == 0
 
 
-@pytest.mark.parametrize('seed', [1, 2, 3])
-def test_crossing_with_noise_has_no_contact(make_team, observe, probe, seed):
-    team = make_team('crossing4')
-    observer = observe(team)
+def run_crossing(team, observer, probe, seed):
+    """Return whether every robot of TEAM (crossing4, lockstep, SEED) arrived in its run.
+
+    The run ends when every robot arrived or the duration ended; the team is left running.
+    """
     team.start_sim(seed=seed)
     team.start_planners()
-    assert _run_until_all_arrived(probe, observer, team, f'crossing4 seed {seed} to finish'), (
-        observer.robot_status)
+    return _run_until_all_arrived(probe, observer, team, f'crossing4 seed {seed} to finish')
+
+
+@pytest.fixture(scope='module')
+def crossing_seed_1(module_team):
+    """Return a crossing4 run of seed 1 (`run_crossing`) and its processes' codes on Ctrl-C.
+
+    Shared by the no-contact test of seed 1 and the reproducibility test (its first run).
+    """
+    team, observer, probe = module_team('crossing4')
+    arrived = run_crossing(team, observer, probe, 1)
+    exit_codes = {process.label: team.children.interrupt(process)
+                  for process in [team.sim, *team.planners.values()]}
+    return team, observer, arrived, exit_codes
+
+
+@pytest.mark.parametrize('seed', [1, 2, 3])
+def test_crossing_with_noise_has_no_contact(request, seed):
+    if seed == 1:
+        team, observer, arrived, _ = request.getfixturevalue('crossing_seed_1')
+    else:
+        probe = request.getfixturevalue('probe')
+        team = request.getfixturevalue('make_team')('crossing4')
+        observer = request.getfixturevalue('observe')(team)
+        arrived = run_crossing(team, observer, probe, seed)
+    assert arrived, observer.robot_status
     assert observer.min_clearance(team.scenario) > 0.0
     assert int(observer.sim_status['contacts']) == 0
 
 
-def test_lockstep_is_reproducible(make_team, observe, probe, children):
-    runs = []
-    for attempt in range(2):
-        team = make_team('crossing4')
-        observer = observe(team)
-        team.start_sim(seed=5, label=f'sim_{attempt}')
-        for spec in team.scenario.robots:
-            team.start_planner(spec.name, label=f'planner_{spec.name}_{attempt}')
-        probe.wait_until(lambda observer=observer: observer.sim_time() >= 8.0, timeout=90.0,
-                         what='8 s of simulated time')
-        for process in [team.sim, *team.planners.values()]:
-            assert children.interrupt(process) == 0
-        runs.append(observer.trajectories())
+def test_lockstep_is_reproducible(crossing_seed_1, make_team, observe, probe, children):
+    # The first run is seed 1's of the no-contact test, stopped with Ctrl-C once it arrived;
+    # the second is stopped after 8 s of simulated time.
+    _, first_observer, _, exit_codes = crossing_seed_1
+    assert set(exit_codes.values()) == {0}, exit_codes
+    team = make_team('crossing4')
+    observer = observe(team)
+    team.start_sim(seed=1, label='sim_again')
+    for spec in team.scenario.robots:
+        team.start_planner(spec.name, label=f'planner_{spec.name}_again')
+    probe.wait_until(lambda: observer.sim_time() >= 8.0, timeout=90.0,
+                     what='8 s of simulated time')
+    for process in [team.sim, *team.planners.values()]:
+        assert children.interrupt(process) == 0
+    runs = [first_observer.trajectories(), observer.trajectories()]
     for robot, (stamps, positions) in runs[0].items():
         other_stamps, other_positions = runs[1][robot]
         common = np.intersect1d(stamps[stamps <= 8.0], other_stamps)
@@ -71,7 +98,7 @@ def test_lockstep_is_reproducible(make_team, observe, probe, children):
 
 
 @pytest.fixture(scope='module')
-def realtime_headon(make_module_team, module_observe, module_probe):
+def realtime_headon(module_team):
     """Return one realtime headon2 team, its probe and what robot_0 published from the start.
 
     Realtime, as a user inspects a team: a lockstep team can finish its run before a probe has
@@ -79,13 +106,12 @@ def realtime_headon(make_module_team, module_observe, module_probe):
     robot_0's commands and markers before the simulator starts (markers are built only for a
     subscriber: this one).
     """
-    team = make_module_team('headon2')
-    module_observe(team)
-    commands = module_probe.record(TwistStamped, '/robot_0/cmd_vel', qos=CMD_VEL_QOS)
-    markers = module_probe.record(MarkerArray, '/robot_0/prvo_markers', qos=MARKER_QOS)
+    team, _, probe = module_team('headon2')
+    commands = probe.record(TwistStamped, '/robot_0/cmd_vel', qos=CMD_VEL_QOS)
+    markers = probe.record(MarkerArray, '/robot_0/prvo_markers', qos=MARKER_QOS)
     team.start_sim(mode='realtime')
     team.start_planners()
-    return team, module_probe, commands, markers
+    return team, probe, commands, markers
 
 
 def first_recorded(probe, received, predicate, timeout, what):
