@@ -219,8 +219,10 @@ def test_a_sweep_beyond_the_limits_is_refused(tmp_path, arguments, capsys):
 
 
 def test_the_runner_needs_no_env_sh(tmp_path, runners):
-    runner = start_runner([HEADON, '--engine', 'inprocess', '--out', str(tmp_path / 'out'),
-                           '--quiet', '--no-animation'], tmp_path, drop=('AMENT_PREFIX_PATH',))
+    # Two seconds of a far head-on: the run reaches its duration and writes its bag.
+    runner = start_runner([str(far_headon(tmp_path, duration=2.0)), '--engine', 'inprocess',
+                           '--out', str(tmp_path / 'out'), '--quiet', '--no-animation'],
+                          tmp_path, drop=('AMENT_PREFIX_PATH',))
     runners.append(runner)
     assert runner.wait(timeout=300) == 0, output(runner)
 
