@@ -11,7 +11,7 @@ import pytest
 from scipy.stats import chi2
 from visualization_msgs.msg import Marker, MarkerArray
 
-from prvo_msgs_util import CMD_VEL_QOS, MARKER_QOS, ODOM_QOS, make_odometry
+from prvo_msgs_util import CMD_VEL_QOS, MARKER_QOS, ODOM_QOS, make_odometry, stamp_to_seconds
 
 pytestmark = pytest.mark.integration
 
@@ -149,8 +149,12 @@ def test_topics_are_inspectable(realtime_headon):
 
 def test_markers_show_each_neighbour_with_its_confidence_ellipse(realtime_headon):
     _, probe, _, recorded = realtime_headon
-    markers = first_recorded(probe, recorded, lambda msg: len(msg.markers) == 4, 30.0,
-                             'markers of robot_0 showing its neighbour')
+    # From 1 s of sim time on, as a probe subscribing to a running team sees them: the first
+    # plans can come before robot_1's announcements have reached robot_0.
+    markers = first_recorded(
+        probe, recorded, lambda msg: len(msg.markers) == 4 and stamp_to_seconds(
+            msg.markers[0].header.stamp) >= 1.0, 30.0,
+        'markers of robot_0 showing its neighbour, 1 s into the run')
     delete_all, arrow, ellipse, label = markers.markers
     assert delete_all.action == Marker.DELETEALL and arrow.type == Marker.ARROW
     # The size and share robot_1 announced (on its way: reciprocal).
