@@ -16,7 +16,8 @@ from prvo_planner.agent import (
     route_preferred_velocity,
 )
 from prvo_planner.core import PlannerConfig, plan_velocity
-from prvo_planner.maps import GridMap
+from prvo_planner.maps import GridMap, occupied_at, way_out
+from prvo_planner.reports import plan_status
 from prvo_planner.route import path_length
 
 SETTINGS = AgentSettings(radius=0.3, goal_tolerance=0.15, obstacle_distance=1.5,
@@ -243,3 +244,48 @@ def test_the_carrot_moves_on_to_the_farthest_waypoint_in_sight():
     carrot_point = np.array([1.0 + np.sqrt(0.75), 0.0])
     np.testing.assert_allclose(near / np.linalg.norm(near),
                                (carrot_point - position) / np.linalg.norm(carrot_point - position))
+
+
+def block_room():
+    """Return an 8 m x 6 m room, empty but for a 0.6 m block from (2.0, 2.0) to (2.6, 2.6)."""
+    cells = np.zeros((60, 80), dtype=np.int8)
+    cells[20:26, 20:26] = 100
+    return GridMap(cells, RESOLUTION, [0.0, 0.0])
+
+
+def test_a_robot_inside_an_obstacle_on_its_map_says_so_and_leaves_by_the_nearest_free_cell():
+    """A map marking the robot's own cells: it was holding, infeasible, forever (issue 36)."""
+    grid = block_room()
+    start = np.array([2.25, 2.32])
+    agent = PlannerAgent('robot_0', CONFIG, SETTINGS, goal=np.array([6.0, 2.3]))
+    agent.set_map(grid)
+    agent.receive_own(Measurement(0.0, start, np.zeros(2), 1e-4 * np.eye(4)), 0.0)
+    command = agent.plan()
+    # The nearest free cell, by brute force over every cell: the one left of x = 2.0.
+    rows, columns = np.nonzero(grid.cells == 0)
+    centres = RESOLUTION * (np.stack([columns, rows], axis=1) + 0.5)
+    nearest = centres[np.argmin(np.hypot(*(centres - start).T))]
+    position, exit_point = command.inside_obstacle
+    np.testing.assert_array_equal(position, start)
+    np.testing.assert_allclose(exit_point, nearest)
+    assert np.dot(command.velocity, nearest - start) > 0.0 and command.result.feasible
+    status = plan_status('robot_0', command, 1.0, 'prvo', 0.3)
+    assert status.level == status.WARN and status.message.startswith(
+        'the robot is inside an obstacle on the map at (2.25, 2.32): leaving it by the nearest '
+        f'free cell, ({nearest[0]:.2f}, {nearest[1]:.2f})')
+    # Out of the block it follows its route to the goal, as any robot.
+    positions, command = drive(agent, start, 200, t0=0.1)
+    assert command.arrived and command.inside_obstacle is None
+    assert not any(occupied_at(grid.cells != 0, RESOLUTION, grid.origin, point)
+                   for point in positions[10:])
+
+
+def test_the_way_out_is_none_beyond_reach_and_a_free_cell_is_not_inside():
+    cells = np.ones((40, 40), dtype=bool)
+    cells[:, :2] = False
+    origin = np.zeros(2)
+    assert not occupied_at(cells, RESOLUTION, origin, [0.1, 2.0])
+    assert not occupied_at(cells, RESOLUTION, origin, [-1.0, 2.0])
+    assert occupied_at(cells, RESOLUTION, origin, [3.0, 2.0])
+    np.testing.assert_allclose(way_out(cells, RESOLUTION, origin, [3.0, 2.02], 3.0), [0.15, 2.05])
+    assert way_out(cells, RESOLUTION, origin, [3.0, 2.0], 2.0) is None

@@ -25,7 +25,9 @@ from prvo_planner.maps import (
     ObstacleIndex,
     check_route_work,
     grid_obstacles,
+    occupied_at,
     occupied_cells,
+    way_out,
 )
 from prvo_planner.passages import narrow_passage
 from prvo_planner.path_following import carrot, closest_on_path
@@ -405,7 +407,10 @@ class Command:
     ROUTE_FOUND or ROUTE_UNREACHABLE (the robot holds its place). `stall` is the robot's
     `stalls.StallStatus` at `stamp` and `binding` the plan's `stalls.binding_conditions` while
     it is stalled (empty otherwise); `narrow_passage` the `passages.NarrowPassage` ahead that
-    it is stalled in front of, found when the stall began (None otherwise).
+    it is stalled in front of, found when the stall began (None otherwise). `inside_obstacle`
+    is (position (2,), way out (2,) or None) while the robot's centre is in an occupied cell of
+    its map: it heads for the nearest free cell, the way out, and the map's obstacles do not
+    constrain it until it is there (None otherwise).
     """
 
     stamp: float
@@ -428,6 +433,7 @@ class Command:
     stall: object = None
     binding: tuple = ()
     narrow_passage: object = None
+    inside_obstacle: tuple = None
 
     def announcement_values(self):
         """Return {'neighbour.<robot>.radius': m, 'neighbour.<robot>.avoidance_share': a}."""
@@ -449,7 +455,7 @@ class PlanRequest:
     there is none; `upstream` the `UpstreamCommand` answered (velocity mode) and `passed_through`
     whether it goes on unchanged. `obstacles` are the `StaticObstacles` of its map near it,
     passed as `plan_velocity(*problem, obstacles=obstacles)`, None without a map or with
-    nothing near; `route`, `route_status` and `stall` as in `Command`.
+    nothing near; `route`, `route_status`, `stall` and `inside_obstacle` as in `Command`.
     """
 
     stamp: float
@@ -466,6 +472,7 @@ class PlanRequest:
     route: np.ndarray = None
     route_status: str = ROUTE_NONE
     stall: object = None
+    inside_obstacle: tuple = None
 
 
 class PlannerAgent:
@@ -994,12 +1001,20 @@ class PlannerAgent:
         if obstacles is not None and len(obstacles) == 0:
             # Nothing near: the plan of an empty plane.
             obstacles = None
+        inside = self._inside_obstacle(own.mean[:2])
+        if inside is not None:
+            # Every way out of an obstacle crosses its edges, which the walls' conditions
+            # forbid: the robot heads for the nearest free cell with only neighbours to avoid.
+            obstacles, exit_point = None, inside[1]
+            v_pref = np.zeros(2) if exit_point is None else preferred_velocity(
+                own.mean[:2], exit_point, max_speed, self.settings.approach_time, 0.0,
+                self.settings.max_acceleration)[0]
         problem = None
         if upstream is not None or not self.settings.avoids:
             return self._unplanned_request(PlanRequest(
                 stamp=stamp, own=own, neighbours=neighbour_beliefs, neighbour_names=names,
                 announcements=announcements, problem=None, arrival=arrival, upstream=upstream,
-                obstacles=obstacles, stall=stall), v_pref, tracks)
+                obstacles=obstacles, stall=stall, inside_obstacle=inside), v_pref, tracks)
         if self.goal is not None:
             # At its goal the robot keeps planning, with v_pref = 0: it stands while nobody
             # comes and takes its share of the avoidance when someone does, over the whole
@@ -1013,7 +1028,7 @@ class PlannerAgent:
         return PlanRequest(stamp=stamp, own=own, neighbours=neighbour_beliefs,
                            neighbour_names=names, announcements=announcements,
                            problem=problem, arrival=arrival, obstacles=obstacles, route=route,
-                           route_status=route_status, stall=stall)
+                           route_status=route_status, stall=stall, inside_obstacle=inside)
 
     # Map and route -----------------------------------------------------------------------------
 
@@ -1155,7 +1170,21 @@ class PlannerAgent:
                        passed_through=request.passed_through, published=published,
                        route=request.route, route_status=request.route_status,
                        stall=request.stall, binding=_binding(request, result),
-                       narrow_passage=self._passage_ahead(request))
+                       narrow_passage=self._passage_ahead(request),
+                       inside_obstacle=request.inside_obstacle)
+
+    def _inside_obstacle(self, position):
+        """Return (POSITION, the way out or None) if POSITION is in an occupied cell, else None.
+
+        The way out is the nearest free cell's centre within `obstacle_distance` (`maps.way_out`).
+        """
+        if self._route_map is None:
+            return None
+        route_map = self._route_map
+        if not occupied_at(route_map.occupied, route_map.resolution, route_map.origin, position):
+            return None
+        return position, way_out(route_map.occupied, route_map.resolution, route_map.origin,
+                                 position, self.settings.obstacle_distance)
 
     def _passage_ahead(self, request):
         """Return the `NarrowPassage` REQUEST's stall is in front of (None: none, not stalled).

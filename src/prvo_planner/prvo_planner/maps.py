@@ -141,6 +141,38 @@ def occupied_cells(grid, unknown_is_occupied=True):
     return occupied
 
 
+def occupied_at(occupied, resolution, origin, position):
+    """Whether POSITION (2,) [m] lies in an occupied cell (off the grid: no)."""
+    height, width = occupied.shape
+    column, row = np.floor((np.asarray(position) - origin) / resolution).astype(int)
+    return bool(0 <= row < height and 0 <= column < width and occupied[row, column])
+
+
+def way_out(occupied, resolution, origin, position, reach):
+    """
+    Return where a robot whose centre is in an occupied cell gets out: the nearest free cell.
+
+    The centre (2,) of the free cell nearest POSITION (2,) [m] within REACH [m], searched in
+    the square window of that half-width around POSITION's cell; None when no free cell is that
+    near. A map can mark the robot's own cells (a mapper that saw the robot, a map shifted
+    under it): the way out is the shortest one. OCCUPIED (height, width) bool, RESOLUTION [m]
+    and ORIGIN (2,) [m] as in `GridMap`.
+    """
+    height, width = occupied.shape
+    column, row = np.floor((np.asarray(position) - origin) / resolution).astype(int)
+    span = int(math.ceil(reach / resolution))
+    rows = slice(max(row - span, 0), min(row + span + 1, height))
+    columns = slice(max(column - span, 0), min(column + span + 1, width))
+    free_rows, free_columns = np.nonzero(~occupied[rows, columns])
+    if free_rows.size == 0:
+        return None
+    centres = origin + resolution * (np.stack([free_columns + columns.start,
+                                               free_rows + rows.start], axis=1) + 0.5)
+    distances = np.hypot(*(centres - position).T)
+    nearest = int(np.argmin(distances))
+    return centres[nearest] if distances[nearest] <= reach else None
+
+
 def _runs(edges):
     """
     Return the maximal runs of True along the rows of EDGES (L, C), bool.

@@ -78,7 +78,12 @@ from prvo_planner.parameters import (
     planner_config_from,
 )
 from prvo_planner.preferred import GOAL, PATH, VELOCITY, UpstreamCommand
-from prvo_planner.reports import PlanReporter, command_message, passage_message
+from prvo_planner.reports import (
+    PlanReporter,
+    command_message,
+    inside_message,
+    passage_message,
+)
 from prvo_planner.stalls import STALL_WINDOW
 
 _WARN_PERIOD_SECONDS = 2.0
@@ -639,6 +644,8 @@ class PlannerNode(Node):
                                 f'the goal: gained {stall.gained:.2f} m in {STALL_WINDOW:g} s')
             if command.narrow_passage is not None:
                 self._warnings.warn('narrow', passage_message(command.narrow_passage))
+        if command.inside_obstacle is not None:
+            self._warnings.warn('inside', inside_message(command.inside_obstacle))
         self._reporter.report(
             time.monotonic(), self._values['status_period'], command, plan_time_ms,
             self._config, self._agent.settings.planning_radius, self._values['frame_id'])

@@ -51,7 +51,8 @@ def plan_status(robot, command, plan_time_ms, model, planning_radius):
     nearest static obstacle grown by the planning radius (inf without obstacles) and
     `obstacle_probability` the probability certified against static obstacles (1 without).
     `route` is the way to the goal: 'none' without a map, 'ok' or 'unreachable' (the robot
-    holds its place). The stall keys are `stall_values`'; a stalled robot's status is a WARN.
+    holds its place). The stall keys are `stall_values`'; a stalled robot's status is a WARN,
+    as is that of a robot whose centre is inside an obstacle on its map (`inside_message`).
     """
     result = command.result
     feasible = True if result is None else bool(result.feasible)
@@ -62,7 +63,10 @@ def plan_status(robot, command, plan_time_ms, model, planning_radius):
         if kind == 'certified']
     tally = command.tally
     stalled = command.stall is not None and command.stall.stalled
-    messages = [] if feasible else ['no velocity meets the chance constraint']
+    inside = command.inside_obstacle
+    messages = [] if inside is None else [inside_message(inside)]
+    if not feasible:
+        messages.append('no velocity meets the chance constraint')
     if stalled:
         messages.append(stall_message(command.stall))
         if command.narrow_passage is not None:
@@ -81,7 +85,8 @@ def plan_status(robot, command, plan_time_ms, model, planning_radius):
          'min_achieved_eta': _or_none(tally.min_achieved_eta),
          'tally_stamp': _or_none(tally.last_stamp), **stall_values(command),
          **command.announcement_values()},
-        level=DiagnosticStatus.OK if feasible and not stalled else DiagnosticStatus.WARN,
+        level=(DiagnosticStatus.OK if feasible and not stalled and inside is None
+               else DiagnosticStatus.WARN),
         hardware_id=robot)
 
 
@@ -89,6 +94,16 @@ def stall_message(stall):
     """Return the status message of STALL, a stalled robot's `stalls.StallStatus`."""
     return (f'stalled for {stall.duration:.1f} s at ({stall.position[0]:.2f}, '
             f'{stall.position[1]:.2f}), {stall.distance_to_goal:.2f} m from the goal')
+
+
+def inside_message(inside):
+    """Return the line of a robot inside an obstacle: INSIDE is (position, way out or None)."""
+    (x, y), exit_point = inside
+    text = f'the robot is inside an obstacle on the map at ({x:.2f}, {y:.2f}): '
+    if exit_point is None:
+        return text + 'no free cell within obstacle_distance (holding)'
+    return text + ('leaving it by the nearest free cell, '
+                   f'({exit_point[0]:.2f}, {exit_point[1]:.2f})')
 
 
 def passage_message(passage):
