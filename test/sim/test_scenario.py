@@ -1,6 +1,7 @@
 """Scenario loading: the shipped files load, every kind of bad file is named precisely."""
 
 import dataclasses
+import math
 import pathlib
 import re
 import subprocess
@@ -26,6 +27,9 @@ from prvo_msgs_util import (
 from prvo_sim.bench.crowds import circle_radius_of, crowd_circle_document
 from prvo_sim.bench.team import write_scenario
 from prvo_sim.scenario import (
+    INPROCESS_MEMORY_MIB,
+    INPROCESS_ROBOT_MEMORY_MIB,
+    MAP_BYTES_PER_CELL,
     PLANNER_MEMORY_MIB,
     RUNNER_MEMORY_MIB,
     SIMULATOR_MEMORY_MIB,
@@ -354,6 +358,27 @@ def test_team_memory_estimate_grows_with_the_team():
     assert difference == 6 * PLANNER_MEMORY_MIB
     assert estimate_team_memory(headon) == (
         2 * PLANNER_MEMORY_MIB + SIMULATOR_MEMORY_MIB + RUNNER_MEMORY_MIB)
+
+
+def test_team_memory_counts_a_map_for_every_planner(tmp_path):
+    """Each planner builds its own map of a walled world (issue 36 item 2)."""
+    path = tmp_path / 'hall.yaml'
+    path.write_text(
+        'name: hall\nseed: 1\ndt: 0.1\nduration: 5.0\ngoal_tolerance: 0.2\n'
+        'walls:\n  - line: [[0.0, -2.0], [200.0, -2.0]]\n    thickness: 0.1\nrobots:\n'
+        + ''.join(f'  - name: robot_{i}\n    start: [{2.0 * i}, 0.0]\n'
+                  f'    goal: [{2.0 * i}, 5.0]\n    radius: 0.3\n    max_speed: 1.0\n'
+                  for i in range(3)))
+    hall = load_scenario(path)
+    cells = hall.static_world.grid.cells.size
+    per_map = cells * MAP_BYTES_PER_CELL / 2.0 ** 20
+    assert per_map > 100.0
+    for engine, without in (('ros', 3 * PLANNER_MEMORY_MIB + SIMULATOR_MEMORY_MIB
+                             + RUNNER_MEMORY_MIB),
+                            ('inprocess', INPROCESS_MEMORY_MIB + 3 * INPROCESS_ROBOT_MEMORY_MIB)):
+        assert estimate_team_memory(hall, engine, bag=False) == math.ceil(without + 3 * per_map)
+    with pytest.raises(ScenarioError, match=f'{math.ceil(per_map)} MiB per planner for its map'):
+        check_team_memory(hall, available_mib=estimate_team_memory(hall) - 1)
 
 
 def test_team_memory_check_against_available_memory(tmp_path):

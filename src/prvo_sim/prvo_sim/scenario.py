@@ -112,6 +112,11 @@ INPROCESS_ROBOT_MEMORY_MIB = 0.5
 # and per planned robot and neighbour (its status and markers name every other robot).
 BAG_ROBOT_STEP_KIB = 8.0
 BAG_NEIGHBOUR_STEP_KIB = 0.25
+# A planner's map while it is built, per cell of the world's grid [bytes]: the route's distance
+# transform, graph and tree and the obstacles' index. Peak traced by tracemalloc over
+# `agent.build_map` of grids of 0.25, 1 and 4 M cells (rooms of 5 m at 0.05 m): 333, 324 and
+# 321 B per cell (87-149 kept after), rounded up. Every planner builds its own, on either engine.
+MAP_BYTES_PER_CELL = 340
 # Every topic the stack names after a robot: /<name>/<leaf>.
 _ROBOT_TOPIC_LEAVES = (ODOM, GROUND_TRUTH, CMD_VEL, GOAL_POSE, MARKERS, FOOTPRINT, AVOIDANCE_SHARE)
 # The longest name of the services rclpy gives the robot's planner node: /<name>/<service>.
@@ -714,15 +719,28 @@ def estimate_team_memory(scenario, engine='ros', bag=True):
     6 KiB per robot and step and 0.22 KiB more per neighbour), 274 MiB for 8 over 112 and 2001
     MiB for 256 over 100. The constants round those up: the estimate is 8-25% above each peak,
     83% above the smallest.
+
+    On both engines every planner builds its own map of a world with walls or a map file
+    (`map_memory_mib` each, MAP_BYTES_PER_CELL of the world's grid).
     """
     robots = len(scenario.robots)
     planners = sum(robot.scripted is None for robot in scenario.robots)
+    maps = planners * map_memory_mib(scenario)
     if engine == 'ros':
-        return planners * PLANNER_MEMORY_MIB + SIMULATOR_MEMORY_MIB + RUNNER_MEMORY_MIB
+        return math.ceil(planners * PLANNER_MEMORY_MIB + maps + SIMULATOR_MEMORY_MIB
+                         + RUNNER_MEMORY_MIB)
     if engine != 'inprocess':
         raise ValueError(f'engine must be one of {", ".join(ENGINES)}, got {engine!r}')
-    return math.ceil(INPROCESS_MEMORY_MIB + robots * INPROCESS_ROBOT_MEMORY_MIB + (
+    return math.ceil(INPROCESS_MEMORY_MIB + robots * INPROCESS_ROBOT_MEMORY_MIB + maps + (
         _bag_memory_mib(scenario) if bag else 0.0))
+
+
+def map_memory_mib(scenario):
+    """Return the memory one planner's map of SCENARIO's world needs while built [MiB]."""
+    if scenario.static_world.empty:
+        return 0.0
+    _, (height, width), _ = scenario.static_world.grid_layout()
+    return height * width * MAP_BYTES_PER_CELL / 2.0 ** 20
 
 
 def _run_steps(scenario):
@@ -761,13 +779,16 @@ def check_team_memory(scenario, available_mib=None, engine='ros', bag=True):
     available = available_memory_mib() if available_mib is None else available_mib
     if available is None or needed <= available:
         return
+    map_mib = math.ceil(map_memory_mib(scenario))
+    maps = f', {map_mib} MiB per planner for its map' if map_mib else ''
     if engine == 'ros':
-        parts = (f'{PLANNER_MEMORY_MIB} MiB per planner, {SIMULATOR_MEMORY_MIB} MiB simulator, '
-                 f'{RUNNER_MEMORY_MIB} MiB runner')
+        parts = (f'{PLANNER_MEMORY_MIB} MiB per planner{maps}, {SIMULATOR_MEMORY_MIB} MiB '
+                 f'simulator, {RUNNER_MEMORY_MIB} MiB runner')
     else:
         parts = (f'in process: {INPROCESS_MEMORY_MIB} MiB, {INPROCESS_ROBOT_MEMORY_MIB:g} MiB '
-                 'per robot' + (f', {math.ceil(_bag_memory_mib(scenario))} MiB for the bag of '
-                                f'{_run_steps(scenario)} steps (--no-bag: none)' if bag else ''))
+                 f'per robot{maps}' + (
+                     f', {math.ceil(_bag_memory_mib(scenario))} MiB for the bag of '
+                     f'{_run_steps(scenario)} steps (--no-bag: none)' if bag else ''))
     raise ScenarioError(
         scenario.path, 'robots',
         f'{len(scenario.robots)} robots need an estimated {needed} MiB ({parts}), more than '
