@@ -66,6 +66,7 @@ from prvo_planner.agent import (
     build_map,
     same_grid,
 )
+from prvo_planner.background import BackgroundWorker
 from prvo_planner.maps import GridMap, MapTooLargeError
 from prvo_planner.parameters import (
     PARAMETERS,
@@ -183,7 +184,7 @@ class PlannerNode(Node):
 
     def destroy_node(self):
         """Destroy the node; a map being built is let go (its thread ends with it)."""
-        self._map_builder.shutdown(wait=False, cancel_futures=True)
+        self._map_builder.shutdown()
         super().destroy_node()
 
     def _source_endpoints(self):
@@ -448,8 +449,8 @@ class PlannerNode(Node):
         path (on `plan` too, by default), a filter none.
         """
         self._map_topic = self._values['map_topic']
-        self._map_builder = concurrent.futures.ThreadPoolExecutor(
-            max_workers=1, thread_name_prefix='map_builder')
+        # A daemon thread: a planner stopped while it builds a large map does not wait for it.
+        self._map_builder = BackgroundWorker('map_builder')
         # The newest map being built and the newest goal's ways (`_MapBuild`), None when none.
         self._map_build = None
         self._route_build = None
