@@ -48,6 +48,27 @@ def test_a_filter_fed_its_own_output_is_refused_at_startup(children, ros2_execut
     assert 'Traceback' not in output
 
 
+@pytest.mark.parametrize('arguments, named', [
+    # The planner's own odometry topic, by its full name and as the namespace resolves it.
+    (['-p', 'map_topic:=/robot_0/odom'], 'map_topic'),
+    (['-p', 'map_topic:=odom'], 'map_topic'),
+    (['-p', 'preferred_source:=path', '-p', 'path_topic:=odom'], 'path_topic'),
+    (['-p', 'preferred_source:=path', '-p', 'map_topic:=plan'], 'map_topic'),
+])
+def test_a_topic_of_another_type_is_refused_at_startup(children, ros2_executable, arguments,
+                                                       named):
+    # A subscription of another type on a topic of the planner's own failed in rcl (an
+    # 'invalid allocator' traceback and an rcutils error-state dump, exit 1).
+    process = children.start('planner', [
+        ros2_executable('prvo_planner', 'planner'), '--ros-args', '-r', '__ns:=/robot_0',
+        *arguments])
+    assert process.wait(timeout=30.0) == 2
+    output = children.output(process)
+    assert f'invalid parameter: {named}: ' in output, output
+    assert 'nav_msgs/msg/Odometry' in output or 'nav_msgs/msg/Path' in output, output
+    assert 'Traceback' not in output and 'error state' not in output, output
+
+
 def test_a_running_filter_keeps_its_topics(children, ros2_executable, probe):
     children.start('planner', [ros2_executable('prvo_planner', 'planner'), '--ros-args',
                                '-r', '__ns:=/robot_0', '-p', 'preferred_source:=velocity'])

@@ -22,6 +22,7 @@ import numpy as np
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.clock import Clock, ClockType
 from rclpy.exceptions import InvalidParameterTypeException, InvalidParameterValueException
+from rclpy.impl.implementation_singleton import rclpy_implementation
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 
@@ -87,6 +88,7 @@ from prvo_planner.reports import (
 )
 from prvo_planner.stalls import STALL_WINDOW
 
+RCLError = rclpy_implementation.RCLError
 _WARN_PERIOD_SECONDS = 2.0
 _ODOMETRY_TYPE = 'nav_msgs/msg/Odometry'
 _TWIST_TYPES = {Twist: 'geometry_msgs/msg/Twist', TwistStamped: 'geometry_msgs/msg/TwistStamped'}
@@ -205,12 +207,43 @@ class PlannerNode(Node):
             # Serialized (raw): a path's length is read before its poses, and the same path
             # again is one comparison of bytes (`SerializedPathReader`).
             self._path_reader = SerializedPathReader(self._values['frame_id'])
-            return [self.create_subscription(Path, self._values['path_topic'], self._on_path,
-                                             GOAL_QOS, raw=True, event_callbacks=quiet()),
+            return [self._subscribe_parameter_topic('path_topic', Path, self._on_path, GOAL_QOS,
+                                                    raw=True),
                     self._lookahead_publisher]
         return [self.create_subscription(
             self._twist_type, self._values['cmd_vel_in_topic'], self._on_upstream, CMD_VEL_QOS,
             event_callbacks=quiet())]
+
+    def _subscribe_parameter_topic(self, parameter, msg_type, callback, qos, raw=False):
+        """Subscribe to the topic PARAMETER names; return the subscription.
+
+        A topic the node itself has an endpoint of with another type (the planner's own
+        odometry, say) raises ParameterError, logged: rcl cannot subscribe with another type to
+        a topic of the process's own, and fails with an 'invalid allocator' error. The check
+        reads the node's own endpoints, not the graph: it waits for nothing.
+        """
+        topic = self._values[parameter]
+        name = self._resolved(topic)
+        known = sorted({_type_name(endpoint.msg_type)
+                        for endpoint in (*self.subscriptions, *self.publishers)
+                        if endpoint.topic_name == name and endpoint.msg_type is not msg_type})
+        wanted = _type_name(msg_type)
+        if known:
+            named = name if topic == name else f'{topic!r} is {name}, which'
+            self._refuse(parameter, f'{named} carries {", ".join(known)}, not {wanted}')
+        try:
+            return self.create_subscription(msg_type, topic, callback, qos, raw=raw,
+                                            event_callbacks=quiet_subscription_events())
+        except RCLError as error:
+            # Whatever else rcl refuses (a conflict the graph did not list): one line, exit 2.
+            self._refuse(parameter, f'cannot subscribe to {name} as {wanted}: '
+                         f'{str(error).split(", at ")[0]}')
+
+    def _refuse(self, parameter, reason):
+        """Log PARAMETER's REASON as the fatal 'invalid parameter: ...'; raise ParameterError."""
+        error = ParameterError(parameter, reason)
+        self.get_logger().fatal(f'invalid parameter: {error}')
+        raise error
 
     def _resolved(self, topic):
         """Return TOPIC as the graph names it (resolved in the node's namespace)."""
@@ -460,9 +493,8 @@ class PlannerNode(Node):
         self._published_route = None
         self._plan_publisher = None if self._source != GOAL else self.create_publisher(
             Path, PLAN, PLAN_QOS, event_callbacks=quiet_publisher_events())
-        subscription = self.create_subscription(
-            OccupancyGrid, self._map_topic, self._on_map, MAP_QOS,
-            event_callbacks=quiet_subscription_events())
+        subscription = self._subscribe_parameter_topic('map_topic', OccupancyGrid, self._on_map,
+                                                       MAP_QOS)
         return [subscription] + ([] if self._plan_publisher is None else [self._plan_publisher])
 
     @quiet_after_shutdown
@@ -671,6 +703,11 @@ def warmed_up_planner():
     node = PlannerNode()
     node.warm_up()
     return node
+
+
+def _type_name(msg_type):
+    """Return a message class's ROS type name, 'package/msg/Name'."""
+    return f'{msg_type.__module__.split(".")[0]}/msg/{msg_type.__name__}'
 
 
 def main(args=None):
