@@ -20,6 +20,13 @@ import numpy as np
 
 from prvo_planner.core import AgentBelief, VelocityLimits, plan_velocity
 from prvo_planner.core.beliefs import validated_share
+from prvo_planner.escalation import (
+    ROOM_RADII,
+    TURN_MAX,
+    TURN_RATE,
+    Escalation,
+    EscalationSettings,
+)
 from prvo_planner.maps import (
     GridMap,
     ObstacleIndex,
@@ -268,6 +275,9 @@ class AgentSettings:
     unknown_is_occupied: bool = True
     route_margin: float = 0.3
     wait_for_map: bool = False
+    stall_escalation: bool = False
+    stall_turn_rate: float = TURN_RATE
+    stall_turn_max: float = TURN_MAX
 
     @classmethod
     def from_parameters(cls, values):
@@ -295,6 +305,12 @@ class AgentSettings:
         return LookaheadSettings(self.lookahead_dist, self.use_velocity_scaled_lookahead_dist,
                                  self.min_lookahead_dist, self.max_lookahead_dist,
                                  self.lookahead_time)
+
+    @property
+    def escalation(self):
+        """Return the `EscalationSettings` of a stalled robot's turn."""
+        return EscalationSettings(self.stall_escalation, self.stall_turn_rate,
+                                  self.stall_turn_max)
 
     def tracking_model(self, max_speed):
         """Return the `TrackingModel` of a unicycle with these settings and MAX_SPEED."""
@@ -542,6 +558,7 @@ class PlannerAgent:
         self.stall_monitor = StallMonitor()
         # The passage too narrow to certify that the stall in progress is in front of.
         self._narrow_passage = None
+        self.escalation = Escalation()
         # The path followed (path mode); the upstream command waiting for its answer, when it
         # came and the last one answered (velocity mode); when the own state was last received.
         self._path = None
@@ -984,6 +1001,8 @@ class PlannerAgent:
         v_pref, self.arrived, distance_to_goal = self._preference(own)
         stall = self.stall_monitor.update(stamp, own.mean[:2], self.goal,
                                           self.settings.goal_tolerance, distance_to_goal)
+        v_pref = self.escalation.preferred(v_pref, stall, self.settings.escalation,
+                                           self._room_on_right(own.mean[:2]))
         route_status = self._route_status
         route = self._route if route_status == ROUTE_FOUND else None
         upstream, self._upstream = self._upstream, None
@@ -1101,6 +1120,17 @@ class PlannerAgent:
     def goal_blocked(self, goal):
         """Whether GOAL (2,) lies in an obstacle of the map, or off it (False without a map)."""
         return self._route_map is not None and self._route_map.blocked(goal)
+
+    def _room_on_right(self, position):
+        """Return the test of room toward a unit direction from POSITION (None: no map).
+
+        Room for the escalation's sidestep (`prvo_planner.escalation`): ROOM_RADII of the
+        planning radius through the route's admissible cells.
+        """
+        if self._route_map is None:
+            return None
+        room = ROOM_RADII * self.settings.planning_radius
+        return lambda right: self._route_map.in_sight(position, position + room * right)
 
     def _route_at(self, position, lookahead):
         """Return the route in force from POSITION to the goal, None if no way reaches it.

@@ -18,6 +18,7 @@ import numpy as np
 from prvo_msgs_util import validate_robot_name
 from prvo_planner.core import PlannerConfig
 from prvo_planner.core.config import CERTIFICATES, METHODS, MODELS, RISKS
+from prvo_planner.escalation import TURN_MAX, TURN_RATE
 from prvo_planner.preferred import SOURCES
 
 BOOL = 'bool'
@@ -280,6 +281,20 @@ _SPECS = (
     ParameterSpec('wait_for_map', BOOL, False, 'Plan only once a map has arrived (for at most '
                   'neighbor_timeout after the first own odometry), as for listed neighbours: a '
                   'run whose world has a map plans its first step on it.'),
+    # Escalation (`prvo_planner.escalation`): a stalled robot (`prvo_planner.stalls`) turns its
+    # preferred velocity to the right; off, the preferred velocity is the goal's or the route's
+    # (the benchmarks' ablation). Only the preference changes, never the chance constraints.
+    # Off: on the shipped wall worlds it cost more than it gained (prvo_planner.escalation).
+    ParameterSpec('stall_escalation', BOOL, False, 'A stalled robot (less than 0.5 m toward its '
+                  'goal in 10 s) turns its preferred velocity to the right by an angle that rises '
+                  'to stall_turn_max and falls back (a sidestep), again while the stall lasts, '
+                  'until it progresses; among walls only with room for its radius on its right. '
+                  'false = never.'),
+    ParameterSpec('stall_turn_rate', FLOAT, TURN_RATE, 'Escalation: the turn rises and falls '
+                  'this fast [rad/s], in [0.01, 10].', (0.01, 10.0)),
+    ParameterSpec('stall_turn_max', FLOAT, TURN_MAX, 'Escalation: the largest turn [rad], in '
+                  '[0.05, 1.5]: below a right angle, so that some of the preference stays toward '
+                  'the goal.', (0.05, 1.5)),
     *_PREFERRED_SOURCE_SPECS,
 )
 

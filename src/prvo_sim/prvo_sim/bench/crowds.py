@@ -3,7 +3,7 @@
     python -m prvo_sim.bench.crowds [--circles 8 16 24 48] [--seeds 1] [--teams 4]
                                     [--sweep 50] [--method prvo] [--eta ETA]
                                     [--certificate cantelli|certified] [--risk pairwise|joint]
-                                    [--json PATH] [--out DIR]
+                                    [--stall-escalation] [--json PATH] [--out DIR]
 
 Runs on the in-process engine, to completion or the scenario's duration:
 
@@ -23,7 +23,8 @@ Runs on the in-process engine, to completion or the scenario's duration:
   dependency of prvo, and their rows say so when absent.
 
 The circles and teams plan with the planner's default `eta`, `certificate` and `risk`;
-`--eta`, `--certificate` and `--risk` set them, to see what the guarantee costs in time. Per
+`--eta`, `--certificate` and `--risk` set them, to see what the guarantee costs in time, and
+`--stall-escalation` turns on the planner's escalation (`prvo_planner.escalation`). Per
 run it prints one Markdown row: arrivals, makespan (the last robot's arrival) and its ratio to
 the straight-line time (the longest start-to-goal distance over max speed), the mean time to
 goal over the mean straight-line time, the paths' length (each up to its arrival) over the
@@ -392,6 +393,9 @@ def build_parser():
     parser.add_argument('--risk', default=None, choices=RISKS,
                         help="risk allocation of the circles and teams (default: the "
                              "planner's)")
+    parser.add_argument('--stall-escalation', action='store_true',
+                        help='the circles and teams escalate when stalled (the planner '
+                             "parameter stall_escalation; default: the planner's, off)")
     parser.add_argument('--no-fallback-circle', action='store_true',
                         help='skip the noise-free 20-robot circle with --method rvo')
     parser.add_argument('--no-peers', action='store_true',
@@ -423,12 +427,14 @@ def planned_runs(options):
         runs.append((f'sweep{index} N={len(document["robots"])}', document, options.method))
     chosen = {name: getattr(options, name) for name in ('eta', 'certificate', 'risk')
               if getattr(options, name) is not None}
+    escalation = {'stall_escalation': True} if options.stall_escalation else {}
     for index, (label, document, method) in enumerate(runs):
         # The circles' documents hold circle8's eta: the planner's defaults replace it.
-        document['planner'] = {**document.get('planner', {}), **PLANNER_DEFAULTS, **chosen}
+        document['planner'] = {**document.get('planner', {}), **PLANNER_DEFAULTS, **chosen,
+                               **escalation}
         runs[index] = (' '.join([label, *(f'{name} {value:g}' if name == 'eta'
-                                          else str(value) for name, value in chosen.items())]),
-                       document, method)
+                                          else str(value) for name, value in chosen.items()),
+                                 *escalation]), document, method)
     if not options.no_fallback_circle:
         count, radius = FALLBACK_CIRCLE
         runs.append((f'circle{count} r={radius:g} noise-free',
