@@ -289,3 +289,18 @@ def test_the_way_out_is_none_beyond_reach_and_a_free_cell_is_not_inside():
     assert occupied_at(cells, RESOLUTION, origin, [3.0, 2.0])
     np.testing.assert_allclose(way_out(cells, RESOLUTION, origin, [3.0, 2.02], 3.0), [0.15, 2.05])
     assert way_out(cells, RESOLUTION, origin, [3.0, 2.0], 2.0) is None
+
+
+def test_a_filter_inside_an_obstacle_passes_its_controller_s_command_on():
+    """The controller's command is its way out: a filter does not replace it by its own."""
+    from prvo_planner.preferred import UpstreamCommand
+
+    agent = PlannerAgent('robot_0', CONFIG, dataclasses.replace(
+        SETTINGS, preferred_source='velocity'))
+    agent.set_map(block_room())
+    agent.receive_own(Measurement(0.0, np.array([2.25, 2.32]), np.zeros(2),
+                                  1e-4 * np.eye(4)), 0.0)
+    agent.receive_upstream(UpstreamCommand((0.0, 0.4), 0.0), 0.0)
+    command = agent.plan()
+    assert command.inside_obstacle is not None and command.passed_through
+    np.testing.assert_array_equal(command.velocity, [0.0, 0.4])

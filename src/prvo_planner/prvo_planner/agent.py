@@ -1023,8 +1023,10 @@ class PlannerAgent:
         inside = self._inside_obstacle(own.mean[:2])
         if inside is not None:
             # Every way out of an obstacle crosses its edges, which the walls' conditions
-            # forbid: the robot heads for the nearest free cell with only neighbours to avoid.
+            # forbid: the robot heads for the nearest free cell with only neighbours to avoid
+            # (a filter's command, its controller's way out, goes on as it came).
             obstacles, exit_point = None, inside[1]
+        if inside is not None and self.settings.preferred_source != VELOCITY:
             v_pref = np.zeros(2) if exit_point is None else preferred_velocity(
                 own.mean[:2], exit_point, max_speed, self.settings.approach_time, 0.0,
                 self.settings.max_acceleration)[0]
