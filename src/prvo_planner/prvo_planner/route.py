@@ -8,30 +8,87 @@ sqrt(2) of it and only where both cells beside it are admissible too (no corner 
 and goal are snapped to the nearest admissible cell centre. The shortest paths to one goal are
 found once, from every cell (``RouteMap.tree_to``): a robot that strays takes its new way from
 that tree without searching again.
+
+Memory is a few bytes per cell: the graph is never stored (a search steps over the grid's 8
+neighbour offsets), the distances to obstacles are kept as small integers, and a tree keeps one
+byte per cell, the step towards the goal.
 """
 
 import math
 
 import numpy as np
 
+# Four times the squared distance [cells^2] standing for "farther than the reach": larger than
+# any within it, and with the largest offset's term added still an int32, for reaches up to
+# 16,000 cells (`maps.check_route_work` allows at most 2,500).
+_FAR = 1 << 30
 
-def _edge_distances_squared(offsets):
-    """Return the squared distances (in cells) from a cell centre to cells OFFSETS away.
 
-    The distance from a centre to the square of the cell ``d`` cells away along one axis is
-    ``max(|d| - 1/2, 0)``; the squared distance to a cell is the sum of both axes' squares.
+def _quadrupled_distances_squared(occupied, window):
     """
-    return np.maximum(np.abs(offsets) - 0.5, 0.0) ** 2
+    Return 4 x the squared distance [cells^2] from each cell's centre to the nearest obstacle.
+
+    Obstacles at most WINDOW cells away along each axis count; ``_FAR`` where there is none.
+    Exact: the distance from a centre to the square of the cell ``d`` cells away along one axis
+    is ``max(|d| - 1/2, 0)``, so four times its square, ``max(2 |d| - 1, 0) ** 2``, is an
+    integer; the squared distance to a cell is the sum of both axes' terms. The minimum is
+    separable, taken one axis after the other; int32 arrays, updated in place, keep the pass at
+    about 13 bytes per cell.
+
+    Parameters
+    ----------
+    occupied : numpy.ndarray
+        Shape (height, width), bool; the outside of the map counts as occupied.
+    window : int
+        Offsets considered along each axis, >= 0.
+
+    Returns
+    -------
+    numpy.ndarray
+        Shape (height, width), int32.
+
+    """
+    height, width = occupied.shape
+    padded = np.pad(occupied, window, constant_values=True)
+    along_rows = np.full((height + 2 * window, width), _FAR, dtype=np.int32)
+    for offset in range(-window, window + 1):
+        np.minimum(along_rows, max(2 * abs(offset) - 1, 0) ** 2, out=along_rows,
+                   where=padded[:, window + offset:window + offset + width])
+    # Freed before the second pass allocates its two arrays.
+    del padded
+    nearest = np.full((height, width), _FAR, dtype=np.int32)
+    shifted = np.empty_like(nearest)
+    for offset in range(-window, window + 1):
+        np.add(along_rows[window + offset:window + offset + height],
+               max(2 * abs(offset) - 1, 0) ** 2, out=shifted)
+        np.minimum(nearest, shifted, out=nearest)
+    return nearest
+
+
+def _distances_of(quadrupled, occupied, resolution, cells):
+    """Return the distances [m] (float64) of `_quadrupled_distances_squared`'s QUADRUPLED.
+
+    0 for an OCCUPIED cell, inf from CELLS (the reach in cells) on.
+    """
+    nearest = quadrupled * 0.25
+    distances = np.sqrt(nearest) * resolution
+    distances[nearest >= cells * cells] = np.inf
+    distances[occupied] = 0.0
+    return distances
+
+
+def _window(resolution, reach):
+    """Return (REACH in cells, the offsets along an axis that can come closer than REACH)."""
+    cells = reach / resolution
+    return cells, int(math.floor(cells + 0.5))
 
 
 def obstacle_distances(occupied, resolution, reach):
     """
     Return the distance from every cell's centre to the nearest occupied cell, up to REACH.
 
-    Exact: the squared distance from a centre to the nearest occupied cell's square is the
-    smallest sum of the per-axis terms of ``_edge_distances_squared`` over occupied cells, a
-    separable minimum taken one axis after the other over the offsets that can come closer
-    than REACH.
+    Exact (see `_quadrupled_distances_squared`): the distance to the nearest occupied cell's
+    square.
 
     Parameters
     ----------
@@ -50,24 +107,9 @@ def obstacle_distances(occupied, resolution, reach):
 
     """
     occupied = np.asarray(occupied, dtype=bool)
-    height, width = occupied.shape
-    cells = reach / resolution
-    # Cells farther than this many cells along an axis are at least REACH away.
-    window = int(math.floor(cells + 0.5))
-    padded = np.pad(occupied, window, constant_values=True)
-    along_rows = np.full((height + 2 * window, width), np.inf)
-    for offset in range(-window, window + 1):
-        cost = float(_edge_distances_squared(offset))
-        along_rows = np.minimum(along_rows, np.where(
-            padded[:, window + offset:window + offset + width], cost, np.inf))
-    nearest = np.full((height, width), np.inf)
-    for offset in range(-window, window + 1):
-        cost = float(_edge_distances_squared(offset))
-        nearest = np.minimum(nearest, along_rows[window + offset:window + offset + height] + cost)
-    distances = np.sqrt(nearest) * resolution
-    distances[nearest >= cells * cells] = np.inf
-    distances[occupied] = 0.0
-    return distances
+    cells, window = _window(resolution, reach)
+    return _distances_of(_quadrupled_distances_squared(occupied, window), occupied,
+                         resolution, cells)
 
 
 def admissible_cells(occupied, resolution, clearance):
@@ -82,11 +124,22 @@ def admissible_cells(occupied, resolution, clearance):
 
 # A step through cells at the clearance costs this much more than one keeping the margin.
 MARGIN_COST = 1.0
+# The 8 steps between neighbours (row step, column step), each beside its opposite (index ^ 1);
+# a tree keeps, for every cell, the index of its step towards the goal, or one of these two.
+_STEPS = ((0, 1), (0, -1), (1, 0), (-1, 0), (1, 1), (-1, -1), (1, -1), (-1, 1))
+_UNREACHED = -1
+_AT_GOAL = len(_STEPS)
+# Rows of the grid turned into distances at a time: the float64 arrays of a block are transient.
+_BLOCK_CELLS = 1 << 18
 
 
 class RouteMap:
     """
-    The admissible cells of a grid and the 8-connected graph between them.
+    The admissible cells of a grid and the 8-connected steps between them.
+
+    Kept per cell: the occupied, admissible and roomy cells (bool), the steps allowed from each
+    (one byte, a bit per step of ``_STEPS``) and, with a margin, each cell's share of a step's
+    extra cost (float32): some 8 bytes a cell, on a grid padded by one cell.
 
     Parameters
     ----------
@@ -110,48 +163,44 @@ class RouteMap:
         self.resolution = float(resolution)
         self.origin = np.asarray(origin, dtype=float)
         self.occupied = np.asarray(occupied, dtype=bool)
-        distances = obstacle_distances(occupied, self.resolution, clearance + margin)
-        self.admissible = ~self.occupied & (distances >= clearance)
+        height, width = self.occupied.shape
+        cells, window = _window(self.resolution, clearance + margin)
+        quadrupled = _quadrupled_distances_squared(self.occupied, window)
+        self.admissible = np.empty((height, width), dtype=bool)
         # Cells that keep the margin too.
-        self.roomy = self.admissible & (distances >= clearance + margin)
-        closeness = (np.clip((clearance + margin - distances) / margin, 0.0, 1.0) if margin > 0.0
-                     else np.zeros(distances.shape))
-        closeness = closeness.ravel()
-        height, width = self.admissible.shape
+        self.roomy = np.empty((height, width), dtype=bool)
+        # Half the extra cost a step pays per cell at either end, on the padded grid.
+        self._extra = (np.zeros((height + 2, width + 2), dtype=np.float32) if margin > 0.0
+                       else None)
+        rows = max(1, _BLOCK_CELLS // width)
+        for first in range(0, height, rows):
+            block = slice(first, first + rows)
+            distances = _distances_of(quadrupled[block], self.occupied[block], self.resolution,
+                                      cells)
+            self.admissible[block] = ~self.occupied[block] & (distances >= clearance)
+            self.roomy[block] = self.admissible[block] & (distances >= clearance + margin)
+            if margin > 0.0:
+                self._extra[1:-1, 1:-1][block] = 0.5 * MARGIN_COST * np.clip(
+                    (clearance + margin - distances) / margin, 0.0, 1.0)
+        del quadrupled
         self._width = width
-        rows, columns = np.nonzero(self.admissible)
-        # The admissible cells in flat order, for snapping.
-        self._admissible_index = rows * width + columns
+        self._padded_width = width + 2
+        self._any_admissible = bool(self.admissible.any())
         ok = np.pad(self.admissible, 1, constant_values=False)
-        sources, targets, weights = [], [], []
-        index = np.arange(height * width).reshape(height, width)
-        straight, diagonal = self.resolution, self.resolution * math.sqrt(2.0)
-        # (row step, column step): right, up, up-right, up-left; the graph is undirected.
-        for step_row, step_column, weight in ((0, 1, straight), (1, 0, straight),
-                                              (1, 1, diagonal), (1, -1, diagonal)):
-            there = ok[1 + step_row:1 + step_row + height, 1 + step_column:1 + step_column + width]
-            linked = self.admissible & there
+        # Bit k: the step _STEPS[k] from this padded cell is allowed.
+        self._allowed = np.zeros(ok.shape, dtype=np.uint8)
+        inner = self._allowed[1:-1, 1:-1]
+        for bit, (step_row, step_column) in enumerate(_STEPS):
+            linked = self.admissible & ok[1 + step_row:1 + step_row + height,
+                                          1 + step_column:1 + step_column + width]
             if step_row and step_column:
                 # Both cells beside a diagonal step must be admissible.
                 linked &= ok[1 + step_row:1 + step_row + height, 1:1 + width]
                 linked &= ok[1:1 + height, 1 + step_column:1 + step_column + width]
-            here = index[linked]
-            there_index = here + step_row * width + step_column
-            sources.append(here)
-            targets.append(there_index)
-            weights.append(weight * (1.0 + MARGIN_COST * 0.5 * (
-                closeness[here] + closeness[there_index])))
-        size = height * width
-        sources, targets = np.concatenate(sources), np.concatenate(targets)
-        weights = np.concatenate(weights)
-        # Both directions stored once: an undirected search would symmetrise on every call.
-        # scipy.sparse is imported here, not with the module: it costs a process 0.2-0.3 s of
-        # CPU, and most planners (those without a map) never build a route.
-        from scipy.sparse import coo_matrix
-        self._graph = coo_matrix(
-            (np.concatenate([weights, weights]),
-             (np.concatenate([sources, targets]), np.concatenate([targets, sources]))),
-            shape=(size, size)).tocsr()
+            inner |= linked.view(np.uint8) << bit
+        self._offsets = np.array([step_row * self._padded_width + step_column
+                                  for step_row, step_column in _STEPS])
+        self._lengths = self.resolution * np.hypot(*np.array(_STEPS, dtype=float).T)
 
     def centres(self, cells):
         """Return the world positions (K, 2) [m] of the centres of flat cell indices CELLS (K,)."""
@@ -210,7 +259,7 @@ class RouteMap:
         windows of cells around POSITION first: a cell farther than k cells along an axis from
         POSITION's cell has its centre more than k + 1/2 cells away.
         """
-        if len(self._admissible_index) == 0:
+        if not self._any_admissible:
             return None
         position = np.asarray(position, dtype=float)
         cell = self.cell_of(position)
@@ -231,8 +280,19 @@ class RouteMap:
                     if distances[best] < ((reach + 0.5) * self.resolution) ** 2:
                         return int(found[best])
                 reach *= 4
-        offsets = self.centres(self._admissible_index) - position
-        return int(self._admissible_index[np.argmin(np.einsum('ij,ij->i', offsets, offsets))])
+        # Off the map: every admissible cell, a block of rows at a time, in flat order.
+        best, nearest = None, np.inf
+        height, width = self.admissible.shape
+        rows = max(1, _BLOCK_CELLS // width)
+        for first in range(0, height, rows):
+            found = np.flatnonzero(self.admissible[first:first + rows]) + first * width
+            if len(found):
+                offsets = self.centres(found) - position
+                distances = np.einsum('ij,ij->i', offsets, offsets)
+                index = int(np.argmin(distances))
+                if distances[index] < nearest:
+                    best, nearest = int(found[index]), distances[index]
+        return best
 
     def tree_to(self, goal):
         """Return the `RouteTree` of the shortest paths from every cell to GOAL (2,) [m].
@@ -240,23 +300,75 @@ class RouteMap:
         A goal in an obstacle or off the map has no way to it.
         """
         cell = None if self.blocked(goal) else self.snapped(goal)
+        goal = np.asarray(goal, dtype=float)
         if cell is None:
-            return RouteTree(self, np.asarray(goal, dtype=float), None, None, None)
-        from scipy.sparse.csgraph import dijkstra
-        distances, predecessors = dijkstra(self._graph, directed=True, indices=cell,
-                                           return_predecessors=True)
-        return RouteTree(self, np.asarray(goal, dtype=float), cell, distances, predecessors)
+            return RouteTree(self, goal, None, None)
+        return RouteTree(self, goal, cell, self._search(self._padded(cell)))
+
+    def _padded(self, cell):
+        """Return the index on the padded grid of the flat cell index CELL."""
+        row, column = divmod(int(cell), self._width)
+        return (row + 1) * self._padded_width + column + 1
+
+    def _search(self, goal):
+        """
+        Return the step towards GOAL (a padded index) of every padded cell, int8.
+
+        Dijkstra's search from GOAL over the allowed steps, a band of cells per round of array
+        work: a step costs at least a cell edge, so no cell less than one edge farther than the
+        nearest unsettled one can be improved through another unsettled one; the round settles
+        them all. (A cell improved after all, by a rounding, is searched from again.) A cell's
+        step is the one of its latest improvement, to a cell strictly nearer the goal, so the
+        steps form a tree. Transient: the float64 distances and a flag, 9 bytes per cell.
+        """
+        size = self._allowed.size
+        steps = np.full(size, _UNREACHED, dtype=np.int8)
+        distances = np.full(size, np.inf)
+        queued = np.zeros(size, dtype=bool)
+        allowed = self._allowed.ravel()
+        extra = None if self._extra is None else self._extra.ravel()
+        steps[goal], distances[goal], queued[goal] = _AT_GOAL, 0.0, True
+        frontier = np.array([goal])
+        while len(frontier):
+            reached = distances[frontier]
+            settled = reached < reached.min() + self.resolution
+            cells, frontier = frontier[settled], frontier[~settled]
+            queued[cells] = False
+            reached, bits = reached[settled], allowed[cells]
+            own_extra = None if extra is None else extra[cells].astype(float)
+            found = [frontier]
+            for step, (offset, length) in enumerate(zip(self._offsets, self._lengths,
+                                                        strict=True)):
+                going = (bits & (1 << step)) != 0
+                targets = cells[going] + offset
+                if extra is None:
+                    through = reached[going] + length
+                else:
+                    through = reached[going] + length * (1.0 + own_extra[going]
+                                                         + extra[targets])
+                better = through < distances[targets]
+                targets = targets[better]
+                distances[targets] = through[better]
+                # A step from the target back to this cell: the opposite of STEP.
+                steps[targets] = step ^ 1
+                targets = targets[~queued[targets]]
+                queued[targets] = True
+                found.append(targets)
+            frontier = np.concatenate(found)
+        return steps
 
 
 class RouteTree:
-    """The shortest paths from every cell of a `RouteMap` to one goal (`RouteMap.tree_to`)."""
+    """The shortest paths from every cell of a `RouteMap` to one goal (`RouteMap.tree_to`).
 
-    def __init__(self, route_map, goal, goal_cell, distances, predecessors):
+    Kept: a byte per cell of the padded grid, the step towards the goal.
+    """
+
+    def __init__(self, route_map, goal, goal_cell, steps):
         self.route_map = route_map
         self.goal = goal
         self.goal_cell = goal_cell
-        self._distances = distances
-        self._predecessors = predecessors
+        self._steps = steps
 
     def route_from(self, position, taut=True):
         """
@@ -284,11 +396,17 @@ class RouteTree:
         """
         route_map = self.route_map
         start = route_map.snapped(position)
-        if start is None or self.goal_cell is None or not np.isfinite(self._distances[start]):
+        if start is None or self.goal_cell is None:
             return None
-        cells = [start]
-        while cells[-1] != self.goal_cell:
-            cells.append(int(self._predecessors[cells[-1]]))
+        cell = route_map._padded(start)
+        if self._steps[cell] == _UNREACHED:
+            return None
+        padded = [cell]
+        while self._steps[cell] != _AT_GOAL:
+            cell += int(route_map._offsets[self._steps[cell]])
+            padded.append(cell)
+        rows, columns = np.divmod(np.array(padded), route_map._padded_width)
+        cells = (rows - 1) * route_map._width + columns - 1
         points = route_map.centres(cells)
         if taut:
             allowed = route_map.roomy.copy()
