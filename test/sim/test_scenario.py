@@ -372,7 +372,7 @@ def test_team_memory_counts_a_map_for_every_planner(tmp_path):
     hall = load_scenario(path)
     cells = hall.static_world.grid.cells.size
     per_map = cells * MAP_BYTES_PER_CELL / 2.0 ** 20
-    assert per_map > 100.0
+    assert per_map > 10.0
     for engine, without in (('ros', 3 * PLANNER_MEMORY_MIB + SIMULATOR_MEMORY_MIB
                              + RUNNER_MEMORY_MIB),
                             ('inprocess', INPROCESS_MEMORY_MIB + 3 * INPROCESS_ROBOT_MEMORY_MIB)):

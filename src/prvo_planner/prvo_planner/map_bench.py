@@ -8,6 +8,10 @@ Usage: ``python -m prvo_planner.map_bench [--json PATH] [--sizes 20 40 100]
 index, route graph), once per goal (the shortest paths to it from every cell), per plan (the
 obstacles within 3 m; a route from a new position).
 
+A second table gives what a planner's whole map costs (`agent.build_map`, with a goal): its CPU
+time, and the memory that tracemalloc traces while it is built (the peak) and after (kept, the
+grid itself not counted), in bytes per cell of the grid.
+
 With ``--callbacks`` a planner node in this process (on ROS_DOMAIN_ID, or 0) is handed each map
 as an OccupancyGrid message, and a second table gives wall times [ms]: the node's map callback,
 what that callback took when it built the map itself (reading the message, then
@@ -18,9 +22,11 @@ import argparse
 import json
 import sys
 import time
+import tracemalloc
 
 import numpy as np
 
+from prvo_planner.agent import build_map
 from prvo_planner.maps import GridMap, ObstacleIndex, grid_obstacles, occupied_cells
 from prvo_planner.route import RouteMap
 
@@ -30,6 +36,9 @@ WALL = 0.1
 QUERY_DISTANCE = 3.0
 CLEARANCE = 0.3
 QUERIES = 200
+# The map key of the whole map's build (`agent.map_key_of`): unknown cells occupied, obstacles
+# within QUERY_DISTANCE, a robot of CLEARANCE with the default route margin.
+BUILT_FOR = (True, QUERY_DISTANCE, CLEARANCE, 0.3)
 
 
 def office(size, resolution, seed=0):
@@ -84,6 +93,40 @@ def bench_map(size, resolution):
             'index_ms': index_ms, 'near_us': near_us, 'near_found': float(np.mean(found)),
             'route_map_ms': route_map_ms, 'tree_ms': tree_ms, 'route_from_ms': route_ms,
             'routes_found': sum(route is not None for route in routes)}
+
+
+def build_memory(grid):
+    """
+    Return what building the whole map of GRID costs: CPU time and traced memory.
+
+    Returns
+    -------
+    dict
+        ``build_ms`` (CPU, untraced), ``peak_bytes_per_cell`` and ``kept_bytes_per_cell``
+        (tracemalloc's peak during `agent.build_map` and what the result holds, above what
+        was traced before, per cell of GRID). The goal is the free cell nearest the map's
+        middle.
+
+    """
+    height, width = grid.shape
+    free = np.argwhere(~occupied_cells(grid))
+    row, column = free[np.argmin(np.hypot(*(free - [height / 2.0, width / 2.0]).T))]
+    goal = grid.origin + grid.resolution * (np.array([column, row]) + 0.5)
+    build_ms, _ = cpu_ms(lambda: build_map(grid, BUILT_FOR, goal), repeats=1)
+    tracing = tracemalloc.is_tracing()
+    if not tracing:
+        tracemalloc.start()
+    try:
+        before = tracemalloc.get_traced_memory()[0]
+        tracemalloc.reset_peak()
+        built = build_map(grid, BUILT_FOR, goal)
+        kept, peak = tracemalloc.get_traced_memory()
+    finally:
+        if not tracing:
+            tracemalloc.stop()
+    assert built.route_tree is not None
+    return {'build_ms': build_ms, 'peak_bytes_per_cell': (peak - before) / grid.cells.size,
+            'kept_bytes_per_cell': (kept - before) / grid.cells.size}
 
 
 def bench_callback(node, size, resolution):
@@ -145,6 +188,13 @@ def main(argv=None):
               f"{row['segments']} | {row['segments_ms']:.1f} | {row['index_ms']:.1f} | "
               f"{row['near_us']:.0f} ({row['near_found']:.0f}) | {row['route_map_ms']:.0f} | "
               f"{row['tree_ms']:.0f} | {row['route_from_ms']:.2f} |", flush=True)
+    print('\n| map | cells | whole map built [ms] | peak while built [B/cell] | kept [B/cell] |')
+    print('|---|---|---|---|---|')
+    for row in rows:
+        row.update(build_memory(office(row['size_m'], arguments.resolution)))
+        print(f"| {row['size_m']:g} m at {arguments.resolution:g} m | {row['cells']} | "
+              f"{row['build_ms']:.0f} | {row['peak_bytes_per_cell']:.1f} | "
+              f"{row['kept_bytes_per_cell']:.1f} |", flush=True)
     if arguments.callbacks:
         print('\n| map | map callback [ms] | callback building the map [ms] | '
               'map in force after [ms] |')

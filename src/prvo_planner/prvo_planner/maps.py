@@ -75,8 +75,8 @@ class GridMap:
 # besides its cells: the distance pass (`route.obstacle_distances`) pads the grid by the
 # route's reach (clearance + margin, in cells) on every side and takes a minimum over as many
 # offsets along each axis. At about 5 ns a visit, 2e9 visits are some 10 s of one core; the
-# padded cells cost about 5 bytes each (a flag and an int32). A 4000 x 4000 map of 0.05 m cells with a reach of 1 m
-# needs 1.6e7 padded cells and 1.3e9 visits.
+# padded cells cost about 5 bytes each (a flag and an int32). A 4000 x 4000 map of 0.05 m cells
+# with a reach of 1 m needs 1.6e7 padded cells and 1.3e9 visits.
 MAX_PADDED_CELLS = 25_000_000
 MAX_DISTANCE_VISITS = 2_000_000_000
 
