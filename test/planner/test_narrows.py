@@ -55,7 +55,8 @@ def _square_distances(grid, point):
 
 def _check_waiting_spots(grid, passages, radius=RADIUS, margin=MARGIN):
     """Each spot: free, clear of every occupied cell, outside every passage, off its axis."""
-    spots = np.array([end.waiting_spot for passage in passages for end in passage.ends])
+    spots = np.array([end.waiting_spot for passage in passages
+                      for end in passage.ends]).reshape(-1, 2)
     gaps = np.linalg.norm(spots[:, None] - spots[None], axis=-1)
     assert np.all(gaps[~np.eye(len(spots), dtype=bool)] >= 2.0 * radius + margin - 1e-9)
     for passage in passages:
@@ -281,3 +282,10 @@ def test_the_pictures_are_written(tmp_path):
     assert picture.stat().st_size < 200_000
     assert figure_main(['--scenarios', 'doorway8', '--margin', '-1']) == 2
     assert figure_main(['--scenarios', 'no_such_scenario']) == 2
+
+
+@pytest.mark.parametrize('name', ['corridor8', 'doorway8', 'office', 'pillars12', 'u_trap'])
+def test_every_shipped_map_has_its_waiting_spots_apart_and_clear(name):
+    # u_trap's two passages open side by side into the trap: their spots must not overlap.
+    grid, radius = _shipped(name)
+    _check_waiting_spots(grid, find_passages(grid, radius, MARGIN), radius)

@@ -187,9 +187,11 @@ def find_passages(grid, radius, margin, unknown_is_occupied=True):
     if local > MAX_LOCAL_CELLS:
         raise MapTooLargeError(f'{width} x {height} cells: its passages and waiting spots span '
                                f'{local:.3g} cells (at most {MAX_LOCAL_CELLS:.3g})')
+    if not through.any():
+        return ()
     labels[~through[labels]] = 0
     # Where a robot's centre is in a passage: its body within a disc of free space centred on
-    # the passage's ridge, (nearly: the disc of the nearest ridge cell).
+    # the passage's ridge (nearly: the disc of the nearest ridge cell).
     distances, (rows, columns) = ndimage.distance_transform_edt(labels == 0,
                                                                 return_indices=True)
     inside = fits & (distances * resolution <= clearance[rows, columns] - radius)
