@@ -47,15 +47,17 @@ from prvo_planner.maps import MAX_PADDED_CELLS, MapTooLargeError, occupied_cells
 # Waiting spots are searched for within this many passing widths of an entrance.
 WAIT_REACH = 2.0
 # Bounds on the work of `find_passages`, in the style of `maps.check_route_work`. The distance
-# transforms and labellings visit every cell a few times and hold about 50 bytes a cell at
-# their peak (a 2000 x 2000 map: 0.75 s of one core, 200 MB), on at most ``MAX_CELLS``, as
-# many as a route may pad (`maps.MAX_PADDED_CELLS`). Each stretch of narrow ridge is then
-# examined within its bounding box, one cell wider on every side, and each passage's end
-# searched for its waiting spot within a square window: their areas summed are at most
-# ``MAX_LOCAL_CELLS``, at about 250 ns a cell some 10 s (the same map tiled with 304 doors asks
-# for 1.3e7 cells, 3 s).
+# transforms and labellings visit every cell a few times and hold about 22 bytes a cell at
+# their peak (a 2000 x 2000 map of open space: 0.5 s of one core, 90 MB), on at most
+# ``MAX_CELLS``, as many as a route may pad (`maps.MAX_PADDED_CELLS`). Each stretch of narrow
+# ridge is then examined within its bounding box, one cell wider on every side, each passage's
+# cells within half a passing width of that box, and each end's waiting spot searched for
+# within a square window: their areas summed are at most ``MAX_LOCAL_CELLS``, at about 250 ns a
+# cell some 10 s (a 2000 x 2000 office of 304 doors asks for 1.4e7 cells, 3 s in all).
 MAX_CELLS = MAX_PADDED_CELLS
 MAX_LOCAL_CELLS = 40_000_000
+# Cells per block of `_clearances_and_ridge`'s arithmetic: bounds its temporary arrays.
+_BLOCK_CELLS = 1 << 16
 # 8-connectivity for labelling and dilation: a diagonal step keeps a region connected.
 _EIGHT = np.ones((3, 3), dtype=bool)
 
@@ -178,33 +180,34 @@ def find_passages(grid, radius, margin, unknown_is_occupied=True):
     if local > MAX_LOCAL_CELLS:
         raise MapTooLargeError(f'{width} x {height} cells: its narrow places span {local:.3g} '
                                f'cells (at most {MAX_LOCAL_CELLS:.3g})')
-    through = np.zeros(len(boxes) + 1, dtype=bool)
+    # A passage's cells lie within half the passing width less r of its ridge.
+    spread = int(math.ceil((half - radius) / resolution)) + 1
+    through = []
     for label, box in enumerate(boxes, start=1):
         mask = labels[box] == label
         _, count = ndimage.label(_rim(mask, open_space[box]), structure=_EIGHT)
-        through[label] = count >= 2
-        local += through[label] * count * (2 * window + 1) ** 2
+        if count >= 2:
+            through.append((label, box, _grown(box, spread, labels.shape)))
+            local += count * (2 * window + 1) ** 2 + _area(through[-1][2])
     if local > MAX_LOCAL_CELLS:
         raise MapTooLargeError(f'{width} x {height} cells: its passages and waiting spots span '
                                f'{local:.3g} cells (at most {MAX_LOCAL_CELLS:.3g})')
-    if not through.any():
-        return ()
-    labels[~through[labels]] = 0
     # Where a robot's centre is in a passage: its body within a disc of free space centred on
     # the passage's ridge (nearly: the disc of the nearest ridge cell).
-    distances, (rows, columns) = ndimage.distance_transform_edt(labels == 0,
-                                                                return_indices=True)
-    inside = fits & (distances * resolution <= clearance[rows, columns] - radius)
-    region = np.where(inside, labels[rows, columns], 0)
-    in_passages = region != 0
-    region_boxes = ndimage.find_objects(region, max_label=len(boxes))
+    in_passages = np.zeros_like(fits)
+    cells = []
+    for label, _, near in through:
+        distances, (rows, columns) = ndimage.distance_transform_edt(labels[near] != label,
+                                                                    return_indices=True)
+        inside = fits[near] & (distances * resolution
+                               <= clearance[near][rows, columns] - radius)
+        in_passages[near] |= inside
+        cells.append(_cells_in(inside, near))
     # Spots already chosen, which later ones keep clear of: two waiting robots do not overlap.
     taken = []
     passages = [_passage(grid, clearance, fits, open_space, in_passages, labels[box] == label,
-                         box, _cells_in(region[region_box] == label, region_box), radius,
-                         margin, window, taken)
-                for label, (box, region_box) in enumerate(zip(boxes, region_boxes, strict=True),
-                                                           start=1) if through[label]]
+                         box, passage_cells, radius, margin, window, taken)
+                for (label, box, _), passage_cells in zip(through, cells, strict=True)]
     return tuple(sorted(passages, key=lambda passage: tuple(passage.ends[0].entrance)))
 
 
@@ -220,20 +223,31 @@ def _clearances_and_ridge(occupied, resolution, radius):
     the cell's four neighbours. The middle of a door, of a corridor, of a room; a straight or
     staircase wall alone makes none (its nearest cells move by a cell or two at most), a
     concave corner one along its bisector, from where the walls are 2 RADIUS apart.
+
+    Only the nearest cells are asked of the transform (8 bytes a cell) and the distances and
+    jumps are taken from them a block of rows at a time: scipy's distances would cost 40 bytes
+    a cell more at their peak.
     """
     from scipy import ndimage
-    padded = np.pad(occupied, 1, constant_values=True)
-    centres, nearest = ndimage.distance_transform_edt(~padded, return_indices=True)
-    jump = max(2.0 * radius / resolution, 2.0)
-    ridge = np.zeros(padded.shape, dtype=bool)
-    interior = (slice(1, -1), slice(1, -1))
-    for step_row, step_column in ((0, 1), (1, 0), (0, -1), (-1, 0)):
-        beside = nearest[:, 1 + step_row:padded.shape[0] - 1 + step_row,
-                         1 + step_column:padded.shape[1] - 1 + step_column]
-        ridge[interior] |= np.sum((nearest[(slice(None),) + interior] - beside) ** 2,
-                                  axis=0) >= jump * jump
-    ridge &= ~padded
-    return (centres[interior] - 0.5) * resolution, ridge[interior]
+    height, width = occupied.shape
+    nearest = ndimage.distance_transform_edt(np.pad(~occupied, 1), return_distances=False,
+                                             return_indices=True)
+    jump = max(2.0 * radius / resolution, 2.0) ** 2
+    clearance = np.empty((height, width))
+    ridge = np.zeros((height, width), dtype=bool)
+    block = max(1, _BLOCK_CELLS // (width + 2))
+    for first in range(0, height, block):
+        last = min(first + block, height)
+        # Padded rows first + 1 .. last, and the rows beside them; int64: no square overflows.
+        here = nearest[:, first + 1:last + 1, 1:-1].astype(np.int64)
+        cell = np.mgrid[first + 1:last + 1, 1:width + 1]
+        clearance[first:last] = (np.sqrt(np.sum((here - cell) ** 2, axis=0)) - 0.5) * resolution
+        for step_row, step_column in ((0, 1), (1, 0), (0, -1), (-1, 0)):
+            beside = nearest[:, first + 1 + step_row:last + 1 + step_row,
+                             1 + step_column:width + 1 + step_column]
+            ridge[first:last] |= np.sum((here - beside) ** 2, axis=0) >= jump
+    ridge &= ~occupied
+    return clearance, ridge
 
 
 def _rim(mask, open_space):
@@ -415,8 +429,11 @@ def _waiting_spot(grid, clearance, fits, in_passages, entrance, outward, radius,
     apart = 2.0 * radius + margin
     good = (reached & (clearance[box][rows, columns] >= radius + margin) & (along >= 0.0)
             & (away >= apart) & (np.abs(across) >= apart))
-    for spot in taken:
-        good &= np.linalg.norm(offsets + entrance - spot, axis=1) >= apart
+    # Only the spots within reach of the window: their number, not all of them, costs.
+    others = np.reshape(taken, (-1, 2)) - entrance
+    others = others[np.max(np.abs(others), axis=1) <= (window + 1) * resolution + apart]
+    for other in others:
+        good &= np.linalg.norm(offsets - other, axis=1) >= apart
     if not good.any():
         return None
     distances = np.round(np.hypot(*offsets[good].T) / resolution, 9)
