@@ -8,16 +8,16 @@ import numpy as np
 import pytest
 
 from prvo_planner.path_following import carrot
-from prvo_planner.route import RouteMap, admissible_cells, path_length
+from prvo_planner.route import MARGIN_COST, RouteMap, admissible_cells, path_length
 
 RESOLUTION = 0.1
 ORIGIN = np.array([2.0, -1.0])
 
 
-def brute_admissible(occupied, clearance):
-    """Cells whose centre keeps CLEARANCE [m] from every occupied cell and the map's outside."""
+def brute_distances(occupied):
+    """Distances [m] from free cells' centres to the nearest occupied cell or the outside."""
     height, width = occupied.shape
-    result = np.zeros_like(occupied)
+    result = np.zeros(occupied.shape)
     blocked = np.argwhere(occupied)
     for row in range(height):
         for column in range(width):
@@ -29,13 +29,28 @@ def brute_admissible(occupied, clearance):
                 dx = max(other_column - x, 0.0, x - other_column - 1.0)
                 dy = max(other_row - y, 0.0, y - other_row - 1.0)
                 nearest = min(nearest, math.hypot(dx, dy))
-            result[row, column] = nearest * RESOLUTION >= clearance
+            result[row, column] = nearest * RESOLUTION
     return result
 
 
-def brute_shortest(admissible, start, goal):
-    """Return the shortest length by own Dijkstra: 8-connected, diagonals beside free cells."""
+def brute_admissible(occupied, clearance):
+    """Cells whose centre keeps CLEARANCE [m] from every occupied cell and the map's outside."""
+    return ~occupied & (brute_distances(occupied) >= clearance)
+
+
+def step_cost(closeness, here, there):
+    """Return the cost of the step between cells HERE and THERE (row, column) of CLOSENESS."""
+    length = RESOLUTION * math.hypot(there[0] - here[0], there[1] - here[1])
+    return length * (1.0 + MARGIN_COST * 0.5 * (closeness[here] + closeness[there]))
+
+
+def brute_shortest(admissible, start, goal, closeness=None):
+    """Return the least cost by own Dijkstra: 8-connected, diagonals beside free cells.
+
+    CLOSENESS (height, width), if given, makes a step cost more near obstacles (`step_cost`).
+    """
     height, width = admissible.shape
+    closeness = np.zeros(admissible.shape) if closeness is None else closeness
 
     def ok(row, column):
         return 0 <= row < height and 0 <= column < width and admissible[row, column]
@@ -58,7 +73,7 @@ def brute_shortest(admissible, start, goal):
                 if step_row and step_column and not (
                         ok(row + step_row, column) and ok(row, column + step_column)):
                     continue
-                new = cost + RESOLUTION * math.hypot(step_row, step_column)
+                new = cost + step_cost(closeness, (row, column), there)
                 if new < best.get(there, math.inf) - 1e-12:
                     best[there] = new
                     heapq.heappush(queue, (new, there))
@@ -139,6 +154,33 @@ def test_routes_are_shortest_and_keep_the_clearance(seed):
         assert path_length(taut) <= expected + 1e-9
         assert all(seen_along_admissible(admissible, a, b)
                    for a, b in zip(taut[:-1], taut[1:], strict=True))
+
+
+@pytest.mark.parametrize('seed', range(6))
+def test_with_a_margin_the_grid_path_costs_the_least(seed):
+    """The search over the grid's steps finds the least cost: as a plain Dijkstra does."""
+    rng = np.random.default_rng(100 + seed)
+    occupied = rng.random((11, 12)) < 0.15
+    clearance, margin = 0.05, [0.1, 0.25, 0.4][seed % 3]
+    distances = brute_distances(occupied)
+    admissible = ~occupied & (distances >= clearance)
+    closeness = np.clip((clearance + margin - distances) / margin, 0.0, 1.0)
+    route_map = RouteMap(occupied, RESOLUTION, ORIGIN, clearance, margin)
+    cells = [tuple(cell) for cell in np.argwhere(admissible)]
+    for _ in range(6):
+        start, goal = (cells[index] for index in rng.choice(len(cells), 2, replace=False))
+        expected = brute_shortest(admissible, start, goal, closeness)
+        path = route_map.tree_to(centre(goal)).cells_from(centre(start))
+        if expected is None:
+            assert path is None
+            continue
+        steps = [divmod(int(cell), occupied.shape[1]) for cell in path]
+        assert steps[0] == start and steps[-1] == goal
+        assert all(max(abs(a[0] - b[0]), abs(a[1] - b[1])) == 1
+                   for a, b in zip(steps[:-1], steps[1:], strict=True))
+        cost = sum(step_cost(closeness, a, b) for a, b in zip(steps[:-1], steps[1:], strict=True))
+        # Float32 costs near obstacles: equal to rounding.
+        assert cost == pytest.approx(expected, rel=1e-6)
 
 
 def test_start_and_goal_snap_to_the_nearest_admissible_cell_and_the_goal_ends_the_route():

@@ -370,6 +370,25 @@ class RouteTree:
         self.goal_cell = goal_cell
         self._steps = steps
 
+    def cells_from(self, position):
+        """Return the flat indices (K,) of the grid path's cells from POSITION (2,) to the goal.
+
+        From the admissible cell nearest POSITION to the goal's; None if no path reaches it.
+        """
+        route_map = self.route_map
+        start = route_map.snapped(position)
+        if start is None or self.goal_cell is None:
+            return None
+        cell = route_map._padded(start)
+        if self._steps[cell] == _UNREACHED:
+            return None
+        padded = [cell]
+        while self._steps[cell] != _AT_GOAL:
+            cell += int(route_map._offsets[self._steps[cell]])
+            padded.append(cell)
+        rows, columns = np.divmod(np.array(padded), route_map._padded_width)
+        return (rows - 1) * route_map._width + columns - 1
+
     def route_from(self, position, taut=True):
         """
         Return the shortest path from POSITION to the goal, or None if no path reaches it.
@@ -395,18 +414,9 @@ class RouteTree:
 
         """
         route_map = self.route_map
-        start = route_map.snapped(position)
-        if start is None or self.goal_cell is None:
+        cells = self.cells_from(position)
+        if cells is None:
             return None
-        cell = route_map._padded(start)
-        if self._steps[cell] == _UNREACHED:
-            return None
-        padded = [cell]
-        while self._steps[cell] != _AT_GOAL:
-            cell += int(route_map._offsets[self._steps[cell]])
-            padded.append(cell)
-        rows, columns = np.divmod(np.array(padded), route_map._padded_width)
-        cells = (rows - 1) * route_map._width + columns - 1
         points = route_map.centres(cells)
         if taut:
             allowed = route_map.roomy.copy()
