@@ -161,8 +161,8 @@ def find_passages(grid, radius, margin, unknown_is_occupied=True):
     if height * width > MAX_CELLS:
         raise MapTooLargeError(f'{width} x {height} cells: finding passages visits at most '
                                f'{MAX_CELLS:.3g} cells')
-    # scipy.ndimage is imported here, not with the module, as route.py imports scipy.sparse:
-    # most planners never read a map.
+    # scipy.ndimage is imported here, not with the module: it costs a process a fraction of a
+    # second of CPU, and most planners never read a map.
     from scipy import ndimage
     resolution = grid.resolution
     clearance, ridge = _clearances_and_ridge(occupied_cells(grid, unknown_is_occupied),
