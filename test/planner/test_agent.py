@@ -17,8 +17,10 @@ from prvo_planner.estimation import ConstantVelocityTracker
 from prvo_planner.tracks import MAX_STAMP_JUMP_SECONDS, TrackTable
 
 GOAL = np.array([4.0, 0.5])
+# Keep right off (test_lanes, test_lane_runs): the preference is the goal's, as the core has it.
 SETTINGS = AgentSettings(radius=0.3, unknown_neighbor_radius=0.4, approach_time=0.5,
-                         goal_tolerance=0.2, acceleration_std=1.0, neighbor_timeout=2.0)
+                         goal_tolerance=0.2, acceleration_std=1.0, neighbor_timeout=2.0,
+                         keep_right=0.0)
 CONFIG = PlannerConfig(eta=0.8, max_speed=1.0, actuation_cov=0.0025 * np.eye(2),
                        inertia=0.5, passing_bias=0.1)
 

@@ -27,6 +27,7 @@ from prvo_planner.escalation import (
     Escalation,
     EscalationSettings,
 )
+from prvo_planner.lanes import KEEP_RIGHT, keep_right
 from prvo_planner.maps import (
     GridMap,
     ObstacleIndex,
@@ -278,6 +279,7 @@ class AgentSettings:
     stall_escalation: bool = False
     stall_turn_rate: float = TURN_RATE
     stall_turn_max: float = TURN_MAX
+    keep_right: float = KEEP_RIGHT
 
     @classmethod
     def from_parameters(cls, values):
@@ -559,6 +561,8 @@ class PlannerAgent:
         # The passage too narrow to certify that the stall in progress is in front of.
         self._narrow_passage = None
         self.escalation = Escalation()
+        # The keep-right lean of the last plan [rad] (`prvo_planner.lanes`).
+        self.lean = 0.0
         # The path followed (path mode); the upstream command waiting for its answer, when it
         # came and the last one answered (velocity mode); when the own state was last received.
         self._path = None
@@ -910,6 +914,13 @@ class PlannerAgent:
                 control_period=self._control_period or self.config.control_period),
             self._previous_velocity, self._limits(stamp))
 
+    def _kept_right(self, problem, distance_to_goal, obstacles):
+        """Return PROBLEM with its preferred velocity leaning right (`prvo_planner.lanes`)."""
+        ego, neighbours, v_pref, config = problem[:4]
+        v_pref, self.lean = keep_right(v_pref, self.settings.keep_right, ego, neighbours,
+                                       distance_to_goal, obstacles, config)
+        return (ego, neighbours, v_pref, *problem[3:])
+
     def _unplanned_request(self, request, v_pref, tracks):
         """Return REQUEST completed for a robot that does not avoid, or filters a command.
 
@@ -1044,6 +1055,8 @@ class PlannerAgent:
                 distance_to_goal, max_speed, self.settings.approach_time,
                 self.config.time_horizon)
             problem = self._problem(own, stamp, tracks, announcements, v_pref, horizon)
+            if inside is None:
+                problem = self._kept_right(problem, distance_to_goal, obstacles)
             if (self.arrived or route_status == ROUTE_UNREACHABLE) and nobody_comes(problem):
                 problem = None
         return PlanRequest(stamp=stamp, own=own, neighbours=neighbour_beliefs,

@@ -19,6 +19,7 @@ from prvo_msgs_util import validate_robot_name
 from prvo_planner.core import PlannerConfig
 from prvo_planner.core.config import CERTIFICATES, METHODS, MODELS, RISKS
 from prvo_planner.escalation import TURN_MAX, TURN_RATE
+from prvo_planner.lanes import KEEP_RIGHT
 from prvo_planner.preferred import SOURCES
 
 BOOL = 'bool'
@@ -281,6 +282,13 @@ _SPECS = (
     ParameterSpec('wait_for_map', BOOL, False, 'Plan only once a map has arrived (for at most '
                   'neighbor_timeout after the first own odometry), as for listed neighbours: a '
                   'run whose world has a map plans its first step on it.'),
+    # Keep right (`prvo_planner.lanes`): opposite flows form lanes instead of meeting head-on.
+    # Only the preference changes, never the chance constraints; 0 is the benchmarks' ablation.
+    ParameterSpec('keep_right', FLOAT, KEEP_RIGHT, 'A robot meeting a neighbour coming toward '
+                  'it turns its preferred velocity this much [rad] to its right, where the way '
+                  'is wide enough for two (open space, or twice the width it needs to be '
+                  'certified through), fading over the last metre to its goal; longer ways (a '
+                  'factor 1 / cos) for smoother flow. In [0, 0.8]; 0 = never.', (0.0, 0.8)),
     # Escalation (`prvo_planner.escalation`): a stalled robot (`prvo_planner.stalls`) turns its
     # preferred velocity to the right; off, the preferred velocity is the goal's or the route's
     # (the benchmarks' ablation). Only the preference changes, never the chance constraints.

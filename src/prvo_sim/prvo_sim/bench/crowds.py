@@ -3,7 +3,8 @@
     python -m prvo_sim.bench.crowds [--circles 8 16 24 48] [--seeds 1] [--teams 4]
                                     [--sweep 50] [--method prvo] [--eta ETA]
                                     [--certificate cantelli|certified] [--risk pairwise|joint]
-                                    [--stall-escalation] [--json PATH] [--out DIR]
+                                    [--stall-escalation] [--keep-right ANGLE]
+                                    [--json PATH] [--out DIR]
 
 Runs on the in-process engine, to completion or the scenario's duration:
 
@@ -24,7 +25,8 @@ Runs on the in-process engine, to completion or the scenario's duration:
 
 The circles and teams plan with the planner's default `eta`, `certificate` and `risk`;
 `--eta`, `--certificate` and `--risk` set them, to see what the guarantee costs in time, and
-`--stall-escalation` turns on the planner's escalation (`prvo_planner.escalation`). Per
+`--stall-escalation` turns on the planner's escalation (`prvo_planner.escalation`) and
+`--keep-right` sets the planner's lean to the right (`prvo_planner.lanes`; 0 turns it off). Per
 run it prints one Markdown row: arrivals, makespan (the last robot's arrival) and its ratio to
 the straight-line time (the longest start-to-goal distance over max speed), the mean time to
 goal over the mean straight-line time, the paths' length (each up to its arrival) over the
@@ -396,6 +398,10 @@ def build_parser():
     parser.add_argument('--stall-escalation', action='store_true',
                         help='the circles and teams escalate when stalled (the planner '
                              "parameter stall_escalation; default: the planner's, off)")
+    parser.add_argument('--keep-right', type=float, default=None, metavar='ANGLE',
+                        help='lean [rad] of the circles and teams toward their right when they '
+                             "meet (the planner parameter keep_right; 0: off; default: the "
+                             "planner's)")
     parser.add_argument('--no-fallback-circle', action='store_true',
                         help='skip the noise-free 20-robot circle with --method rvo')
     parser.add_argument('--no-peers', action='store_true',
@@ -427,14 +433,17 @@ def planned_runs(options):
         runs.append((f'sweep{index} N={len(document["robots"])}', document, options.method))
     chosen = {name: getattr(options, name) for name in ('eta', 'certificate', 'risk')
               if getattr(options, name) is not None}
-    escalation = {'stall_escalation': True} if options.stall_escalation else {}
+    rules = {'stall_escalation': True} if options.stall_escalation else {}
+    if options.keep_right is not None:
+        rules['keep_right'] = options.keep_right
     for index, (label, document, method) in enumerate(runs):
         # The circles' documents hold circle8's eta: the planner's defaults replace it.
         document['planner'] = {**document.get('planner', {}), **PLANNER_DEFAULTS, **chosen,
-                               **escalation}
+                               **rules}
         runs[index] = (' '.join([label, *(f'{name} {value:g}' if name == 'eta'
                                           else str(value) for name, value in chosen.items()),
-                                 *escalation]), document, method)
+                                 *(name if value is True else f'{name} {value:g}'
+                                   for name, value in rules.items())]), document, method)
     if not options.no_fallback_circle:
         count, radius = FALLBACK_CIRCLE
         runs.append((f'circle{count} r={radius:g} noise-free',

@@ -1,0 +1,113 @@
+"""
+Keep right: a robot meeting others head-on leans its preferred velocity to its right, no ROS.
+
+Robots meeting head-on in a corridor each choose the certified velocity nearest their
+preference, which is to hold still or to sidestep the same way as the other: a symmetry a local,
+reciprocal planner does not break on its own (issue 38). Traffic breaks it by convention: each
+keeps to its right, and opposite flows form two lanes that pass each other. Here a robot with a
+neighbour coming toward it (ahead, within `RANGE` and a cone of `CONE` either side of its way,
+moving against it at more than `ONCOMING_SPEED`) turns its preferred velocity to the right by
+the angle `keep_right`. Every robot turns the same way in its own frame, so two robots facing
+each other turn apart in the world; following a route, the lean settles the robot beside its
+route (the carrot ahead pulls it back as far as the lean pushes it off), in a corridor against
+the wall on its right, where the walls' conditions hold it.
+
+The lean is taken only where the free space is wide enough for two robots to pass: in open space
+always, among walls where the clear width across the robot's way, at its position and `AHEAD`
+in front, is at least two of the widths one robot needs to be certified through
+(`core.walls.certifiable_width`, with the robot's own noise): through a door one robot wide,
+leaning would only press the robot against a jamb. It fades out over the last `FADE` metres to
+the goal, so that a robot arrives as it would without it.
+
+The trade-off of the angle: path length against flow. Held for a whole way in open space, a lean
+of angle a lengthens it by a factor 1 / cos(a) (a logarithmic spiral into the goal: 1.5 % at
+0.17 rad, 4.5 % at 0.3 rad); a larger angle forms the lanes sooner and wider apart.
+
+Only the preferred velocity changes: the chance constraints against robots and walls, and so the
+guarantee, are those of every plan.
+"""
+
+import math
+
+import numpy as np
+
+from prvo_planner.core.walls import certifiable_width
+from prvo_planner.escalation import turned_right
+from prvo_planner.passages import clear_width
+
+# Default of the planner parameter `keep_right` [rad] (`prvo_planner.parameters`): about 10
+# degrees, 1.5 % longer ways in open space.
+KEEP_RIGHT = 0.17
+# A neighbour is met when it is ahead, nearer than this [m]: about as far as a robot at full
+# speed goes in the 5 s a plan looks ahead, so lanes form before the robots are close.
+RANGE = 4.0
+# ... within this angle of the robot's way either side [rad] ...
+CONE = math.pi / 4.0
+# ... and moves toward it faster than this [m/s] along its way: one standing still is avoided
+# as before, and a velocity estimate's noise does not count.
+ONCOMING_SPEED = 0.1
+# The clear width is also measured this far ahead [m]: a robot entering a narrow way straightens
+# up before it.
+AHEAD = 1.0
+# The lean fades out over this way to the goal [m].
+FADE = 1.0
+
+
+def meets_oncoming(position, direction, neighbours):
+    """
+    Return whether a neighbour comes toward a robot at POSITION heading along DIRECTION.
+
+    POSITION (2,) [m]; DIRECTION (2,) nonzero, the robot's way; NEIGHBOURS a sequence of
+    `core.AgentBelief` (mean position and velocity used).
+    """
+    unit = np.asarray(direction, dtype=float) / math.hypot(*direction)
+    for neighbour in neighbours:
+        offset = neighbour.position - position
+        ahead = float(offset @ unit)
+        across = abs(float(offset[0] * unit[1] - offset[1] * unit[0]))
+        if (0.0 < ahead <= RANGE and across <= ahead * math.tan(CONE)
+                and math.hypot(ahead, across) <= RANGE
+                and float(neighbour.velocity @ unit) < -ONCOMING_SPEED):
+            return True
+    return False
+
+
+def wide_enough(obstacles, ego, config, direction):
+    """
+    Return whether the way along DIRECTION is wide enough for two robots to pass.
+
+    OBSTACLES are the `StaticObstacles` near the robot (None: open space, always wide enough),
+    EGO its `AgentBelief`, CONFIG its `PlannerConfig`. The clear width across the way at the
+    robot and AHEAD in front (`passages.clear_width`) must be at least twice the width the
+    robot needs to be certified through.
+    """
+    if obstacles is None:
+        return True
+    needed = 2.0 * certifiable_width(ego, config)
+    unit = np.asarray(direction, dtype=float) / math.hypot(*direction)
+    return all(clear_width(obstacles, ego.position + distance * unit, unit) >= needed
+               for distance in (0.0, AHEAD))
+
+
+def lean_angle(angle, distance_to_goal):
+    """Return the lean [rad] of a robot DISTANCE_TO_GOAL [m] from its goal: ANGLE, faded."""
+    return angle * min(1.0, max(0.0, distance_to_goal) / FADE)
+
+
+def keep_right(v_pref, angle, ego, neighbours, distance_to_goal, obstacles, config):
+    """
+    Return the preferred velocity (2,) of a robot that keeps right, and the lean [rad].
+
+    V_PREF (2,) [m/s] is the velocity toward the goal or along the route; ANGLE [rad] the lean
+    (`keep_right`, 0: off); EGO the robot's `AgentBelief`; NEIGHBOURS the neighbours'
+    `AgentBelief`s; DISTANCE_TO_GOAL [m] the way left; OBSTACLES the `StaticObstacles` near
+    (None: none); CONFIG the `PlannerConfig`. V_PREF comes back unchanged (lean 0) when the
+    robot stands, meets nobody, or where the way is too narrow for two.
+    """
+    if angle <= 0.0 or not (v_pref[0] or v_pref[1]):
+        return v_pref, 0.0
+    lean = lean_angle(angle, distance_to_goal)
+    if (lean <= 0.0 or not meets_oncoming(ego.position, v_pref, neighbours)
+            or not wide_enough(obstacles, ego, config, v_pref)):
+        return v_pref, 0.0
+    return turned_right(v_pref, lean), lean

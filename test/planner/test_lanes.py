@@ -1,0 +1,121 @@
+"""Keep right (prvo_planner.lanes), alone: who is met, where the way is wide, how far it leans."""
+
+import math
+
+import numpy as np
+import pytest
+
+from prvo_planner.core.beliefs import AgentBelief
+from prvo_planner.core.config import PlannerConfig
+from prvo_planner.core.obstacles import StaticObstacles
+from prvo_planner.core.walls import certifiable_width
+from prvo_planner.lanes import (
+    AHEAD,
+    CONE,
+    FADE,
+    ONCOMING_SPEED,
+    RANGE,
+    keep_right,
+    meets_oncoming,
+    wide_enough,
+)
+
+NOISE = np.diag([0.05 ** 2] * 4)
+CONFIG = PlannerConfig(eta=0.95, certificate='certified', actuation_cov=0.05 ** 2 * np.eye(2))
+EGO = AgentBelief([0.0, 0.0], [1.0, 0.0], NOISE, 0.25)
+
+
+def neighbour(position, velocity):
+    """Return a neighbour's belief at POSITION (2,) moving at VELOCITY (2,)."""
+    return AgentBelief(position, velocity, NOISE, 0.25)
+
+
+def walls(segments):
+    """Return the walls without thickness along SEGMENTS (N, 2, 2)."""
+    segments = np.asarray(segments, dtype=float)
+    return StaticObstacles(segments, np.zeros(len(segments)), np.zeros((0, 2)), np.zeros(0))
+
+
+def corridor(width, length=20.0):
+    """Return the two walls of a corridor along x of clear WIDTH [m]."""
+    half = 0.5 * width
+    return walls([[[-length, half], [length, half]], [[-length, -half], [length, -half]]])
+
+
+def angle_to_right(before, after):
+    """Return the clockwise angle [rad] from BEFORE (2,) to AFTER (2,)."""
+    return math.atan2(before[0] * after[1] - before[1] * after[0], before @ after) * -1.0
+
+
+def test_a_neighbour_coming_toward_the_robot_ahead_is_met():
+    assert meets_oncoming(EGO.position, [1.0, 0.0], [neighbour([3.0, 0.5], [-0.5, 0.0])])
+    # Just inside the range and the cone.
+    inside = 0.99 * RANGE * np.array([math.cos(0.99 * CONE), math.sin(0.99 * CONE)])
+    assert meets_oncoming(EGO.position, [1.0, 0.0], [neighbour(inside, [-0.5, 0.0])])
+
+
+@pytest.mark.parametrize('position, velocity', [
+    ([-3.0, 0.0], [1.0, 0.0]),  # behind, coming after the robot
+    ([3.0, 0.0], [1.0, 0.0]),  # ahead, going the same way
+    ([3.0, 0.0], [-0.9 * ONCOMING_SPEED, 0.0]),  # ahead, about standing
+    ([1.01 * RANGE, 0.0], [-1.0, 0.0]),  # beyond the range
+    ([2.0, 2.0 * math.tan(1.01 * CONE)], [-1.0, 0.0]),  # outside the cone
+    ([0.0, 1.0], [0.0, -1.0]),  # beside, not ahead
+])
+def test_a_neighbour_behind_aside_far_or_not_coming_is_not_met(position, velocity):
+    assert not meets_oncoming(EGO.position, [1.0, 0.0], [neighbour(position, velocity)])
+
+
+def test_meeting_someone_the_preference_turns_right_by_the_angle_at_the_same_speed():
+    v_pref = np.array([0.6, 0.8])
+    coming = neighbour(3.0 * v_pref, -v_pref)
+    turned, lean = keep_right(v_pref, 0.2, EGO, [coming], 5.0, None, CONFIG)
+    assert lean == 0.2
+    assert angle_to_right(v_pref, turned) == pytest.approx(0.2)
+    assert np.hypot(*turned) == pytest.approx(1.0)
+
+
+def test_alone_standing_or_off_the_preference_stays_as_it_is():
+    v_pref = np.array([1.0, 0.0])
+    coming = neighbour([3.0, 0.0], [-1.0, 0.0])
+    for args in ((v_pref, 0.2, EGO, [], 5.0, None, CONFIG),
+                 (np.zeros(2), 0.2, EGO, [coming], 5.0, None, CONFIG),
+                 (v_pref, 0.0, EGO, [coming], 5.0, None, CONFIG)):
+        turned, lean = keep_right(*args)
+        assert lean == 0.0
+        assert turned is args[0]
+
+
+@pytest.mark.parametrize('distance', [0.0, 0.25 * FADE, 0.5 * FADE, FADE, 3.0 * FADE])
+def test_the_lean_fades_over_the_last_stretch_to_the_goal(distance):
+    v_pref = np.array([1.0, 0.0])
+    turned, lean = keep_right(v_pref, 0.3, EGO, [neighbour([3.0, 0.0], [-1.0, 0.0])], distance,
+                              None, CONFIG)
+    expected = 0.3 * min(1.0, distance / FADE)
+    assert lean == pytest.approx(expected)
+    assert angle_to_right(v_pref, turned) == pytest.approx(expected, abs=1e-12)
+
+
+def test_a_corridor_is_wide_enough_from_twice_the_certifiable_width():
+    needed = 2.0 * certifiable_width(EGO, CONFIG)
+    # Walls without thickness are found to within the clear width's step (2 cm).
+    assert wide_enough(corridor(needed + 0.05), EGO, CONFIG, [1.0, 0.0])
+    assert not wide_enough(corridor(needed - 0.05), EGO, CONFIG, [1.0, 0.0])
+    assert wide_enough(None, EGO, CONFIG, [1.0, 0.0])
+
+
+def test_a_narrowing_ahead_straightens_the_robot_up_before_it():
+    needed = 2.0 * certifiable_width(EGO, CONFIG)
+    # A wide hall to x = 0.5 AHEAD, then a door one robot wide.
+    half = 0.5 * certifiable_width(EGO, CONFIG) + 0.05
+    edge = 0.5 * AHEAD
+    door = walls([[[edge, half], [edge + 2.0, half]], [[edge, -half], [edge + 2.0, -half]],
+                  [[-10.0, 5.0], [10.0, 5.0]], [[-10.0, -5.0], [10.0, -5.0]]])
+    assert 2.0 * half < needed
+    assert not wide_enough(door, EGO, CONFIG, [1.0, 0.0])
+    coming = neighbour([3.0, 0.0], [-1.0, 0.0])
+    v_pref = np.array([1.0, 0.0])
+    turned, lean = keep_right(v_pref, 0.2, EGO, [coming], 5.0, door, CONFIG)
+    assert lean == 0.0 and turned is v_pref
+    turned, lean = keep_right(v_pref, 0.2, EGO, [coming], 5.0, corridor(needed + 0.1), CONFIG)
+    assert lean == 0.2
