@@ -159,6 +159,22 @@ def test_bad_input_is_one_line_and_exit_2(tmp_path, monkeypatch, capsys):
     prefix = 'prvo_sim.bench.walls: error: '
     assert len(errors) == 3 and all(line.startswith(prefix) for line in errors)
     assert 'map file' in errors[2]
+    for item, reason in (('keep_right=2', 'keep_right: must be in [0.0, 0.8], got 2.0'),
+                         ('no_such=1', 'no_such: unknown planner parameter'),
+                         ('keep_right', "'keep_right' is not NAME=VALUE")):
+        assert bench_walls.main(['--scenarios', 'corridor8', '--planner', item]) == 2
+        error = capsys.readouterr().err.strip()
+        assert error.startswith(prefix + '--planner: ' + reason), error
+
+
+def test_planner_parameters_given_reach_every_robot_over_the_scenario_s(tmp_path):
+    scenario = load_scenario(write(tmp_path, one_wall_document()))
+    overrides = bench_walls.planner_overrides(['keep_right=0', 'certificate=cantelli'])
+    assert overrides == {'keep_right': 0.0, 'certificate': 'cantelli'}
+    chosen = bench_walls.with_planner(scenario, overrides)
+    for robot, before in zip(chosen.robots, scenario.robots, strict=True):
+        assert robot.planner == {**before.planner, **overrides}
+    assert bench_walls.with_planner(scenario, {}) is scenario
 
 
 def test_rvo2_keeps_a_robot_off_a_wall_of_no_thickness(tmp_path):

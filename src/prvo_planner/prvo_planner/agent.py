@@ -561,8 +561,6 @@ class PlannerAgent:
         # The passage too narrow to certify that the stall in progress is in front of.
         self._narrow_passage = None
         self.escalation = Escalation()
-        # The keep-right lean of the last plan [rad] (`prvo_planner.lanes`).
-        self.lean = 0.0
         # The path followed (path mode); the upstream command waiting for its answer, when it
         # came and the last one answered (velocity mode); when the own state was last received.
         self._path = None
@@ -917,8 +915,8 @@ class PlannerAgent:
     def _kept_right(self, problem, distance_to_goal, obstacles):
         """Return PROBLEM with its preferred velocity leaning right (`prvo_planner.lanes`)."""
         ego, neighbours, v_pref, config = problem[:4]
-        v_pref, self.lean = keep_right(v_pref, self.settings.keep_right, ego, neighbours,
-                                       distance_to_goal, obstacles, config)
+        v_pref, _ = keep_right(v_pref, self.settings.keep_right, ego, neighbours,
+                               distance_to_goal, obstacles, config)
         return (ego, neighbours, v_pref, *problem[3:])
 
     def _unplanned_request(self, request, v_pref, tracks):

@@ -21,7 +21,7 @@ the goal, so that a robot arrives as it would without it.
 
 The trade-off of the angle: path length against flow. Held for a whole way in open space, a lean
 of angle a lengthens it by a factor 1 / cos(a) (a logarithmic spiral into the goal: 1.5 % at
-0.17 rad, 4.5 % at 0.3 rad); a larger angle forms the lanes sooner and wider apart.
+0.17 rad, 4.7 % at 0.3 rad); a larger angle forms the lanes sooner and wider apart.
 
 Only the preferred velocity changes: the chance constraints against robots and walls, and so the
 guarantee, are those of every plan.
@@ -35,12 +35,13 @@ from prvo_planner.core.walls import certifiable_width
 from prvo_planner.escalation import turned_right
 from prvo_planner.passages import clear_width
 
-# Default of the planner parameter `keep_right` [rad] (`prvo_planner.parameters`): about 10
-# degrees, 1.5 % longer ways in open space.
-KEEP_RIGHT = 0.17
-# A neighbour is met when it is ahead, nearer than this [m]: about as far as a robot at full
-# speed goes in the 5 s a plan looks ahead, so lanes form before the robots are close.
-RANGE = 4.0
+# Default of the planner parameter `keep_right` [rad] (`prvo_planner.parameters`): about 17
+# degrees, at most 4.7 % longer ways. At 0.17 rad the lanes formed too late in a corridor: robots
+# meeting head-on were not yet a robot's width apart sideways when they met.
+KEEP_RIGHT = 0.3
+# A neighbour is met when it is ahead, nearer than this [m]: two robots at full speed (1 m/s)
+# meet 3 s later, time for each to move aside by about 0.9 m at the default lean.
+RANGE = 6.0
 # ... within this angle of the robot's way either side [rad] ...
 CONE = math.pi / 4.0
 # ... and moves toward it faster than this [m/s] along its way: one standing still is avoided

@@ -2,7 +2,7 @@
 
     python -m prvo_sim.bench.walls [--scenarios corridor8 doorway8 pillars12] [--seeds 1]
                                    [--methods prvo rvo inflate] [--peers rvo2-orca ...]
-                                   [--json PATH]
+                                   [--planner NAME=VALUE ...] [--json PATH]
 
 Each scenario is read through the scenario loader (radii, max speeds, starts, goals, dt,
 duration, goal tolerance, walls and obstacles) and run:
@@ -16,6 +16,10 @@ duration, goal tolerance, walls and obstacles) and run:
   and HL (`navground`: the same polygons' edges as line-segment walls, discs as disc
   obstacles), each in its own simulator. Neither is a dependency of prvo: a peer that is not
   importable is skipped with one line saying so.
+
+`--planner NAME=VALUE` sets a planner parameter of every prvo robot over the scenario's (each
+value read as YAML: `--planner keep_right=0 eta=0.95 certificate=certified`), for ablations and
+to run a shipped world at the planner's defaults.
 
 The peers plan with prvo's default horizons (`time_horizon` for robots, `obstacle_horizon` for
 walls) and head for their goals at full speed, slowing over the last APPROACH_TIME as the
@@ -43,8 +47,9 @@ import sys
 import time
 
 import numpy as np
+import yaml
 
-from prvo_planner.parameters import DEFAULTS
+from prvo_planner.parameters import DEFAULTS, check_parameter
 from prvo_planner.stalls import SUMMARY_COLUMNS, trajectory_stalls
 from prvo_sim.bench.crowds import preferred_velocities
 from prvo_sim.bench.engine import run_team, table
@@ -341,24 +346,54 @@ def build_parser():
                         help='prvo planner variants (default: prvo rvo inflate)')
     parser.add_argument('--peers', nargs='*', default=list(PEERS), choices=PEERS,
                         help='peers to run when importable (default: all; none: --peers)')
+    parser.add_argument('--planner', nargs='*', default=[], metavar='NAME=VALUE',
+                        help="planner parameters of every prvo robot over the scenario's "
+                             '(values read as YAML)')
     parser.add_argument('--json', type=pathlib.Path, default=None,
                         help='also write {"runs": [...], "notes": [...]} to this file')
     return parser
 
 
+def planner_overrides(items):
+    """Return {name: checked value} of the NAME=VALUE strings ITEMS; ValueError names a bad one."""
+    overrides = {}
+    for item in items:
+        name, equals, text = item.partition('=')
+        if not equals or not name:
+            raise ValueError(f'--planner: {item!r} is not NAME=VALUE')
+        try:
+            overrides[name] = check_parameter(name, yaml.safe_load(text))
+        except yaml.YAMLError as error:
+            raise ValueError(f'--planner: {name}: {text!r} is not a YAML value') from error
+        except ValueError as error:
+            raise ValueError(f'--planner: {error}') from None
+    return overrides
+
+
+def with_planner(scenario, overrides):
+    """Return SCENARIO with OVERRIDES over every robot's planner parameters."""
+    if not overrides:
+        return scenario
+    return dataclasses.replace(scenario, robots=tuple(
+        dataclasses.replace(robot, planner={**robot.planner, **overrides})
+        for robot in scenario.robots))
+
+
 def scenario_rows(path, options, peers):
     """Return every row of the scenario file PATH: prvo's runs, then those of PEERS."""
-    scenario = load_scenario(path)
+    overrides = planner_overrides(options.planner)
+    scenario = with_planner(load_scenario(path), overrides)
+    chosen = ''.join(f' {item}' for item in options.planner)
     rows = []
     for method in options.methods:
         rows.append(labelled(prvo_row(noise_free(scenario), method), scenario.name,
-                             f'prvo --method {method}', 'none', str(scenario.seed)))
-        seeded = [load_scenario(path, seed=scenario.seed + offset)
+                             f'prvo --method {method}{chosen}', 'none', str(scenario.seed)))
+        seeded = [with_planner(load_scenario(path, seed=scenario.seed + offset), overrides)
                   for offset in range(options.seeds)]
         seeds = (str(scenario.seed) if options.seeds == 1
                  else f'{scenario.seed}-{scenario.seed + options.seeds - 1}')
         rows.append(labelled(combined([prvo_row(run, method) for run in seeded]), scenario.name,
-                             f'prvo --method {method}', noise_label(scenario), seeds))
+                             f'prvo --method {method}{chosen}', noise_label(scenario), seeds))
         print(f'{scenario.name} prvo --method {method}: {rows[-2]["arrivals"]} arrived '
               f'noise-free, {rows[-1]["arrivals"]} with noise', flush=True)
     world = peer_world(scenario) if peers else None
@@ -385,6 +420,7 @@ def main(argv=None):
             notes.append(f'{peer}: {PEER_PACKAGES[peer]} is not importable here, skipped')
             print(f'note: {notes[-1]}', flush=True)
     try:
+        planner_overrides(options.planner)
         paths = [find_scenario(name) for name in options.scenarios]
         for path in paths:
             scenario = load_scenario(path)
@@ -407,7 +443,7 @@ def main(argv=None):
     if options.json is not None:
         options.json.parent.mkdir(parents=True, exist_ok=True)
         options.json.write_text(json.dumps({'runs': rows, 'notes': notes}, indent=2) + '\n')
-    checked = [row for row in rows if row['planner'] == 'prvo --method prvo']
+    checked = [row for row in rows if row['planner'].startswith('prvo --method prvo')]
     return 0 if all(row['arrived'] == row['robots'] for row in checked) else 1
 
 
