@@ -2,6 +2,7 @@
 
 import struct
 
+from nav_msgs.msg import Path
 import numpy as np
 import pytest
 from rclpy.serialization import serialize_message
@@ -9,11 +10,15 @@ from rclpy.serialization import serialize_message
 from prvo_msgs_util import (
     MAX_PATH_POSES,
     MAX_WORLD_COORDINATE,
+    PLAN_QOS,
+    PLAN_READER_QOS,
     MessageFault,
     SerializedPathReader,
     make_path,
     path_to_waypoints,
     serialized_path_to_waypoints,
+    serialized_route,
+    subscribe_route,
 )
 import prvo_msgs_util.conversions as conversions
 
@@ -113,3 +118,47 @@ def test_the_same_path_again_is_recognised_without_reading_it(monkeypatch):
     # A refused path does not replace the one read last.
     assert reader.read(again) is None
     assert len(reads) == 4
+
+
+def test_a_route_is_read_with_its_stamp_and_its_faults_go_to_the_fault_handler():
+    """`subscribe_route`'s callback: (stamp, waypoints) to the receiver, a fault to its handler."""
+    subscriptions = []
+
+    class Node:
+        def create_subscription(self, msg_type, topic, callback, qos, raw, event_callbacks):
+            subscriptions.append((msg_type, topic, callback, qos, raw))
+
+    received, faults = [], []
+    subscribe_route(Node(), 'robot_1', lambda *args: received.append(args),
+                    lambda *args: faults.append(args))
+    msg_type, topic, callback, qos, raw = subscriptions[0]
+    assert (msg_type, topic, qos, raw) == (Path, '/robot_1/plan', PLAN_READER_QOS, True)
+    # Compatible with the publishers' PLAN_QOS (latched), and queued deeper.
+    assert (qos.reliability, qos.durability) == (PLAN_QOS.reliability, PLAN_QOS.durability)
+    assert qos.depth > PLAN_QOS.depth
+    callback(serialize_message(_path(lambda msg: None)))
+    ((robot, waypoints, stamp),) = received
+    assert (robot, stamp) == ('robot_1', 1.0)
+    np.testing.assert_array_equal(waypoints, [[0.0, 0.0], [1.0, 0.0], [2.0, 1.0]])
+    # An empty route reads as such: the receiver refuses it (the robot claims nothing).
+    stamp, waypoints = serialized_route(serialize_message(make_path(2.5, [], 'map')))
+    assert stamp == 2.5 and waypoints.shape == (0, 2)
+    for data, fault in (
+            (serialize_message(_path(lambda msg: setattr(msg.header, 'frame_id', 'odom'))),
+             "header.frame_id is 'odom'"),
+            (serialize_message(_path(lambda msg: _set(msg, 1, 'y', float('nan')))), 'NaN'),
+            (serialize_message(_path(lambda msg: None))[:6], 'truncated'),
+            (serialize_message(_path(lambda msg: setattr(msg.header.stamp, 'sec', -1))),
+             'path header.stamp is no time')):
+        callback(data)
+        robot, fault_topic, error = faults[-1]
+        assert (robot, fault_topic) == ('robot_1', '/robot_1/plan')
+        assert isinstance(error, MessageFault) and fault in str(error), error
+    # What the receiver refuses is a fault too.
+    subscribe_route(Node(), 'robot_2', _refuse, lambda *args: faults.append(args))
+    subscriptions[-1][2](serialize_message(_path(lambda msg: None)))
+    assert faults[-1][:2] == ('robot_2', '/robot_2/plan') and str(faults[-1][2]) == 'refused'
+
+
+def _refuse(robot, waypoints, stamp):
+    raise ValueError('refused')

@@ -8,6 +8,7 @@ import sys
 import numpy as np
 import pytest
 
+from prvo_msgs_util import serialized_route
 from prvo_sim.engine import InProcessTeam
 from prvo_sim.runner.session import ArrivalRule, planner_values
 from prvo_sim.scenario import load_scenario
@@ -87,3 +88,58 @@ def test_a_run_ends_once_every_robot_is_at_its_goal_together(arrivals, ends_at):
     ended = [float(time) for time, arrived in enumerate(arrivals) if rule.step(
         float(time), goals + np.where(np.array(arrived)[:, None], 0.0, away))]
     assert (ended[0] if ended else None) == ends_at
+
+
+# Two robots side by side, each a metre and a half from its goal: they set off and arrive.
+SIDE_BY_SIDE = """\
+name: side_by_side
+seed: 5
+dt: 0.1
+duration: 5.0
+goal_tolerance: 0.2
+noise: {position_std: 0.05, velocity_std: 0.05, actuation_std: 0.05}
+robots:
+  - {name: robot_0, start: [0.0, 0.0], goal: [1.5, 0.0], radius: 0.3, max_speed: 1.0}
+  - {name: robot_1, start: [0.0, 2.0], goal: [1.5, 2.0], radius: 0.3, max_speed: 1.0}
+"""
+
+
+def test_the_engine_gives_every_agent_the_route_the_other_published_the_step_before(
+        tmp_path, monkeypatch):
+    path = tmp_path / 'side_by_side.yaml'
+    path.write_text(SIDE_BY_SIDE)
+    scenario = load_scenario(path)
+    published = []
+    give_route = InProcessTeam._give_route
+
+    def recorded(team, index, sent):
+        published.append((team.world.names[index], team.world.time, sent))
+        give_route(team, index, sent)
+
+    monkeypatch.setattr(InProcessTeam, '_give_route', recorded)
+    team = InProcessTeam(scenario, [planner_values(robot, scenario, 'prvo', None, 'lockstep')
+                                    for robot in scenario.robots])
+    # Per robot, what its neighbour is to hold of its route: (points, stamp), None for none.
+    held = {name: None for name in team.world.names}
+    while not team.finished:
+        step_time = team.world.time
+        team.do_step()
+        for request in team.last_requests:
+            (other,) = request.neighbour_names
+            (route,) = request.neighbour_routes
+            # What the other published after its plans of the steps before this one.
+            if held[other] is None:
+                assert route is None, step_time
+            else:
+                assert (route.points.tolist(), route.stamp) == held[other], step_time
+        for robot, published_time, sent in published:
+            if published_time == step_time:
+                stamp, waypoints = serialized_route(sent)
+                # Stamped with the plan's stamp (1 ns for the plan of stamp 0).
+                assert stamp == max(step_time, 1e-9)
+                held[robot] = (waypoints.tolist(), stamp)
+    # Each set off (the straight way from where it stood) and arrived (its goal alone).
+    for robot, goal in (('robot_0', [1.5, 0.0]), ('robot_1', [1.5, 2.0])):
+        routes = [serialized_route(sent)[1].tolist() for name, _, sent in published
+                  if name == robot]
+        assert len(routes) == 2 and routes[0][1] == goal and routes[1] == [goal], routes

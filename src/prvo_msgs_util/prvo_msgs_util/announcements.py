@@ -7,13 +7,15 @@ publishes a circular footprint) and on `/<robot>/avoidance_share` a `geometry_ms
 in `<robot>/base_link` whose `vector.x` is the share of a pair's avoidance the robot takes
 itself, in [0, 1) (0.5 for a reciprocating planner, 0 for a robot that does not avoid; y and z
 are 0). Each holds for the plans of odometry stamped after its `header.stamp`, the stamp of the
-plan that changed it; a zero stamp, from the start. See docs/interfaces.md.
+plan that changed it; a zero stamp, from the start. A planner reads its neighbours' routes on
+`/<robot>/plan` the same way (`subscribe_route`). See docs/interfaces.md.
 """
 
 import math
 import time
 
 from geometry_msgs.msg import Point32, PolygonStamped, Vector3Stamped
+from nav_msgs.msg import Path
 from rclpy.duration import Duration
 
 from prvo_msgs_util.conversions import (
@@ -21,14 +23,17 @@ from prvo_msgs_util.conversions import (
     MIN_FOOTPRINT_RADIUS,
     checked_stamp_seconds,
     seconds_to_stamp,
+    serialized_path_stamp,
+    serialized_path_to_waypoints,
 )
 from prvo_msgs_util.qos import (
     ANNOUNCEMENT_QOS,
     ANNOUNCEMENT_READER_QOS,
+    PLAN_READER_QOS,
     quiet_publisher_events,
     quiet_subscription_events,
 )
-from prvo_msgs_util.topics import AVOIDANCE_SHARE, FOOTPRINT, robot_topic
+from prvo_msgs_util.topics import AVOIDANCE_SHARE, FOOTPRINT, PLAN, WORLD_FRAME, robot_topic
 
 # Vertices of a circular footprint, as Nav2's costmap publishes one.
 FOOTPRINT_VERTICES = 16
@@ -286,3 +291,34 @@ def subscribe_announcements(node, robot, receive_radius, receive_share, on_fault
             for kind, topic, convert, receive in (
                 (PolygonStamped, footprint, radius_of_footprint, receive_radius),
                 (Vector3Stamped, share, share_of, receive_share))]
+
+
+def serialized_route(data, expected_frame=WORLD_FRAME):
+    """Return (stamp [s], waypoints (K, 2)) of a route, a serialized nav_msgs/Path DATA.
+
+    Raises MessageFault as `serialized_path_to_waypoints` does (another frame than
+    EXPECTED_FRAME, a coordinate that is not finite, more than MAX_PATH_POSES poses) and for a
+    stamp that is no time (`serialized_path_stamp`). An empty path reads as (0, 2) waypoints.
+    """
+    return serialized_path_stamp(data), serialized_path_to_waypoints(data, expected_frame)
+
+
+def subscribe_route(node, robot, receive, on_fault, expected_frame=WORLD_FRAME):
+    """Subscribe NODE to ROBOT's route on /<robot>/plan, serialized; return the subscription.
+
+    `receive(robot, waypoints (K, 2), stamp)` gets each route (`serialized_route`); a message
+    that cannot be read, or that it refuses with ValueError, goes to `on_fault(robot, topic,
+    error)` instead.
+    """
+    topic = robot_topic(robot, PLAN)
+
+    def on_message(data):
+        try:
+            stamp, waypoints = serialized_route(data, expected_frame)
+            receive(robot, waypoints, stamp)
+        except ValueError as error:
+            on_fault(robot, topic, error)
+
+    # Serialized: a long route's poses are read from the bytes, not made into Python objects.
+    return node.create_subscription(Path, topic, on_message, PLAN_READER_QOS, raw=True,
+                                    event_callbacks=quiet_subscription_events())

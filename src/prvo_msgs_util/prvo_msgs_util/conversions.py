@@ -468,6 +468,23 @@ def serialized_path_to_waypoints(data, expected_frame=WORLD_FRAME, max_poses=MAX
     return waypoints
 
 
+def serialized_path_stamp(data):
+    """Return the header stamp [s] of a serialized (CDR) nav_msgs/Path, DATA.
+
+    Raises MessageFault for DATA without a CDR header or too short to hold a stamp, and for a
+    stamp that is no time >= 0 (`checked_stamp_seconds`).
+    """
+    data = bytes(data)
+    byte_order = _CDR_BYTE_ORDERS.get(data[:2])
+    if byte_order is None:
+        raise MessageFault(f'serialized path has no CDR encapsulation header ({data[:4].hex()})')
+    try:
+        sec, nanosec = struct.unpack_from(byte_order + 'iI', data, _CDR_HEADER_BYTES)
+    except struct.error:
+        raise MessageFault(f'serialized path is truncated ({len(data)} bytes)') from None
+    return checked_stamp_seconds(Time(sec=sec, nanosec=nanosec), 'path header.stamp')
+
+
 class SerializedPathReader:
     """Reads serialized nav_msgs/Path messages as they come, the same message again for nothing.
 

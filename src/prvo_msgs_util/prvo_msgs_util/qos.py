@@ -44,8 +44,11 @@ ANNOUNCEMENT_QOS = _reliable(1, DurabilityPolicy.TRANSIENT_LOCAL)
 ANNOUNCEMENT_READER_QOS = _reliable(16, DurabilityPolicy.TRANSIENT_LOCAL)
 # As map_server publishes the map: latched, so that a planner started later receives it.
 MAP_QOS = _reliable(1, DurabilityPolicy.TRANSIENT_LOCAL)
-# A route is published when it changes: latched, for an RViz started later.
+# A route is published when it changes: latched, for an RViz or a neighbour started later (one
+# sample per write: the command that waits for a neighbour's acknowledgement does not wait long).
 PLAN_QOS = _reliable(1, DurabilityPolicy.TRANSIENT_LOCAL)
+# A neighbour's routes are queued deeper, as announcements are: each holds from a step on.
+PLAN_READER_QOS = _reliable(16, DurabilityPolicy.TRANSIENT_LOCAL)
 
 
 def quiet_subscription_events():

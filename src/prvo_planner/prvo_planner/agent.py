@@ -49,6 +49,13 @@ from prvo_planner.preferred import (
     path_preferred_velocity,
 )
 from prvo_planner.route import RouteMap, path_length
+from prvo_planner.routes import (
+    ROUTE_FOUND,
+    ROUTE_NONE,
+    ROUTE_UNREACHABLE,
+    NeighbourRoute,
+    checked_route,
+)
 from prvo_planner.stalls import StallMonitor, binding_conditions
 from prvo_planner.tracking import TrackingModel, tracking_command
 from prvo_planner.tracks import TrackTable, fuse
@@ -378,12 +385,6 @@ def build_map(grid, built_for, goal=None):
                     None if goal is None else route_map.tree_to(goal))
 
 
-# Command.route_status: no map (or no goal), a way to the goal found, no way reaches the goal.
-ROUTE_NONE = 'none'
-ROUTE_FOUND = 'ok'
-ROUTE_UNREACHABLE = 'unreachable'
-
-
 @dataclasses.dataclass(frozen=True)
 class PlanTally:
     """What the robot's plans achieved since its agent started (a new goal keeps counting).
@@ -428,7 +429,10 @@ class Command:
     it is stalled in front of, found when the stall began (None otherwise). `inside_obstacle`
     is (position (2,), way out (2,) or None) while the robot's centre is in an occupied cell of
     its map: it heads for the nearest free cell, the way out, and the map's obstacles do not
-    constrain it until it is there (None otherwise).
+    constrain it until it is there (None otherwise). `neighbour_routes`, in the order of
+    `neighbour_names`, is each neighbour's `routes.NeighbourRoute` for `stamp`
+    (`PlannerAgent.route_of`: the newest it published with a stamp before `stamp`), None where
+    it has none.
     """
 
     stamp: float
@@ -452,6 +456,7 @@ class Command:
     binding: tuple = ()
     narrow_passage: object = None
     inside_obstacle: tuple = None
+    neighbour_routes: tuple = ()
 
     def announcement_values(self):
         """Return {'neighbour.<robot>.radius': m, 'neighbour.<robot>.avoidance_share': a}."""
@@ -459,6 +464,18 @@ class Command:
         for robot, announcement in zip(self.neighbour_names, self.announcements, strict=True):
             values[f'neighbour.{robot}.radius'] = announcement.radius
             values[f'neighbour.{robot}.avoidance_share'] = announcement.avoidance_share
+        return values
+
+    def route_values(self):
+        """Return {'neighbour.<robot>.route_points': K, 'neighbour.<robot>.route_stamp': s}.
+
+        Of each neighbour's route the plan held: its point count and stamp; 0 and 'none' for a
+        neighbour without one.
+        """
+        values = {}
+        for robot, route in zip(self.neighbour_names, self.neighbour_routes, strict=True):
+            values[f'neighbour.{robot}.route_points'] = 0 if route is None else len(route.points)
+            values[f'neighbour.{robot}.route_stamp'] = 'none' if route is None else route.stamp
         return values
 
 
@@ -473,7 +490,8 @@ class PlanRequest:
     there is none; `upstream` the `UpstreamCommand` answered (velocity mode) and `passed_through`
     whether it goes on unchanged. `obstacles` are the `StaticObstacles` of its map near it,
     passed as `plan_velocity(*problem, obstacles=obstacles)`, None without a map or with
-    nothing near; `route`, `route_status`, `stall` and `inside_obstacle` as in `Command`.
+    nothing near; `route`, `route_status`, `stall`, `inside_obstacle` and `neighbour_routes`
+    as in `Command`.
     """
 
     stamp: float
@@ -491,6 +509,7 @@ class PlanRequest:
     route_status: str = ROUTE_NONE
     stall: object = None
     inside_obstacle: tuple = None
+    neighbour_routes: tuple = ()
 
 
 class PlannerAgent:
@@ -543,6 +562,8 @@ class PlannerAgent:
         # Announced by each neighbour, with the stamps they hold after: robot -> AnnouncedValues.
         self._announced_radius = {}
         self._announced_share = {}
+        # The routes each neighbour published on <robot>/plan, likewise (`receive_route`).
+        self._announced_route = {}
         self._pending_stamp = None
         self._own_yaw = 0.0
         # The last planned velocity in the world frame, for the inertia term; None after a stop.
@@ -706,8 +727,8 @@ class PlannerAgent:
         announced.setdefault(robot, AnnouncedValues()).add(stamp, value)
 
     def forget_announcements(self, robot):
-        """Drop what ROBOT announced (it left: a robot of that name may come back another)."""
-        for announced in (self._announced_radius, self._announced_share):
+        """Drop what ROBOT announced, its route too (it left: one of that name may come back)."""
+        for announced in (self._announced_radius, self._announced_share, self._announced_route):
             announced.pop(robot, None)
 
     def announcement_of(self, robot, stamp):
@@ -724,9 +745,42 @@ class PlannerAgent:
     def forget_neighbours(self, now, wanted=None):
         """Drop neighbours silent longer than neighbor_timeout, or not in WANTED (if given).
 
-        Returns [(robot, seconds silent)] of those dropped.
+        Returns [(robot, seconds silent)] of those dropped. A dropped neighbour's route goes
+        with it (it releases what it claimed); its announcements stay until it leaves.
         """
-        return self._neighbour_tracks.forget(now, wanted)
+        dropped = self._neighbour_tracks.forget(now, wanted)
+        for robot, _ in dropped:
+            self.forget_route(robot)
+        return dropped
+
+    def receive_route(self, robot, points, stamp):
+        """Take neighbour ROBOT's route POINTS (K, 2) [m, the map frame], stamped STAMP [s].
+
+        It holds for the plans of own stamps after STAMP (0: for every plan), as an
+        announcement does (`receive_share`); a robot publishes the route its plan of a step made
+        stamped with that step (`routes.route_stamp`). Raises ValueError naming the fault for
+        a route `routes.checked_route` refuses (empty, not finite, more than MAX_ROUTE_POINTS
+        points) or a STAMP not finite and >= 0: the neighbour then has no route
+        (`forget_route`), it claims nothing.
+        """
+        try:
+            self._take(self._announced_route, robot,
+                       NeighbourRoute(checked_route(points), float(stamp)), stamp)
+        except ValueError:
+            self.forget_route(robot)
+            raise
+
+    def forget_route(self, robot):
+        """Drop ROBOT's routes: from now on it has none (it claims nothing) until it sends one."""
+        self._announced_route.pop(robot, None)
+
+    def route_of(self, robot, stamp):
+        """Return ROBOT's `routes.NeighbourRoute` for the plan of STAMP, None if it has none.
+
+        For a STAMP no earlier than the last plan's (what no later plan can use is dropped).
+        """
+        announced = self._announced_route.get(robot)
+        return None if announced is None else announced.value_at(stamp)
 
     # Preferred velocity: goal, path or upstream command --------------------------------------
 
@@ -1020,7 +1074,9 @@ class PlannerAgent:
         tracks = [self._neighbour_tracks.track(robot) for robot in names]
         neighbour_beliefs = tuple(track.belief_at(stamp) for track in tracks)
         announcements = tuple(self.announcement_of(robot, stamp) for robot in names)
-        for announced in (*self._announced_radius.values(), *self._announced_share.values()):
+        routes = tuple(self.route_of(robot, stamp) for robot in names)
+        for announced in (*self._announced_radius.values(), *self._announced_share.values(),
+                          *self._announced_route.values()):
             announced.prune(stamp)
         if self._command_stamp is not None and 0.0 < stamp - self._command_stamp:
             self._control_period = stamp - self._command_stamp
@@ -1044,7 +1100,8 @@ class PlannerAgent:
             return self._unplanned_request(PlanRequest(
                 stamp=stamp, own=own, neighbours=neighbour_beliefs, neighbour_names=names,
                 announcements=announcements, problem=None, arrival=arrival, upstream=upstream,
-                obstacles=obstacles, stall=stall, inside_obstacle=inside), v_pref, tracks)
+                obstacles=obstacles, stall=stall, inside_obstacle=inside,
+                neighbour_routes=routes), v_pref, tracks)
         if self.goal is not None:
             # At its goal the robot keeps planning, with v_pref = 0: it stands while nobody
             # comes and takes its share of the avoidance when someone does, over the whole
@@ -1060,7 +1117,8 @@ class PlannerAgent:
         return PlanRequest(stamp=stamp, own=own, neighbours=neighbour_beliefs,
                            neighbour_names=names, announcements=announcements,
                            problem=problem, arrival=arrival, obstacles=obstacles, route=route,
-                           route_status=route_status, stall=stall, inside_obstacle=inside)
+                           route_status=route_status, stall=stall, inside_obstacle=inside,
+                           neighbour_routes=routes)
 
     # Map and route -----------------------------------------------------------------------------
 
@@ -1214,7 +1272,8 @@ class PlannerAgent:
                        route=request.route, route_status=request.route_status,
                        stall=request.stall, binding=_binding(request, result),
                        narrow_passage=self._passage_ahead(request),
-                       inside_obstacle=request.inside_obstacle)
+                       inside_obstacle=request.inside_obstacle,
+                       neighbour_routes=request.neighbour_routes)
 
     def _inside_obstacle(self, position):
         """Return (POSITION, the way out or None) if POSITION is in an occupied cell, else None.

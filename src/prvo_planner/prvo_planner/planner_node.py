@@ -8,7 +8,9 @@ The node is a thin shell around `prvo_planner.agent.PlannerAgent`: it declares p
 converts messages through prvo_msgs_util, feeds the agent, waits at most `sync_timeout` for
 neighbours and publishes the agent's commands and its announcements (footprint, share). With
 an occupancy grid on `map_topic` (latched, as map_server publishes it) it plans against the
-grid's obstacles and, heading for a goal, publishes its route there on `<robot>/plan`.
+grid's obstacles. Heading for a goal, it publishes the way it means to take on `<robot>/plan`
+(`prvo_planner.routes.RouteIntent`: its route on the map, else the straight way), and it reads
+its neighbours' on theirs.
 """
 
 import concurrent.futures
@@ -57,10 +59,12 @@ from prvo_msgs_util import (
     serialized_odometry_to_measurement,
     stamp_to_seconds,
     subscribe_announcements,
+    subscribe_route,
     twist_components,
     world_to_body,
 )
 from prvo_planner.agent import (
+    DEPARTURE_TOLERANCES,
     ROUTE_UNREACHABLE,
     AgentSettings,
     PlannerAgent,
@@ -86,6 +90,7 @@ from prvo_planner.reports import (
     inside_message,
     passage_message,
 )
+from prvo_planner.routes import RouteIntent, route_stamp
 from prvo_planner.stalls import STALL_WINDOW
 
 RCLError = rclpy_implementation.RCLError
@@ -469,6 +474,12 @@ class PlannerNode(Node):
         # The agent keeps the neighbour's last valid announcement, else its default.
         self._warnings.warn((topic, 'announcement'), f'ignoring announcement on {topic}: {error}')
 
+    def _on_bad_route(self, robot, topic, error):
+        # Whatever is wrong with it, the neighbour is one without a route: it claims nothing.
+        self._agent.forget_route(robot)
+        self._warnings.warn((topic, 'route'), f'ignoring route on {topic} (the robot claims '
+                            f'nothing): {error}')
+
     # Map and route ----------------------------------------------------------------------------
 
     def _map_endpoints(self):
@@ -479,7 +490,8 @@ class PlannerNode(Node):
         the plans go on with the map in force until the new one is built whole and swapped in.
 
         Only a robot heading for a goal has a route of its own: one following a path has the
-        path (on `plan` too, by default), a filter none.
+        path (on `plan` too, by default), a filter none. It publishes its route with or
+        without a map.
         """
         self._map_topic = self._values['map_topic']
         # A daemon thread: a planner stopped while it builds a large map does not wait for it.
@@ -489,8 +501,8 @@ class PlannerNode(Node):
         self._route_build = None
         self._map_poll = self.create_timer(MAP_POLL_PERIOD, self._on_map_poll,
                                            clock=self._steady_clock, autostart=False)
-        # The route published last (None: an empty path), to publish a route once per change.
-        self._published_route = None
+        # What the robot published of its way, to publish it once per change.
+        self._route_intent = RouteIntent(DEPARTURE_TOLERANCES)
         self._plan_publisher = None if self._source != GOAL else self.create_publisher(
             Path, PLAN, PLAN_QOS, event_callbacks=quiet_publisher_events())
         subscription = self._subscribe_parameter_topic('map_topic', OccupancyGrid, self._on_map,
@@ -589,18 +601,23 @@ class PlannerNode(Node):
         return True
 
     def _publish_route(self, command):
-        """Publish COMMAND's route on <robot>/plan where it changed; warn while none is found."""
+        """Publish the way after COMMAND on <robot>/plan where it changed; warn while none is.
+
+        Returns the publishers that published (the command waits until the neighbours hold
+        the route, as it does for announcements: they plan the next step with it).
+        """
         if self._plan_publisher is None:
-            return
+            return []
+        agent = self._agent
         if command.route_status == ROUTE_UNREACHABLE:
             self._warnings.warn('route', f'no way on the map reaches the goal '
-                                f'{self._agent.goal.tolist()}: holding the place')
-        if command.route is self._published_route:
-            return
-        self._published_route = command.route
-        self._plan_publisher.publish(make_path(
-            command.stamp, () if command.route is None else command.route,
-            self._values['frame_id']))
+                                f'{agent.goal.tolist()}: holding the place')
+        route = self._route_intent.update(command, agent.goal, agent.settings.goal_tolerance)
+        if route is None:
+            return []
+        self._plan_publisher.publish(make_path(route_stamp(command.stamp), route,
+                                               self._values['frame_id']))
+        return [self._plan_publisher]
 
     # Neighbours -------------------------------------------------------------------------------
 
@@ -622,7 +639,9 @@ class PlannerNode(Node):
                     data, robot, topic),
                 ODOM_LATEST_QOS, event_callbacks=quiet_subscription_events(), raw=True)
             ] + subscribe_announcements(self, robot, agent.receive_footprint,
-                                        agent.receive_share, self._on_bad_announcement)
+                                        agent.receive_share, self._on_bad_announcement) + [
+                subscribe_route(self, robot, agent.receive_route, self._on_bad_route,
+                                self._values['frame_id'])]
             self._qos_watch.watch(*self._neighbour_subscriptions[robot])
             self.get_logger().info(f'tracking neighbour {robot}')
         for robot in set(self._neighbour_subscriptions) - wanted:
@@ -655,16 +674,14 @@ class PlannerNode(Node):
             self.get_logger().info(f'arrived at {self._agent.goal.tolist()}')
         # Once neighbours hold a changed announcement: in lockstep they plan the next step with it.
         message = self._command_message(command)
+        announced = self._announce() + self._publish_route(command)
         if command.published:
-            self._commands.publish(message, self._announce())
-        else:
-            self._announce()
+            self._commands.publish(message, announced)
         self._last_command, self._last_command_stamp = message, command.stamp
         if self._lookahead_publisher is not None and self._agent.path is not None and (
                 self._agent.path.last_carrot is not None):
             self._lookahead_publisher.publish(make_point_stamped(
                 command.stamp, self._agent.path.last_carrot, self._values['frame_id']))
-        self._publish_route(command)
         result = command.result
         if result is not None and not result.feasible:
             self._warnings.warn(

@@ -51,8 +51,9 @@ def plan_status(robot, command, plan_time_ms, model, planning_radius):
     nearest static obstacle grown by the planning radius (inf without obstacles) and
     `obstacle_probability` the probability certified against static obstacles (1 without).
     `route` is the way to the goal: 'none' without a map, 'ok' or 'unreachable' (the robot
-    holds its place). The stall keys are `stall_values`'; a stalled robot's status is a WARN,
-    as is that of a robot whose centre is inside an obstacle on its map (`inside_message`).
+    holds its place); the neighbours' routes the plan held are `Command.route_values`. The
+    stall keys are `stall_values`'; a stalled robot's status is a WARN, as is that of a robot
+    whose centre is inside an obstacle on its map (`inside_message`).
     """
     result = command.result
     feasible = True if result is None else bool(result.feasible)
@@ -84,7 +85,7 @@ def plan_status(robot, command, plan_time_ms, model, planning_radius):
          'plans': tally.plans, 'infeasible_plans': tally.infeasible,
          'min_achieved_eta': _or_none(tally.min_achieved_eta),
          'tally_stamp': _or_none(tally.last_stamp), **stall_values(command),
-         **command.announcement_values()},
+         **command.announcement_values(), **command.route_values()},
         level=(DiagnosticStatus.OK if feasible and not stalled and inside is None
                else DiagnosticStatus.WARN),
         hardware_id=robot)

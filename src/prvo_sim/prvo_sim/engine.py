@@ -2,10 +2,11 @@
 
 `InProcessTeam` is the ROS lockstep run without processes. Each `do_step` gives every agent
 the odometry of the current state exactly as a planner node reads it (the simulator's
-serialized message, decoded by the planner's decoder), lets every agent plan, turns each
-command into the world frame exactly as the simulator does (body frame and back), and then
-moves the world by one dt. Same code, same numbers: for a scenario and a seed the trajectories
-equal the ROS lockstep run's.
+serialized message, decoded by the planner's decoder), lets every agent plan, gives every
+agent what the others announced and published of their routes after their plans (through the
+messages, stamped as the nodes stamp them), turns each command into the world frame exactly as
+the simulator does (body frame and back), and then moves the world by one dt. Same code, same
+numbers: for a scenario and a seed the trajectories equal the ROS lockstep run's.
 
     team = InProcessTeam(scenario, planner_values)
     while not team.finished:
@@ -30,11 +31,13 @@ from prvo_msgs_util import (
     radius_of_footprint,
     serialized_odometry_to_measurement,
     serialized_path_to_waypoints,
+    serialized_route,
     share_of,
     world_to_body,
 )
 from prvo_planner.agent import (
     ANNOUNCED_FROM_THE_START,
+    DEPARTURE_TOLERANCES,
     UNANNOUNCED_SHARE,
     AgentSettings,
     NeighbourAnnouncement,
@@ -43,7 +46,8 @@ from prvo_planner.agent import (
 from prvo_planner.core import plan_velocities
 from prvo_planner.maps import GridMap
 from prvo_planner.parameters import planner_config_from
-from prvo_planner.preferred import UpstreamCommand
+from prvo_planner.preferred import GOAL, UpstreamCommand
+from prvo_planner.routes import RouteIntent, route_stamp
 from prvo_planner.tracks import TrackTable
 from prvo_sim.planned_path import PlannedPath
 from prvo_sim.upstream import PurePursuitUpstream
@@ -151,12 +155,18 @@ class InProcessTeam:
         if grid_map is not None:
             self._give_map(grid_map, planner_values)
         # The planner_server stand-ins' paths, through the message, as a planner node takes
-        # them before its first plan (wait_for_path).
+        # them before its first plan (wait_for_path), and its neighbours as the robot's route,
+        # from the start (the stand-in publishes it before the simulator's clock runs).
         for index, robot in enumerate(scenario.robots):
             if robot.followed_path is not None:
                 sent = serialize_message(make_path(0.0, path_of(robot).poses, WORLD_FRAME))
                 self.agents[index].set_path(serialized_path_to_waypoints(
                     sent, expected_frame=WORLD_FRAME))
+                self._give_route(index, sent)
+        # What each robot heading for a goal published of its way, by index.
+        self._route_intents = {index: RouteIntent(DEPARTURE_TOLERANCES)
+                               for index, agent in self._planned
+                               if agent.settings.preferred_source == GOAL}
         # The Nav2 stand-ins of the robots driven upstream (their planners filter), by index.
         self._upstreams = {index: upstream_of(robot, scenario)
                            for index, robot in enumerate(scenario.robots)
@@ -211,6 +221,27 @@ class InProcessTeam:
                 for _, other in self._planned:
                     if other is not agent:
                         receive(other, names[index], value, value_stamp)
+
+    def _publish_routes(self, commands):
+        """Give every agent the routes the others published after their plans, where changed.
+
+        As a planner node does after its plan of COMMANDS (each robot's `Command`, by index):
+        stamped with the plan's stamp, through the message.
+        """
+        for index, intent in self._route_intents.items():
+            agent, command = self.agents[index], commands[index]
+            route = intent.update(command, agent.goal, agent.settings.goal_tolerance)
+            if route is not None:
+                self._give_route(index, serialize_message(make_path(
+                    route_stamp(command.stamp), route, WORLD_FRAME)))
+
+    def _give_route(self, index, sent):
+        """Give the route SENT (a serialized Path) of robot INDEX to every other planned agent."""
+        stamp, waypoints = serialized_route(sent, expected_frame=WORLD_FRAME)
+        robot = self.world.names[index]
+        for other_index, other in self._planned:
+            if other_index != index:
+                other.receive_route(robot, waypoints, stamp)
 
     @property
     def finished(self):
@@ -288,6 +319,7 @@ class InProcessTeam:
             commands[index] = body_to_world(body, yaws[index])
             executed[index] = commands[index]
         self._announce()
+        self._publish_routes(planned)
         # One call plans the team: each planned robot is charged an equal share of it.
         plan_ms = np.full(len(self._planned), (time.perf_counter() - started) * 1e3
                           / max(len(self._planned), 1))
