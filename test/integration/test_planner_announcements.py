@@ -5,6 +5,7 @@ import threading
 
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import Point32, PolygonStamped, Vector3Stamped
+from nav_msgs.msg import Path
 import numpy as np
 import pytest
 from rclpy.duration import Duration
@@ -14,8 +15,10 @@ from prvo_msgs_util import (
     ANNOUNCEMENT_QOS,
     DIAGNOSTICS,
     DIAGNOSTICS_QOS,
+    PLAN_QOS,
     diagnostic_values,
     footprint_message,
+    make_path,
     robot_topic,
     share_message,
     stamp_to_seconds,
@@ -96,6 +99,40 @@ def test_a_planner_announces_itself_and_plans_with_what_its_neighbours_announce(
     probe.wait_until(lambda: 'ignoring announcement on /robot_2/avoidance_share: avoidance '
                      'share must be in [0, 1), got 1.5' in children.output(planner.process),
                      timeout=20.0, what='the warning about the bad share')
+
+    # Without a map it publishes its straight way (latched), stamped with its first plan.
+    own_route = Latest()
+    probe.node.create_subscription(Path, robot_topic('robot_0', 'plan'), own_route, PLAN_QOS)
+    probe.wait_until(own_route.get, timeout=20.0, what="the planner's route")
+    assert own_route.get().header.frame_id == 'map'
+    assert stamp_to_seconds(own_route.get().header.stamp) == pytest.approx(10.0)
+    assert [(pose.pose.position.x, pose.pose.position.y) for pose in own_route.get().poses][
+        1] == (5.0, 0.0)
+    # robot_1 publishes a route from the start, robot_2 one with NaN: it claims nothing.
+    routes = {robot: probe.node.create_publisher(Path, robot_topic(robot, 'plan'), PLAN_QOS)
+              for robot in ('robot_1', 'robot_2')}
+    probe.wait_until(lambda: all(publisher.get_subscription_count() > 0
+                                 for publisher in routes.values()),
+                     timeout=30.0, what='the planner subscribing to the routes')
+    # Heard again first (neighbor_timeout is 1 s): a route goes with a neighbour dropped.
+    stamp += 0.1
+    planner.send_step(stamp)
+    planner.wait_answer(stamp)
+    routes['robot_1'].publish(make_path(0.0, [[0.0, 2.0], [3.0, 2.0], [3.0, 5.0]]))
+    routes['robot_2'].publish(make_path(0.0, [[0.0, 4.0], [float('nan'), 4.0]]))
+    expected = {'neighbour.robot_1.route_points': '3', 'neighbour.robot_1.route_stamp': '0.0',
+                'neighbour.robot_2.route_points': '0', 'neighbour.robot_2.route_stamp': 'none'}
+    for _ in range(200):
+        stamp += 0.1
+        planner.send_step(stamp)
+        planner.wait_answer(stamp)
+        values = statuses.get() or {}
+        if all(values.get(key) == value for key, value in expected.items()):
+            break
+    assert all(values.get(key) == value for key, value in expected.items()), values
+    probe.wait_until(lambda: 'ignoring route on /robot_2/plan (the robot claims nothing): '
+                     'poses[1].pose.position contains NaN' in children.output(planner.process),
+                     timeout=20.0, what='the warning about the bad route')
     assert planner.process.poll() is None
 
 

@@ -173,7 +173,10 @@ def test_a_latched_map_before_the_planner_gives_a_route_and_bad_maps_are_named(
         'the warning of an unreachable goal')
     probe.wait_until(lambda: observer.routes[-1] == 'unreachable', 10.0,
                      'diagnostics of an unreachable goal')
-    probe.wait_until(lambda: len(observer.paths[-1].poses) == 0, 10.0, 'an empty route')
+    # Its route says so: where it stands, alone.
+    probe.wait_until(lambda: len(observer.paths[-1].poses) == 1, 10.0, 'a route of one pose')
+    held_at = observer.paths[-1].poses[0].pose.position
+    assert np.hypot(held_at.x - 7.0, held_at.y - 5.0) > 1.0
     assert children.interrupt(planner.process) == 0
 
 

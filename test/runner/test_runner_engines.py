@@ -4,7 +4,9 @@ import csv
 import json
 import pathlib
 
+from diagnostic_msgs.msg import DiagnosticArray
 import pytest
+from rclpy.serialization import deserialize_message
 from rosbags.highlevel import AnyReader
 from runner_testing import output, start_runner
 import yaml
@@ -101,6 +103,33 @@ def test_both_engines_give_the_same_trajectories(scenario, tmp_path, runners):
             assert len(bags['ros'][topic]) >= step_count - 1, topic
         elif topic.endswith('/prvo_markers'):
             assert messages and bags['ros'][topic], topic
+    # Every planner held the same routes of its neighbours at the same plans: what each
+    # published after its plan of a step, from the next step on (statuses come every
+    # status_period, of wall time on ROS: compared where both engines reported a plan).
+    held = {engine: routes_held(bags[engine]['/diagnostics']) for engine in bags}
+    common = set(held['inprocess']) & set(held['ros'])
+    assert len(common) >= len(robots) - len(scripted), sorted(held['ros'])
+    for key in sorted(common):
+        assert held['inprocess'][key] == held['ros'][key], key
+    assert any(int(values[name]) for values in held['ros'].values() for name in values
+               if name.endswith('.route_points'))
+
+
+def routes_held(diagnostics):
+    """Return {(robot, plan stamp [ns]): {neighbour route key: value}} of planner statuses.
+
+    DIAGNOSTICS: the serialized DiagnosticArrays of a bag, [(log time ns, message)].
+    """
+    held = {}
+    for _, data in diagnostics:
+        message = deserialize_message(data, DiagnosticArray)
+        stamp = message.header.stamp.sec * 1_000_000_000 + message.header.stamp.nanosec
+        for status in message.status:
+            if status.name.startswith('prvo_planner/'):
+                held[status.name, stamp] = {
+                    pair.key: pair.value for pair in status.values
+                    if pair.key.endswith(('.route_points', '.route_stamp'))}
+    return held
 
 
 def serialized_messages(folder):
