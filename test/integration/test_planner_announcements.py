@@ -88,14 +88,7 @@ def test_a_planner_announces_itself_and_plans_with_what_its_neighbours_announce(
                 'neighbour.robot_1.avoidance_share': '0.0',
                 'neighbour.robot_2.radius': '0.7', 'neighbour.robot_2.avoidance_share': '0.0'}
     # Diagnostics on every plan: the first plan after the announcements arrived shows them.
-    for step in range(200):
-        stamp = 10.0 + 0.1 * step
-        planner.send_step(stamp)
-        planner.wait_answer(stamp)
-        values = statuses.get() or {}
-        if all(values.get(key) == value for key, value in expected.items()):
-            break
-    assert all(values.get(key) == value for key, value in expected.items()), values
+    stamp = plan_until_reported(planner, statuses, expected, 9.9)
     probe.wait_until(lambda: 'ignoring announcement on /robot_2/avoidance_share: avoidance '
                      'share must be in [0, 1), got 1.5' in children.output(planner.process),
                      timeout=20.0, what='the warning about the bad share')
@@ -115,25 +108,31 @@ def test_a_planner_announces_itself_and_plans_with_what_its_neighbours_announce(
                                  for publisher in routes.values()),
                      timeout=30.0, what='the planner subscribing to the routes')
     # Heard again first (neighbor_timeout is 1 s): a route goes with a neighbour dropped.
-    stamp += 0.1
-    planner.send_step(stamp)
-    planner.wait_answer(stamp)
+    stamp = plan_until_reported(planner, statuses, {}, stamp)
     routes['robot_1'].publish(make_path(0.0, [[0.0, 2.0], [3.0, 2.0], [3.0, 5.0]]))
     routes['robot_2'].publish(make_path(0.0, [[0.0, 4.0], [float('nan'), 4.0]]))
     expected = {'neighbour.robot_1.route_points': '3', 'neighbour.robot_1.route_stamp': '0.0',
                 'neighbour.robot_2.route_points': '0', 'neighbour.robot_2.route_stamp': 'none'}
-    for _ in range(200):
-        stamp += 0.1
-        planner.send_step(stamp)
-        planner.wait_answer(stamp)
-        values = statuses.get() or {}
-        if all(values.get(key) == value for key, value in expected.items()):
-            break
-    assert all(values.get(key) == value for key, value in expected.items()), values
+    plan_until_reported(planner, statuses, expected, stamp)
     probe.wait_until(lambda: 'ignoring route on /robot_2/plan (the robot claims nothing): '
                      'poses[1].pose.position contains NaN' in children.output(planner.process),
                      timeout=20.0, what='the warning about the bad route')
     assert planner.process.poll() is None
+
+
+def plan_until_reported(planner, statuses, expected, stamp):
+    """Plan the steps after STAMP until the planner's status (STATUSES) holds EXPECTED.
+
+    Returns the last step's stamp; fails naming the status after 200 steps.
+    """
+    for _ in range(200):
+        stamp = round(stamp + 0.1, 9)
+        planner.send_step(stamp)
+        planner.wait_answer(stamp)
+        values = statuses.get() or {}
+        if all(values.get(key) == value for key, value in expected.items()):
+            return stamp
+    raise AssertionError(f'the status never held {expected}: {values}')
 
 
 def footprint_of_radius(radius, robot):

@@ -111,8 +111,9 @@ def test_both_engines_give_the_same_trajectories(scenario, tmp_path, runners):
     assert len(common) >= len(robots) - len(scripted), sorted(held['ros'])
     for key in sorted(common):
         assert held['inprocess'][key] == held['ros'][key], key
+    # A scripted walker publishes no route: walker2's robot holds none.
     assert any(int(values[name]) for values in held['ros'].values() for name in values
-               if name.endswith('.route_points'))
+               if name.endswith('.route_points')) == (len(robots) - len(scripted) > 1)
 
 
 def routes_held(diagnostics):

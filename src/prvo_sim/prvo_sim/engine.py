@@ -236,7 +236,10 @@ class InProcessTeam:
                     route_stamp(command.stamp), route, WORLD_FRAME)))
 
     def _give_route(self, index, sent):
-        """Give the route SENT (a serialized Path) of robot INDEX to every other planned agent."""
+        """Give the route SENT (a serialized Path) of robot INDEX to every other planned agent.
+
+        A scenario's goals stay: no route is withdrawn (an empty path, which agents refuse).
+        """
         stamp, waypoints = serialized_route(sent, expected_frame=WORLD_FRAME)
         robot = self.world.names[index]
         for other_index, other in self._planned:
