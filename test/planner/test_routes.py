@@ -174,3 +174,11 @@ def test_routes_are_forgotten_with_their_robot_and_kept_bounded():
         agent.receive_route('c', ROUTE_A + index, 1.0 + index)
     assert len(agent._announced_route['c']) == MAX_KEPT_ANNOUNCEMENTS
     assert agent.route_of('c', 1e6).stamp == 3 * MAX_KEPT_ANNOUNCEMENTS
+
+
+def test_a_new_goal_near_the_old_one_is_set_off_for():
+    intent = RouteIntent(DEPARTURE_TOLERANCES)
+    goal, near, tolerance = np.array([4.0, 0.0]), np.array([4.3, 0.0]), 0.2
+    intent.update(command([3.9, 0.0], arrived=True), goal, tolerance)
+    np.testing.assert_array_equal(intent.update(command([3.95, 0.0]), near, tolerance),
+                                  [[3.95, 0.0], [4.3, 0.0]])

@@ -96,9 +96,11 @@ class RouteIntent:
             self._at_goal = False
             key, route = ('none',), np.empty((0, 2))
         else:
+            # At a new goal only once the agent finds it there.
+            kept = self._published is not None and self._published[1:] == (tuple(goal.tolist()),)
             distance = math.hypot(*(goal - position))
             self._at_goal = command.arrived or (
-                self._at_goal and distance <= self._departures * goal_tolerance)
+                kept and self._at_goal and distance <= self._departures * goal_tolerance)
             key, route = self._key(command, goal, position)
         if self._published is None and goal is None:
             # Nothing was published: there is nothing to withdraw.
