@@ -7,10 +7,9 @@ a Monte Carlo check with a sampler of its own finds every encounter plan of the 
 within its horizon with at least eta.
 """
 
-import math
-
 import numpy as np
 import pytest
+from sampled_safety import EncounterChecker
 
 from prvo_sim.engine import InProcessTeam
 from prvo_sim.runner.session import planner_values
@@ -37,9 +36,6 @@ robots:
   - {name: west_1, start: [3.0, 0.0], goal: [-3.0, 0.0], radius: 0.25, max_speed: 1.0}
 """
 EAST, WEST = (0, 1), (2, 3)
-SAMPLES = 4000
-# Neighbours nearer than this [m] make a plan an encounter's.
-ENCOUNTER = 3.0
 
 
 def run(tmp_path, seed, keep_right, on_step=None):
@@ -82,55 +78,7 @@ def test_with_the_rule_every_pair_passes_on_its_right(tmp_path, seed):
     assert max(offsets) <= -0.5
 
 
-def gaussian(rng, mean, covariance, count):
-    """Draw COUNT samples (count, n) of N(MEAN, COVARIANCE) from standard normals."""
-    values, vectors = np.linalg.eigh(covariance)
-    root = vectors * np.sqrt(np.clip(values, 0.0, None))
-    return np.asarray(mean) + rng.standard_normal((count, len(mean))) @ root.T
-
-
-def safe_share(rng, ego, neighbour, command, config):
-    """Return the sampled share of executions safe within the horizon, as the planner states it.
-
-    Relative position r and velocity u sampled from the beliefs and the actuation noise, the
-    ego taking the share of the avoidance its neighbour leaves it: u = (executed - v_ego) /
-    (1 - s) + v_ego - v_neighbour for a neighbour announcing share s (2 executed - v_ego -
-    v_neighbour for a reciprocating one, executed - v_neighbour for one standing at its goal);
-    safe: on [0, horizon] the robots come no closer than the sum of radii, or than they
-    already are.
-    """
-    own = gaussian(rng, np.r_[ego.position, ego.velocity], ego.covariance, SAMPLES)
-    other = gaussian(rng, np.r_[neighbour.position, neighbour.velocity], neighbour.covariance,
-                     SAMPLES)
-    executed = command + gaussian(rng, np.zeros(2), config.actuation_cov, SAMPLES)
-    r = own[:, :2] - other[:, :2]
-    share = neighbour.avoidance_share
-    u = (executed - own[:, 2:]) / (1.0 - share) + own[:, 2:] - other[:, 2:]
-    closest = np.clip(-np.sum(r * u, axis=1) / np.maximum(np.sum(u * u, axis=1), 1e-300),
-                      0.0, config.time_horizon)
-    distance_sq = np.sum((r + closest[:, None] * u) ** 2, axis=1)
-    radius = ego.radius + neighbour.radius + config.safety_margin
-    return np.mean(distance_sq >= np.minimum(radius ** 2, np.sum(r * r, axis=1)) - 1e-12)
-
-
 def test_every_encounter_plan_with_the_rule_keeps_its_probability(tmp_path):
-    rng = np.random.default_rng(38)
-    checked = []
-
-    def check(team, positions):
-        for request, command in zip(team.last_requests, team.last_commands, strict=True):
-            if request.problem is None or not command.result.feasible:
-                continue
-            ego, neighbours, _, config = request.problem[:4]
-            for neighbour in neighbours:
-                if np.hypot(*(neighbour.position - ego.position)) > ENCOUNTER:
-                    continue
-                checked.append((safe_share(rng, ego, neighbour, command.velocity, config),
-                                config.effective_eta))
-
-    assert run(tmp_path, 1, 0.3, check)[0]
-    shares, etas = np.array(checked).T
-    assert len(shares) >= 100
-    tolerance = 4.0 * np.sqrt(etas * (1.0 - etas) / SAMPLES)
-    assert (shares >= etas - tolerance).all(), (shares - etas).min()
-    assert math.isclose(etas.min(), 0.95)
+    checker = EncounterChecker(np.random.default_rng(38))
+    assert run(tmp_path, 1, 0.3, checker.check)[0]
+    checker.assert_safe(at_least=100)

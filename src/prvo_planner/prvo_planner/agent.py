@@ -27,6 +27,7 @@ from prvo_planner.escalation import (
     Escalation,
     EscalationSettings,
 )
+from prvo_planner.give_way import give_way_spot
 from prvo_planner.lanes import KEEP_RIGHT, keep_right
 from prvo_planner.maps import (
     GridMap,
@@ -287,6 +288,7 @@ class AgentSettings:
     stall_turn_rate: float = TURN_RATE
     stall_turn_max: float = TURN_MAX
     keep_right: float = KEEP_RIGHT
+    give_way: bool = True
 
     @classmethod
     def from_parameters(cls, values):
@@ -582,6 +584,8 @@ class PlannerAgent:
         # The passage too narrow to certify that the stall in progress is in front of.
         self._narrow_passage = None
         self.escalation = Escalation()
+        # The spot beside a neighbour's route the robot gives way at (`give_way`), None: none.
+        self._give_way = None
         # The path followed (path mode); the upstream command waiting for its answer, when it
         # came and the last one answered (velocity mode); when the own state was last received.
         self._path = None
@@ -645,6 +649,7 @@ class PlannerAgent:
         self.arrived = False
         self._arrival_reported = False
         self._previous_velocity = None
+        self._give_way = None
 
     # Measurements -----------------------------------------------------------------------------
 
@@ -966,6 +971,28 @@ class PlannerAgent:
                 control_period=self._control_period or self.config.control_period),
             self._previous_velocity, self._limits(stamp))
 
+    def _given_way(self, position, v_pref, beliefs, announcements, routes):
+        """Return V_PREF, or toward the spot beside a passing neighbour's route (`give_way`).
+
+        Only a robot heading for a goal, at it or giving way already, steps aside; ROUTES are
+        the neighbours' `routes.NeighbourRoute`s (None: none), in the order of BELIEFS.
+        """
+        settings = self.settings
+        if (not settings.give_way or self.goal is None or settings.preferred_source != GOAL
+                or not (self.arrived or self._give_way is not None)):
+            self._give_way = None
+            return v_pref
+        neighbours = [(belief.mean[:2], announcement.radius,
+                       None if route is None else route.points)
+                      for belief, announcement, route in zip(beliefs, announcements, routes,
+                                                             strict=True)]
+        room = None if self._route_map is None else self._route_map.in_sight
+        self._give_way = give_way_spot(self.goal, settings.planning_radius, neighbours, room)
+        if self._give_way is None:
+            return v_pref
+        return preferred_velocity(position, self._give_way, self.config.max_speed,
+                                  settings.approach_time, 0.0, settings.max_acceleration)[0]
+
     def _kept_right(self, problem, distance_to_goal, obstacles):
         """Return PROBLEM with its preferred velocity leaning right (`prvo_planner.lanes`)."""
         ego, neighbours, v_pref, config = problem[:4]
@@ -1078,6 +1105,7 @@ class PlannerAgent:
         for announced in (*self._announced_radius.values(), *self._announced_share.values(),
                           *self._announced_route.values()):
             announced.prune(stamp)
+        v_pref = self._given_way(own.mean[:2], v_pref, neighbour_beliefs, announcements, routes)
         if self._command_stamp is not None and 0.0 < stamp - self._command_stamp:
             self._control_period = stamp - self._command_stamp
         obstacles = None if self._obstacle_index is None else self._obstacle_index.near(
@@ -1112,7 +1140,8 @@ class PlannerAgent:
             problem = self._problem(own, stamp, tracks, announcements, v_pref, horizon)
             if inside is None:
                 problem = self._kept_right(problem, distance_to_goal, obstacles)
-            if (self.arrived or route_status == ROUTE_UNREACHABLE) and nobody_comes(problem):
+            if ((self.arrived and self._give_way is None or route_status == ROUTE_UNREACHABLE)
+                    and nobody_comes(problem)):
                 problem = None
         return PlanRequest(stamp=stamp, own=own, neighbours=neighbour_beliefs,
                            neighbour_names=names, announcements=announcements,

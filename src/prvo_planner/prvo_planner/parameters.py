@@ -289,6 +289,12 @@ _SPECS = (
                   'is wide enough for two (open space, or twice the width it needs to be '
                   'certified through), fading over the last metre to its goal; longer ways (a '
                   'factor 1 / cos) for smoother flow. In [0, 0.8]; 0 = never.', (0.0, 0.8)),
+    # Give way (`prvo_planner.give_way`): a robot at its goal steps off the route a neighbour
+    # publishes on <robot>/plan where it passes; off, it stands there (the ablation).
+    ParameterSpec('give_way', BOOL, True, 'A robot at its goal steps aside, off the route a '
+                  'neighbour within 3 m publishes on <robot>/plan, where that route passes '
+                  'nearer than their two radii and 0.1 m, and returns once it went by. '
+                  'false = it stays at its goal.'),
     # Escalation (`prvo_planner.escalation`): a stalled robot (`prvo_planner.stalls`) turns its
     # preferred velocity to the right; off, the preferred velocity is the goal's or the route's
     # (the benchmarks' ablation). Only the preference changes, never the chance constraints.

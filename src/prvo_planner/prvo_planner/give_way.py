@@ -1,0 +1,121 @@
+"""
+Give way: a robot standing at its goal steps off the route of a neighbour that has to pass, no ROS.
+
+A robot at its goal announces no share of the avoidance (`agent.PlannerAgent.own_announcement`):
+its neighbours plan around it as around a post, and it moves only when one comes at it. Where
+goals lie in a passage, robots that arrived first stand across the way of those still coming
+and of those still leaving, which stand in front of them for good: in `corridor8` two robots at
+their goals 1.1 m apart across a 2.4 m corridor leave 0.6 m between them, and a robot of 0.5 m
+behind them cannot certify that gap (issue 38). A person at their destination steps aside for
+someone who has to pass; so does a robot here, from what its neighbours publish: the route each
+follows to its goal (`<robot>/plan`).
+
+A robot at its goal, or giving way, looks at the route of every neighbour within `RANGE` of its
+goal. Where a route passes nearer its goal than the two radii and `GAP`, the robot goes to the
+point beside the route at that distance, on the side its goal lies (across the route where the
+goal is on it, to the route's right), as far as its room allows (`room`: the map's cells that
+keep its clearance; without a map, always), down to the two radii; with no room on that side,
+on the other. The nearest such neighbour decides. Once no route passes by its goal (the
+neighbour went by, arrived, or went silent) it returns to its goal.
+
+Only the preferred velocity changes: the chance constraints against robots and walls, and so the
+guarantee, are those of every plan.
+"""
+
+import math
+
+import numpy as np
+
+# Room made beyond the two radii [m]: a neighbour passes at its certified clearance with some
+# to spare (about two position stds of the shipped noise).
+GAP = 0.1
+# Routes of neighbours farther than this from the robot's goal are not looked at [m]: a robot
+# steps aside for one about to pass, not for one across the room.
+RANGE = 3.0
+# The offsets tried, from the full one down to the two radii, this far apart [m].
+STEP = 0.05
+
+
+def closest_on_route(route, point):
+    """
+    Return (point (2,), direction (2,), index): the nearest point of ROUTE to POINT.
+
+    `direction` is the unit direction of the segment it lies on (zero for a segment of no
+    length), `index` that segment's. ROUTE (K, 2) [m], K >= 2; POINT (2,) [m].
+    """
+    starts, ends = route[:-1], route[1:]
+    edges = ends - starts
+    lengths_sq = np.sum(edges * edges, axis=1)
+    along = np.clip(np.sum((point - starts) * edges, axis=1) / np.maximum(lengths_sq, 1e-300),
+                    0.0, 1.0)
+    nearest = starts + along[:, None] * edges
+    index = int(np.argmin(np.sum((nearest - point) ** 2, axis=1)))
+    length = math.sqrt(lengths_sq[index])
+    direction = edges[index] / length if length > 0.0 else np.zeros(2)
+    return nearest[index], direction, index
+
+
+def way_ahead(route, position):
+    """Return the part (K', 2) of ROUTE (K, 2) ahead of a robot at POSITION (2,).
+
+    A route is published when it changes, not at every plan: the way behind the robot is cut
+    off at the point nearest it.
+    """
+    nearest, _, index = closest_on_route(route, position)
+    return np.vstack([nearest, route[index + 1:]])
+
+
+def spot_beside(route, goal, radius, other_radius, room):
+    """
+    Return where a robot of RADIUS standing at GOAL lets a neighbour of OTHER_RADIUS pass.
+
+    None when ROUTE (K, 2) passes GOAL at least the two radii and GAP away (nothing to do), or
+    when no point beside it is within reach (ROOM(start (2,), end (2,)) -> bool; None: open
+    space). Otherwise the point at the largest offset from the route, from the two radii and GAP
+    down to the two radii, on the side of the goal, else on the other.
+    """
+    nearest, direction, _ = closest_on_route(route, goal)
+    offset = goal - nearest
+    distance = math.hypot(*offset)
+    needed = radius + other_radius + GAP
+    if distance >= needed:
+        return None
+    if distance > 1e-9:
+        side = offset / distance
+    elif direction.any():
+        side = np.array([direction[1], -direction[0]])
+    else:
+        return None
+    least = radius + other_radius
+    offsets = needed - STEP * np.arange(int(math.floor((needed - least) / STEP + 1e-9)) + 1)
+    for way in (side, -side):
+        for amount in offsets:
+            spot = nearest + amount * way
+            if room is None or room(goal, spot):
+                return spot
+    return None
+
+
+def give_way_spot(goal, radius, neighbours, room):
+    """
+    Return the spot (2,) a robot at its GOAL (2,) of RADIUS goes to, None to stay at its goal.
+
+    NEIGHBOURS is a sequence of (position (2,), radius, route (K, 2) or None): their estimated
+    positions, their radii and the routes they follow (None or fewer than two points: none).
+    ROOM as in `spot_beside`. The neighbour nearest the goal among those within RANGE whose
+    way ahead (`way_ahead`) passes by the goal decides.
+    """
+    spots = []
+    for position, other_radius, route in neighbours:
+        position = np.asarray(position, dtype=float)
+        distance = math.hypot(*(position - goal))
+        if route is None or len(route) < 2 or distance > RANGE:
+            continue
+        ahead = way_ahead(np.asarray(route, dtype=float), position)
+        if not np.any(ahead[1:] != ahead[:-1]):
+            # At the end of its route: it arrived, and claims no way.
+            continue
+        spot = spot_beside(ahead, goal, radius, other_radius, room)
+        if spot is not None:
+            spots.append((distance, spot))
+    return min(spots, key=lambda item: item[0])[1] if spots else None
