@@ -1,14 +1,29 @@
 """Give way (prvo_planner.give_way), alone: where a robot at its goal steps for a passing route."""
 
+import dataclasses
+
 import numpy as np
 import pytest
 
+from prvo_planner.agent import AgentSettings, PlannerAgent
+from prvo_planner.core import PlannerConfig
 from prvo_planner.give_way import GAP, RANGE, give_way_spot, spot_beside, way_ahead
 
 RADIUS = 0.25
 NEEDED = 2 * RADIUS + GAP
 # A route along y = 0 from x = -3 to x = 3.
 ROUTE = np.array([[-3.0, 0.0], [0.0, 0.0], [3.0, 0.0]])
+
+
+@dataclasses.dataclass(frozen=True)
+class Odometry:
+    """The fields of prvo_msgs_util.OdometryMeasurement the agent reads."""
+
+    stamp: float
+    position: np.ndarray
+    velocity: np.ndarray
+    covariance: np.ndarray
+    yaw: float = 0.0
 
 
 def distance_to_route(point, route=ROUTE):
@@ -77,3 +92,28 @@ def test_the_way_ahead_starts_where_the_robot_is_on_its_route():
     np.testing.assert_allclose(way_ahead(ROUTE, np.array([1.0, 0.2])),
                                [[1.0, 0.0], [3.0, 0.0]])
     np.testing.assert_allclose(way_ahead(ROUTE, np.array([-5.0, 0.0])), ROUTE)
+
+
+def test_a_robot_giving_way_longer_than_the_stall_window_is_not_stalled():
+    # A robot at its goal, then beside it for 15 s while a neighbour stands 1.5 m off with its
+    # route through the goal: it gives way the whole time, and its monitor does not call that a
+    # stall (the neighbour, not it, is held).
+    goal = np.array([0.0, 0.0])
+    agent = PlannerAgent('self', PlannerConfig(actuation_cov=0.0025 * np.eye(2)),
+                         AgentSettings(radius=RADIUS, goal_tolerance=0.2), goal)
+    agent.receive_route('other', np.array([[-1.5, 0.0], [3.0, 0.0]]), 0.0)
+    agent.receive_footprint('other', RADIUS, 0.0)
+    covariance = 0.0025 * np.eye(4)
+    commands = []
+    for step in range(160):
+        stamp = round(0.1 * step, 9)
+        own = goal if step < 10 else goal + [0.0, -NEEDED]
+        agent.receive_neighbour('other', Odometry(stamp, np.array([-1.5, 0.0]), np.zeros(2),
+                                                  covariance), 0.0)
+        agent.receive_own(Odometry(stamp, own, np.zeros(2), covariance), 0.0)
+        commands.append(agent.plan())
+    # Beside its goal it does not head back to it (it would at 1 m/s without giving way).
+    assert commands[-1].velocity[1] < 0.1
+    assert all(command.stall is not None for command in commands)
+    assert not any(command.stall.stalled for command in commands)
+    assert commands[-1].stall.stalls == 0

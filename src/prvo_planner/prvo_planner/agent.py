@@ -1089,8 +1089,11 @@ class PlannerAgent:
         own = self._own_track.belief_at(stamp)
         max_speed = self.config.max_speed
         v_pref, self.arrived, distance_to_goal = self._preference(own)
-        stall = self.stall_monitor.update(stamp, own.mean[:2], self.goal,
-                                          self.settings.goal_tolerance, distance_to_goal)
+        # A robot giving way is where it should be: its monitor watches the spot, not the goal.
+        giving_way = self._give_way is not None
+        stall = self.stall_monitor.update(
+            stamp, own.mean[:2], self._give_way if giving_way else self.goal,
+            self.settings.goal_tolerance, None if giving_way else distance_to_goal)
         v_pref = self.escalation.preferred(v_pref, stall, self.settings.escalation,
                                            self._room_on_right(own.mean[:2]))
         route_status = self._route_status
