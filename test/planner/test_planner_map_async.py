@@ -1,8 +1,8 @@
-"""A planner node builds its map beside its plans: the callbacks return, no plan sees half a map.
+"""A planner node reads and builds its map beside its plans: no plan waits for it or sees half.
 
 A PlannerNode runs in this process (its own ROS domain); its callbacks are called directly.
-The map's build is held on an event the test releases, so that "the callback returned while
-the map was still being built" is shown by the order of events, never by a clock.
+The map's read and build are held on events the test releases, so that "the callback returned
+while the map was still being read or built" is shown by the order of events, never by a clock.
 """
 
 import threading
@@ -12,7 +12,7 @@ import pytest
 from rclpy.parameter import Parameter
 from rclpy.serialization import serialize_message
 
-from prvo_msgs_util import make_occupancy_grid, make_odometry
+from prvo_msgs_util import make_occupancy_grid, make_odometry, occupancy_grid_to_parts
 from prvo_planner import planner_node as planner_node_module
 from prvo_planner.agent import build_map
 from prvo_planner.maps import GridMap
@@ -78,6 +78,11 @@ def _spin_until(node, condition):
     raise AssertionError('timed out')
 
 
+def _send_map(node, wall_row):
+    """Hand NODE's map callback the serialized room with a wall along row WALL_ROW."""
+    node._on_map(serialize_message(make_occupancy_grid(0.0, _room(wall_row), 0.1, [0.0, 0.0])))
+
+
 def _own_odometry(node, stamp, position=(3.0, 1.0)):
     node._on_own_odometry(serialize_message(make_odometry(
         stamp, position, [0.0, 0.0], COVARIANCE, COVARIANCE,
@@ -86,9 +91,9 @@ def _own_odometry(node, stamp, position=(3.0, 1.0)):
 
 def test_the_map_callback_returns_while_the_map_is_built_and_the_plan_waits(map_node, held):
     node, agent = map_node, map_node._agent
-    node._on_map(make_occupancy_grid(0.0, _room(30), 0.1, [0.0, 0.0]))
-    # Returned, the build still held: it runs in another thread.
-    assert held.started.wait(WAIT)
+    _send_map(node, 30)
+    # The worker reads the message; the next look at it has the map built, in another thread.
+    _spin_until(node, held.started.is_set)
     assert agent.grid_map is None and agent.map_pending
     _own_odometry(node, 0.1)
     # neighbor_timeout is long past when the build is released: a map on its way is waited
@@ -104,14 +109,13 @@ def test_the_map_callback_returns_while_the_map_is_built_and_the_plan_waits(map_
 def test_plans_go_on_with_the_map_in_force_until_the_new_one_is_built(map_node, held):
     node, agent = map_node, map_node._agent
     held.release.set()
-    first = make_occupancy_grid(0.0, _room(30), 0.1, [0.0, 0.0])
-    node._on_map(first)
+    _send_map(node, 30)
     _spin_until(node, lambda: agent.grid_map is not None)
     in_force = agent.grid_map
     held.release.clear()
     held.started.clear()
-    node._on_map(make_occupancy_grid(0.0, _room(40), 0.1, [0.0, 0.0]))
-    assert held.started.wait(WAIT)
+    _send_map(node, 40)
+    _spin_until(node, held.started.is_set)
     for stamp in (0.1, 0.2):
         _own_odometry(node, stamp)
         assert agent.pending_stamp is None, 'planned on the map in force'
@@ -121,14 +125,57 @@ def test_plans_go_on_with_the_map_in_force_until_the_new_one_is_built(map_node, 
     assert np.array_equal(agent.grid_map.cells, _room(40))
     # A map equal to the one in force is not built again.
     builds = len(held.grids)
-    node._on_map(make_occupancy_grid(0.0, _room(40), 0.1, [0.0, 0.0]))
+    _send_map(node, 40)
+    _spin_until(node, lambda: not node._map_reads)
     assert len(held.grids) == builds and node._map_build is None
+
+
+def test_a_map_message_is_read_beside_the_plans_and_a_bad_one_named(map_node, held,
+                                                                     monkeypatch):
+    # A 4000 x 4000 grid takes as long to deserialize and check as a control period: the
+    # callback only hands the bytes on, and the worker reads them while the plans go on.
+    node, agent = map_node, map_node._agent
+    held.release.set()
+    _send_map(node, 30)
+    _spin_until(node, lambda: agent.grid_map is not None)
+    in_force = agent.grid_map
+    reading, release, readers = threading.Event(), threading.Event(), []
+
+    def held_read(msg, expected_frame):
+        readers.append(threading.current_thread())
+        reading.set()
+        assert release.wait(WAIT), 'the test never released the read'
+        return occupancy_grid_to_parts(msg, expected_frame=expected_frame)
+
+    monkeypatch.setattr(planner_node_module, 'occupancy_grid_to_parts', held_read)
+    try:
+        _send_map(node, 40)
+        # Returned with the message still being read, on the worker's thread.
+        assert reading.wait(WAIT) and readers == [node._map_builder._thread]
+        for stamp in (0.1, 0.2):
+            _own_odometry(node, stamp)
+            assert agent.pending_stamp is None, 'planned on the map in force'
+        assert agent.tally.plans == 2 and agent.grid_map is in_force
+    finally:
+        release.set()
+    _spin_until(node, lambda: agent.grid_map is not in_force)
+    assert np.array_equal(agent.grid_map.cells, _room(40))
+    # A bad map read on the worker is named as before, once, and the map in force is kept.
+    warned = []
+    monkeypatch.setattr(node._warnings, 'warn', lambda key, text: warned.append(text))
+    in_force = agent.grid_map
+    node._on_map(serialize_message(make_occupancy_grid(0.0, _room(30), 0.1, [0.0, 0.0],
+                                                       frame_id='odom')))
+    _spin_until(node, lambda: not node._map_reads)
+    assert warned == ["ignoring map on /map (keeping the map in force): header.frame_id is "
+                      "'odom', expected 'map'"]
+    assert agent.grid_map is in_force and not agent.map_pending and node._map_build is None
 
 
 def test_new_settings_rebuild_the_map_beside_the_plans(map_node, held):
     node, agent = map_node, map_node._agent
     held.release.set()
-    node._on_map(make_occupancy_grid(0.0, _room(30), 0.1, [0.0, 0.0]))
+    _send_map(node, 30)
     _spin_until(node, lambda: agent.grid_map is not None)
     before = agent.map_key
     held.release.clear()
@@ -165,7 +212,7 @@ def test_a_built_map_plans_as_one_built_in_place():
 def test_a_new_goal_waits_for_its_ways_while_the_goal_before_holds(map_node, held):
     node, agent = map_node, map_node._agent
     held.release.set()
-    node._on_map(make_occupancy_grid(0.0, _room(30), 0.1, [0.0, 0.0]))
+    _send_map(node, 30)
     _spin_until(node, lambda: agent.grid_map is not None)
     searching, release = threading.Event(), threading.Event()
     search = agent.route_map.tree_to

@@ -13,8 +13,8 @@ time, and the memory that tracemalloc traces while it is built (the peak) and af
 grid itself not counted), in bytes per cell of the grid.
 
 With ``--callbacks`` a planner node in this process (on ROS_DOMAIN_ID, or 0) is handed each map
-as an OccupancyGrid message, and a second table gives wall times [ms]: the node's map callback,
-what that callback took when it built the map itself (reading the message, then
+as a serialized OccupancyGrid message, and a second table gives wall times [ms]: the node's map
+callback, what that callback took when it built the map itself (reading the message, then
 ``PlannerAgent.set_map``), and how long after the message the built map was in force.
 """
 
@@ -132,6 +132,7 @@ def build_memory(grid):
 def bench_callback(node, size, resolution):
     """Return the callback row of one office map handed to planner NODE as a message."""
     import rclpy
+    from rclpy.serialization import serialize_message
 
     from prvo_msgs_util import WORLD_FRAME, make_occupancy_grid, occupancy_grid_to_parts
     from prvo_planner.agent import PlannerAgent
@@ -142,8 +143,9 @@ def bench_callback(node, size, resolution):
     started = time.perf_counter()
     agent.set_map(GridMap(*occupancy_grid_to_parts(message, expected_frame=WORLD_FRAME)))
     inline_ms = (time.perf_counter() - started) * 1e3
+    data = serialize_message(message)
     started = time.perf_counter()
-    node._on_map(message)
+    node._on_map(data)
     callback_ms = (time.perf_counter() - started) * 1e3
     while not node._agent.has_map(grid):
         rclpy.spin_once(node, timeout_sec=0.01)

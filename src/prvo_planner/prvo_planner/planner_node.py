@@ -13,9 +13,11 @@ grid's obstacles. Heading for a goal, it publishes the way it means to take on `
 its neighbours' on theirs.
 """
 
+import collections
 import concurrent.futures
 import dataclasses
 import sys
+import threading
 import time
 
 from geometry_msgs.msg import PointStamped, PoseStamped, Twist, TwistStamped
@@ -27,6 +29,7 @@ from rclpy.exceptions import InvalidParameterTypeException, InvalidParameterValu
 from rclpy.impl.implementation_singleton import rclpy_implementation
 from rclpy.node import Node
 from rclpy.parameter import Parameter
+from rclpy.serialization import deserialize_message
 
 from prvo_msgs_util import (
     CMD_VEL,
@@ -496,6 +499,12 @@ class PlannerNode(Node):
         self._map_topic = self._values['map_topic']
         # A daemon thread: a planner stopped while it builds a large map does not wait for it.
         self._map_builder = BackgroundWorker('map_builder')
+        # The newest map message not yet taken by the worker (bytes), under its lock: one
+        # message waits at most, however fast maps come.
+        self._map_lock = threading.Lock()
+        self._map_data = None
+        # The worker's reads of map messages (Futures of a GridMap), oldest first.
+        self._map_reads = collections.deque()
         # The newest map being built and the newest goal's ways (`_MapBuild`), None when none.
         self._map_build = None
         self._route_build = None
@@ -505,24 +514,50 @@ class PlannerNode(Node):
         self._route_intent = RouteIntent(DEPARTURE_TOLERANCES)
         self._plan_publisher = None if self._source != GOAL else self.create_publisher(
             Path, PLAN, PLAN_QOS, event_callbacks=quiet_publisher_events())
+        # Serialized (raw): a 4000 x 4000 grid takes 40 ms to deserialize and as long again to
+        # check; the worker does both, and the callback only hands it the bytes.
         subscription = self._subscribe_parameter_topic('map_topic', OccupancyGrid, self._on_map,
-                                                       MAP_QOS)
+                                                       MAP_QOS, raw=True)
         return [subscription] + ([] if self._plan_publisher is None else [self._plan_publisher])
 
     @quiet_after_shutdown
-    def _on_map(self, msg):
-        try:
-            grid = GridMap(*occupancy_grid_to_parts(msg, expected_frame=self._values['frame_id']))
-        except (MessageFault, ValueError) as fault:
-            # Values sit in parentheses at the end: the text before them names the fault.
-            self._warnings.warn((self._map_topic, str(fault).split('(')[0]),
-                                f'ignoring map on {self._map_topic} (keeping the map in force): '
-                                f'{fault}')
-            return
-        building = self._map_build is not None and same_grid(self._map_build.grid, grid)
-        if building or (self._map_build is None and self._agent.has_map(grid)):
-            return
-        self._build_map(grid)
+    def _on_map(self, data):
+        with self._map_lock:
+            queued = self._map_data is not None
+            self._map_data = data
+        if not queued:
+            self._map_reads.append(self._map_builder.submit(self._read_map))
+        # A map on its way: with wait_for_map the first plan waits for it.
+        self._agent.map_pending = True
+        self._map_poll.reset()
+
+    def _read_map(self):
+        """Return the `GridMap` of the newest map message (on the worker's thread).
+
+        Raises MessageFault or ValueError for a message that is not a map in frame_id.
+        """
+        with self._map_lock:
+            data, self._map_data = self._map_data, None
+        msg = deserialize_message(data, OccupancyGrid)
+        return GridMap(*occupancy_grid_to_parts(msg, expected_frame=self._values['frame_id']))
+
+    def _take_read_maps(self):
+        """Have the maps the worker read built, unless in force or being built; warn on faults."""
+        while self._map_reads and self._map_reads[0].done():
+            try:
+                grid = self._map_reads.popleft().result()
+            except (MessageFault, ValueError) as fault:
+                # Values sit in parentheses at the end: the text before them names the fault.
+                self._warnings.warn((self._map_topic, str(fault).split('(')[0]),
+                                    f'ignoring map on {self._map_topic} (keeping the map in '
+                                    f'force): {fault}')
+                continue
+            building = self._map_build is not None and same_grid(self._map_build.grid, grid)
+            if not building and not (self._map_build is None and self._agent.has_map(grid)):
+                self._build_map(grid)
+        # A map on its way is one read or built; nothing else keeps a plan waiting for it.
+        self._agent.map_pending = bool(self._map_reads) or self._map_build is not None
+        self._stop_polling_when_idle()
 
     def _build_map(self, grid):
         """Have the worker build GRID for the settings in force; it replaces any build before."""
@@ -541,11 +576,17 @@ class PlannerNode(Node):
 
     @quiet_after_shutdown
     def _on_map_poll(self):
+        self._take_read_maps()
         taken = self._take_built_map()
         taken = self._take_route() or taken
         if taken and self._agent.ready(time.monotonic()):
             # A plan waiting for the map (wait_for_map) goes ahead now.
             self._plan()
+
+    def _stop_polling_when_idle(self):
+        """Stop looking at the worker once it has nothing of ours to read, build or search."""
+        if not self._map_reads and self._map_build is None and self._route_build is None:
+            self._map_poll.cancel()
 
     def _take_route(self):
         """Head for the goal whose ways the worker searched, if done; return whether it did."""
@@ -553,8 +594,7 @@ class PlannerNode(Node):
         if build is None or not build.future.done():
             return False
         self._route_build = None
-        if self._map_build is None:
-            self._map_poll.cancel()
+        self._stop_polling_when_idle()
         agent = self._agent
         agent.set_goal(build.grid)
         try:
@@ -576,15 +616,14 @@ class PlannerNode(Node):
         if build is None or not build.future.done():
             return False
         self._map_build = None
-        if self._route_build is None:
-            self._map_poll.cancel()
+        self._stop_polling_when_idle()
         agent = self._agent
         try:
             built = build.future.result()
         except Exception as error:
             # Whatever failed (a map beyond the bounds, memory), the plans go on with the map in
             # force. The type tells what else failed (a MemoryError's text may be empty).
-            agent.map_pending = False
+            agent.map_pending = bool(self._map_reads)
             reason = str(error) if isinstance(error, MapTooLargeError) else repr(error)
             self._warnings.warn((self._map_topic, 'build'), f'cannot use the map on '
                                 f'{self._map_topic} (keeping the map in force): {reason}')
