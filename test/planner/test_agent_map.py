@@ -225,6 +225,27 @@ def test_with_wait_for_map_the_first_plan_waits_for_the_map_as_long_as_for_neigh
     assert without.ready(10.0)
 
 
+def test_with_wait_for_map_a_robot_whose_map_is_being_built_holds_with_zero_commands():
+    settings = dataclasses.replace(SETTINGS, wait_for_map=True, neighbor_timeout=2.0)
+    agent = PlannerAgent('self', CONFIG, settings, np.array([2.0, 4.5]))
+    agent.map_pending = True
+    agent.receive_own(Measurement(0.0, np.array([2.0, 1.5]), np.zeros(2), 1e-4 * np.eye(4)),
+                      10.0)
+    # Waited for as a map not yet arrived is; then held for, by zero commands, not planned
+    # without (the robot would head into the walls of the map coming) nor left unanswered.
+    assert agent.awaiting_listed(10.5) and not agent.ready(10.5)
+    assert agent.ready(12.5)
+    command = agent.plan()
+    assert command.awaiting_map and command.result is None
+    np.testing.assert_array_equal(command.velocity, [0.0, 0.0])
+    agent.set_map(walled_room())
+    assert not agent.awaiting_map
+    agent.receive_own(Measurement(0.1, np.array([2.0, 1.5]), np.zeros(2), 1e-4 * np.eye(4)),
+                      12.6)
+    command = agent.plan()
+    assert not command.awaiting_map and np.linalg.norm(command.velocity) > 0.0
+
+
 def test_the_carrot_moves_on_to_the_farthest_waypoint_in_sight():
     route = np.array([[0.0, 0.0], [4.0, 0.0], [4.0, 4.0], [8.0, 4.0]])
     position = np.array([1.0, 0.5])

@@ -16,6 +16,7 @@ from prvo_msgs_util import make_occupancy_grid, make_odometry, occupancy_grid_to
 from prvo_planner import planner_node as planner_node_module
 from prvo_planner.agent import build_map
 from prvo_planner.maps import GridMap
+from prvo_planner.reports import AWAITING_MAP
 
 COVARIANCE = 1e-6 * np.eye(2)
 WAIT = 30.0
@@ -89,21 +90,40 @@ def _own_odometry(node, stamp, position=(3.0, 1.0)):
         child_frame_id='robot_0/base_link')))
 
 
-def test_the_map_callback_returns_while_the_map_is_built_and_the_plan_waits(map_node, held):
+def test_the_map_callback_returns_while_the_map_is_built_and_the_robot_holds_saying_so(
+        map_node, held, monkeypatch):
     node, agent = map_node, map_node._agent
+    commands, warnings, statuses = [], [], []
+    monkeypatch.setattr(node._commands, 'publish',
+                        lambda message, announced: commands.append(message))
+    monkeypatch.setattr(node.get_logger(), 'warning', warnings.append)
+    monkeypatch.setattr(node._reporter.diagnostics_publisher, 'publish',
+                        lambda array: statuses.append(array.status[0]))
     _send_map(node, 30)
     # The worker reads the message; the next look at it has the map built, in another thread.
     _spin_until(node, held.started.is_set)
-    assert agent.grid_map is None and agent.map_pending
+    assert agent.grid_map is None and agent.map_pending and agent.awaiting_map
+    # With wait_for_map the first plan waits neighbor_timeout for the map, as for neighbours;
+    # then, the map still being built, each odometry is answered by zero, and the log says so
+    # once (the status at every plan).
     _own_odometry(node, 0.1)
-    # neighbor_timeout is long past when the build is released: a map on its way is waited
-    # for however long it takes to build, so the first plan is on it.
-    assert agent.awaiting_listed(1e9) and not agent.ready(1e9)
-    assert agent.pending_stamp == 0.1
+    _spin_until(node, lambda: commands)
+    for stamp in (0.2, 0.3):
+        _own_odometry(node, stamp)
+    assert len(commands) == 3 and agent.tally.plans == 0
+    assert all(message.twist.linear.x == message.twist.linear.y == 0.0 for message in commands)
+    assert [message.header.stamp.nanosec for message in commands] == [1e8, 2e8, 3e8]
+    assert warnings == [AWAITING_MAP]
+    assert [status.message for status in statuses] == [AWAITING_MAP] * 3
+    assert {value.value for status in statuses for value in status.values
+            if value.key == 'awaiting_map'} == {'true'}
     held.release.set()
-    _spin_until(node, lambda: agent.pending_stamp is None)
-    assert agent.grid_map is not None and not agent.map_pending
-    assert agent.tally.plans == 1
+    _spin_until(node, lambda: agent.grid_map is not None)
+    assert not agent.map_pending and not agent.awaiting_map
+    _own_odometry(node, 0.4)
+    assert len(commands) == 4 and agent.tally.plans == 1
+    assert np.linalg.norm([commands[-1].twist.linear.x, commands[-1].twist.linear.y]) > 0.0
+    assert warnings == [AWAITING_MAP]
 
 
 def test_plans_go_on_with_the_map_in_force_until_the_new_one_is_built(map_node, held):

@@ -434,7 +434,8 @@ class Command:
     constrain it until it is there (None otherwise). `neighbour_routes`, in the order of
     `neighbour_names`, is each neighbour's `routes.NeighbourRoute` for `stamp`
     (`PlannerAgent.route_of`: the newest it published with a stamp before `stamp`), None where
-    it has none.
+    it has none. `awaiting_map` marks a zero command held for a map still being built
+    (`PlannerAgent.awaiting_map`).
     """
 
     stamp: float
@@ -459,6 +460,7 @@ class Command:
     narrow_passage: object = None
     inside_obstacle: tuple = None
     neighbour_routes: tuple = ()
+    awaiting_map: bool = False
 
     def announcement_values(self):
         """Return {'neighbour.<robot>.radius': m, 'neighbour.<robot>.avoidance_share': a}."""
@@ -492,8 +494,8 @@ class PlanRequest:
     there is none; `upstream` the `UpstreamCommand` answered (velocity mode) and `passed_through`
     whether it goes on unchanged. `obstacles` are the `StaticObstacles` of its map near it,
     passed as `plan_velocity(*problem, obstacles=obstacles)`, None without a map or with
-    nothing near; `route`, `route_status`, `stall`, `inside_obstacle` and `neighbour_routes`
-    as in `Command`.
+    nothing near; `route`, `route_status`, `stall`, `inside_obstacle`, `neighbour_routes` and
+    `awaiting_map` as in `Command`.
     """
 
     stamp: float
@@ -512,6 +514,7 @@ class PlanRequest:
     stall: object = None
     inside_obstacle: tuple = None
     neighbour_routes: tuple = ()
+    awaiting_map: bool = False
 
 
 class PlannerAgent:
@@ -1027,13 +1030,11 @@ class PlannerAgent:
 
         In full: its odometry, its footprint and its share. Announcements travel apart from
         odometry; without this, a team's first plans would depend on which came first. With
-        `wait_for_map` the map is waited for likewise, with `wait_for_path` (path mode) a path;
-        a map that arrived and is being built (`map_pending`) however long that takes.
+        `wait_for_map` the map is waited for likewise (one still being built after that is
+        held for: `awaiting_map`), with `wait_for_path` (path mode) a path.
         """
         if self._first_own_at is None:
             return False
-        if self.settings.wait_for_map and self._grid is None and self.map_pending:
-            return True
         if now - self._first_own_at > self.settings.neighbor_timeout:
             return False
         if self.settings.wait_for_map and self._grid is None:
@@ -1042,6 +1043,16 @@ class PlannerAgent:
                 and self._path is None):
             return True
         return bool(self.unheard_listed())
+
+    @property
+    def awaiting_map(self):
+        """Whether the robot holds for its map: `wait_for_map`, none in force, one on its way.
+
+        Its plans are zero commands (`Command.awaiting_map`) until the map is in force: planning
+        as if there were no map would ignore the one coming, and publishing nothing would stop
+        the control loop for as long as the map takes to build.
+        """
+        return self.settings.wait_for_map and self._grid is None and self.map_pending
 
     def unheard_listed(self):
         """Return the listed neighbours not heard in full yet (odometry, footprint, share), sorted.
@@ -1087,6 +1098,12 @@ class PlannerAgent:
             raise RuntimeError('plan() without a pending own measurement')
         stamp, self._pending_stamp = self._pending_stamp, None
         own = self._own_track.belief_at(stamp)
+        if self.awaiting_map:
+            # A filter's command is answered too, by zero.
+            upstream, self._upstream = self._upstream, None
+            return PlanRequest(stamp=stamp, own=own, neighbours=(), neighbour_names=(),
+                               announcements=(), problem=None, unplanned=np.zeros(2),
+                               upstream=upstream, awaiting_map=True)
         max_speed = self.config.max_speed
         v_pref, self.arrived, distance_to_goal = self._preference(own)
         # A robot giving way is where it should be: its monitor watches the spot, not the goal.
@@ -1305,7 +1322,8 @@ class PlannerAgent:
                        stall=request.stall, binding=_binding(request, result),
                        narrow_passage=self._passage_ahead(request),
                        inside_obstacle=request.inside_obstacle,
-                       neighbour_routes=request.neighbour_routes)
+                       neighbour_routes=request.neighbour_routes,
+                       awaiting_map=request.awaiting_map)
 
     def _inside_obstacle(self, position):
         """Return (POSITION, the way out or None) if POSITION is in an occupied cell, else None.

@@ -88,6 +88,7 @@ from prvo_planner.parameters import (
 )
 from prvo_planner.preferred import GOAL, PATH, VELOCITY, UpstreamCommand
 from prvo_planner.reports import (
+    AWAITING_MAP,
     PlanReporter,
     command_message,
     inside_message,
@@ -147,6 +148,8 @@ class PlannerNode(Node):
         self._last_command_stamp = None
         # The stamp whose command was re-sent: once per stamp is enough for a lost answer.
         self._resent_stamp = None
+        # Whether the log said the robot holds for its map (`AWAITING_MAP`) in this wait.
+        self._told_awaiting_map = False
         self._warnings = ThrottledWarnings(self.get_logger(), _WARN_PERIOD_SECONDS)
 
         self._source = self._values['preferred_source']
@@ -711,6 +714,10 @@ class PlannerNode(Node):
         plan_time_ms = (time.perf_counter() - started) * 1e3
         if command.arrival:
             self.get_logger().info(f'arrived at {self._agent.goal.tolist()}')
+        if command.awaiting_map and not self._told_awaiting_map:
+            self.get_logger().warning(AWAITING_MAP)
+        # Once per wait: the status says so at every plan.
+        self._told_awaiting_map = command.awaiting_map
         # Once neighbours hold a changed announcement: in lockstep they plan the next step with it.
         message = self._command_message(command)
         announced = self._announce() + self._publish_route(command)

@@ -24,6 +24,10 @@ from prvo_msgs_util import (
 )
 from prvo_planner.core.probability import confidence_ellipse_scale
 
+# What a robot holding for its map says (`PlannerAgent.awaiting_map`), in its status and log.
+AWAITING_MAP = ('holding with zero commands: no map in force yet, and the one that arrived is '
+                'still being built (wait_for_map)')
+
 
 def command_message(robot, command, stamped):
     """Return the cmd_vel of COMMAND (an agent `Command`): a TwistStamped if STAMPED, else Twist.
@@ -53,7 +57,8 @@ def plan_status(robot, command, plan_time_ms, model, planning_radius):
     `route` is the way to the goal: 'none' without a map, 'ok' or 'unreachable' (the robot
     holds its place); the neighbours' routes the plan held are `Command.route_values`. The
     stall keys are `stall_values`'; a stalled robot's status is a WARN, as is that of a robot
-    whose centre is inside an obstacle on its map (`inside_message`).
+    whose centre is inside an obstacle on its map (`inside_message`). `awaiting_map` is true
+    while the robot holds for a map still being built (`AWAITING_MAP`, the message then).
     """
     result = command.result
     feasible = True if result is None else bool(result.feasible)
@@ -66,6 +71,8 @@ def plan_status(robot, command, plan_time_ms, model, planning_radius):
     stalled = command.stall is not None and command.stall.stalled
     inside = command.inside_obstacle
     messages = [] if inside is None else [inside_message(inside)]
+    if command.awaiting_map:
+        messages.append(AWAITING_MAP)
     if not feasible:
         messages.append('no velocity meets the chance constraint')
     if stalled:
@@ -77,7 +84,7 @@ def plan_status(robot, command, plan_time_ms, model, planning_radius):
         {'achieved_k': achieved_k, 'eta_bound': eta_bound, 'feasible': feasible,
          'neighbours_tracked': len(command.neighbours), 'plan_time_ms': plan_time_ms,
          'arrived': command.arrived, 'model': model, 'planning_radius': planning_radius,
-         'route': command.route_status,
+         'route': command.route_status, 'awaiting_map': command.awaiting_map,
          'certificate': 'cantelli' if result is None else result.certificate,
          'min_certified_probability': _or_none(min(certified, default=None)),
          'obstacle_clearance': math.inf if result is None else result.obstacle_clearance,
