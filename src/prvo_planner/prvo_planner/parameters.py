@@ -281,7 +281,8 @@ _SPECS = (
                   'up to twice its length), in [0, 10].', (0.0, 10.0)),
     ParameterSpec('wait_for_map', BOOL, False, 'Plan only once a map has arrived (for at most '
                   'neighbor_timeout after the first own odometry), as for listed neighbours: a '
-                  'run whose world has a map plans its first step on it.'),
+                  'run whose world has a map plans its first step on it. A map still being '
+                  'built after that is held for with zero commands.'),
     # Keep right (`prvo_planner.lanes`): opposite flows form lanes instead of meeting head-on.
     # Only the preference changes, never the chance constraints; 0 is the benchmarks' ablation.
     ParameterSpec('keep_right', FLOAT, KEEP_RIGHT, 'A robot meeting a neighbour coming toward '
