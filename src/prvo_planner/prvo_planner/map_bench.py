@@ -147,7 +147,8 @@ def bench_callback(node, size, resolution):
     started = time.perf_counter()
     node._on_map(data)
     callback_ms = (time.perf_counter() - started) * 1e3
-    while not node._agent.has_map(grid):
+    # The message carries the resolution as float32: the map in force is known by its shape.
+    while node._agent.grid_map is None or node._agent.grid_map.shape != grid.shape:
         rclpy.spin_once(node, timeout_sec=0.01)
     in_force_ms = (time.perf_counter() - started) * 1e3
     return {'size_m': size, 'resolution_m': resolution, 'callback_ms': callback_ms,
