@@ -104,6 +104,29 @@ class ChildProcesses:
         return process
 
     @staticmethod
+    def stop(process, timeout=10.0):
+        """Stop PROCESS (SIGSTOP) and return once every one of its threads has stopped.
+
+        The kernel stops a process's threads one after the other: until the thread that takes
+        the signal runs, the others (a DDS receive thread on the other core) still run, and may
+        acknowledge a message sent after `kill` returned.
+        """
+        process.send_signal(signal.SIGSTOP)
+        deadline = time.monotonic() + timeout
+
+        def state(task):
+            # "TID (COMM) STATE ...": COMM may hold spaces and parentheses.
+            with contextlib.suppress(OSError):
+                return (task / 'stat').read_text().rsplit(')', 1)[1].split()[0]
+            return 'T'
+
+        tasks = pathlib.Path(f'/proc/{process.pid}/task')
+        while not all(state(task) in ('T', 't') for task in tasks.iterdir()):
+            if time.monotonic() > deadline:
+                raise TimeoutError(f'{process.label} did not stop within {timeout} s')
+            threading.Event().wait(0.005)
+
+    @staticmethod
     def output(process):
         """Return everything PROCESS printed so far."""
         return process.log_path.read_text(errors='replace')

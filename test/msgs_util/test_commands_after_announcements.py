@@ -93,7 +93,7 @@ def test_a_command_waits_for_a_subscriber_to_hold_the_change(children, probe,
     assert not commands.holding
     probe.wait_until(lambda: len(commands_received) == 1, 15.0, 'the first command')
     # A stopped process acknowledges nothing: the command after a change waits for it.
-    os.kill(listener.pid, signal.SIGSTOP)
+    children.stop(listener)
     try:
         changed = announcing_robot['announcer'].announce(0.3, 0.0, 0.1)
         assert changed == [announcing_robot['announcer'].share_publisher]
@@ -116,7 +116,7 @@ def test_an_unacknowledged_command_goes_after_the_timeout_with_a_warning(childre
     commands_received = probe.record(Twist, '/robot_x/cmd_vel', CMD_VEL_QOS)
     commands = announcing_robot['commands'](0.5)
     listener = started_listener(children, probe, announcing_robot)
-    os.kill(listener.pid, signal.SIGSTOP)
+    children.stop(listener)
     try:
         commands.publish(Twist(), announcing_robot['announcer'].announce(0.3, 0.0, 0.1))
         probe.wait_until(lambda: len(commands_received) == 1, 15.0, 'the command')
