@@ -38,6 +38,7 @@ from prvo_planner.maps import (
     occupied_cells,
     way_out,
 )
+from prvo_planner.narrows import find_passages
 from prvo_planner.passages import narrow_passage
 from prvo_planner.path_following import carrot, closest_on_path
 from prvo_planner.preferred import (
@@ -49,6 +50,7 @@ from prvo_planner.preferred import (
     PathFollower,
     path_preferred_velocity,
 )
+from prvo_planner.right_of_way import PassageMap, with_wall
 from prvo_planner.route import RouteMap, path_length
 from prvo_planner.routes import (
     ROUTE_FOUND,
@@ -289,6 +291,7 @@ class AgentSettings:
     stall_turn_max: float = TURN_MAX
     keep_right: float = KEEP_RIGHT
     give_way: bool = True
+    right_of_way: bool = False
 
     @classmethod
     def from_parameters(cls, values):
@@ -335,7 +338,8 @@ class BuiltMap:
     """What an agent plans with of a map: made once per map and settings, never changed after.
 
     `built_for` is the `PlannerAgent.map_key` it was made for; `obstacle_index` holds the grid's
-    obstacles (`maps.ObstacleIndex`), `route_map` its route graph (`route.RouteMap`) and
+    obstacles (`maps.ObstacleIndex`), `route_map` its route graph (`route.RouteMap`),
+    `passage_map` its passages (`right_of_way.PassageMap`, None without `right_of_way`) and
     `route_tree` the shortest paths on it to `goal` (None without a goal). `build_map` makes it
     from the grid and the key alone, in any thread: a node builds a large map beside its
     planning and swaps the result in whole (`PlannerAgent.install_map`), so that no plan ever
@@ -346,6 +350,7 @@ class BuiltMap:
     built_for: tuple
     obstacle_index: ObstacleIndex
     route_map: RouteMap
+    passage_map: PassageMap
     goal: np.ndarray = None
     route_tree: object = None
 
@@ -360,7 +365,8 @@ def map_key_of(settings, safety_margin):
     """Return what a `BuiltMap` depends on besides the grid: the map key of these settings."""
     # The route's cells keep the clearance the planner keeps from a wall of no thickness.
     return (settings.unknown_is_occupied, settings.obstacle_distance,
-            settings.planning_radius + safety_margin, settings.route_margin)
+            settings.planning_radius + safety_margin, settings.route_margin,
+            settings.right_of_way)
 
 
 def check_map_work(shape, resolution, built_for):
@@ -368,7 +374,7 @@ def check_map_work(shape, resolution, built_for):
 
     BUILT_FOR is the map key the grid would be built for (its route's clearance and margin).
     """
-    _, _, clearance, route_margin = built_for
+    _, _, clearance, route_margin, _ = built_for
     check_route_work(shape, resolution, clearance + route_margin)
 
 
@@ -378,12 +384,17 @@ def build_map(grid, built_for, goal=None):
     Raises `maps.MapTooLargeError` at once for a map whose route is beyond the bounds.
     """
     check_map_work(grid.shape, grid.resolution, built_for)
-    unknown_is_occupied, obstacle_distance, clearance, route_margin = built_for
+    unknown_is_occupied, obstacle_distance, clearance, route_margin, passages = built_for
     route_map = RouteMap(occupied_cells(grid, unknown_is_occupied), grid.resolution,
                          grid.origin, clearance, route_margin)
+    # With the right of way, the passages for robots of the route's clearance, each keeping the
+    # route's margin beside its lane: the same for a team built alike (`prvo_planner.narrows`).
+    passage_map = None if not passages else PassageMap(
+        grid, find_passages(grid, clearance, route_margin, unknown_is_occupied), clearance)
     return BuiltMap(grid, built_for, ObstacleIndex(grid_obstacles(grid, unknown_is_occupied),
                                                    obstacle_distance),
-                    route_map, None if goal is None else np.array(goal, dtype=float),
+                    route_map, passage_map,
+                    None if goal is None else np.array(goal, dtype=float),
                     None if goal is None else route_map.tree_to(goal))
 
 
@@ -589,6 +600,8 @@ class PlannerAgent:
         self.escalation = Escalation()
         # The spot beside a neighbour's route the robot gives way at (`give_way`), None: none.
         self._give_way = None
+        # The right of way at the passage on its route (`right_of_way.Decision`), None: none.
+        self.passage_decision = None
         # The path followed (path mode); the upstream command waiting for its answer, when it
         # came and the last one answered (velocity mode); when the own state was last received.
         self._path = None
@@ -607,6 +620,7 @@ class PlannerAgent:
         self.map_pending = False
         self._obstacle_index = None
         self._route_map = None
+        self._passage_map = None
         self._route_tree = None
         self._route = None
         self._route_segment = 0
@@ -996,6 +1010,44 @@ class PlannerAgent:
         return preferred_velocity(position, self._give_way, self.config.max_speed,
                                   settings.approach_time, 0.0, settings.max_acceleration)[0]
 
+    def _passage_turn(self, position, v_pref, names, beliefs, routes):
+        """Return (V_PREF or toward a waiting spot, the virtual wall (2, 2) or None).
+
+        The right of way at the passage on the robot's route (`prvo_planner.right_of_way`),
+        decided from the neighbours' beliefs and ROUTES (`routes.NeighbourRoute` or None, in the
+        order of NAMES); kept in `passage_decision`.
+        """
+        settings = self.settings
+        self.passage_decision = None
+        if (not settings.right_of_way or self._passage_map is None or self.arrived
+                or self._give_way is not None or settings.preferred_source != GOAL
+                or self._route_status != ROUTE_FOUND):
+            return v_pref, None
+        passages = self._passage_map
+        me = passages.use_of(self.name, position, self._route)
+        if me is None:
+            return v_pref, None
+        others = [passages.use_of(name, belief.mean[:2], route.points)
+                  for name, belief, route in zip(names, beliefs, routes, strict=True)
+                  if route is not None]
+        decision = passages.decision(me, [use for use in others if use is not None], position)
+        self.passage_decision = decision
+        if decision.goes:
+            # Through the middle of the passage's mouths, where the route's way is in sight.
+            aim = passages.aim(me)
+            if (aim is None or np.hypot(*(aim - position)) < settings.goal_tolerance
+                    or not self._route_map.in_sight(position, aim)):
+                return v_pref, None
+            way = aim - position
+            return way * (math.hypot(*v_pref) / math.hypot(*way)), None
+        if decision.waiting_spot is None:
+            return np.zeros(2), decision.wall
+        # Within the goal's tolerance of the spot the robot stands still: hunting about it
+        # would make it, to those passing, a neighbour that may move anywhere.
+        return preferred_velocity(position, decision.waiting_spot, self.config.max_speed,
+                                  settings.approach_time, settings.goal_tolerance,
+                                  settings.max_acceleration)[0], decision.wall
+
     def _kept_right(self, problem, distance_to_goal, obstacles):
         """Return PROBLEM with its preferred velocity leaning right (`prvo_planner.lanes`)."""
         ego, neighbours, v_pref, config = problem[:4]
@@ -1106,11 +1158,14 @@ class PlannerAgent:
                                upstream=upstream, awaiting_map=True)
         max_speed = self.config.max_speed
         v_pref, self.arrived, distance_to_goal = self._preference(own)
-        # A robot giving way is where it should be: its monitor watches the spot, not the goal.
-        giving_way = self._give_way is not None
+        # A robot giving way, or waiting at a passage, is where it should be: its monitor
+        # watches the spot, not the goal.
+        spot = self._give_way
+        if spot is None and self.passage_decision is not None and not self.passage_decision.goes:
+            spot = self.passage_decision.waiting_spot
         stall = self.stall_monitor.update(
-            stamp, own.mean[:2], self._give_way if giving_way else self.goal,
-            self.settings.goal_tolerance, None if giving_way else distance_to_goal)
+            stamp, own.mean[:2], self.goal if spot is None else spot,
+            self.settings.goal_tolerance, distance_to_goal if spot is None else None)
         v_pref = self.escalation.preferred(v_pref, stall, self.settings.escalation,
                                            self._room_on_right(own.mean[:2]))
         route_status = self._route_status
@@ -1126,6 +1181,8 @@ class PlannerAgent:
                           *self._announced_route.values()):
             announced.prune(stamp)
         v_pref = self._given_way(own.mean[:2], v_pref, neighbour_beliefs, announcements, routes)
+        v_pref, passage_wall = self._passage_turn(own.mean[:2], v_pref, names,
+                                                  neighbour_beliefs, routes)
         if self._command_stamp is not None and 0.0 < stamp - self._command_stamp:
             self._control_period = stamp - self._command_stamp
         obstacles = None if self._obstacle_index is None else self._obstacle_index.near(
@@ -1133,6 +1190,8 @@ class PlannerAgent:
         if obstacles is not None and len(obstacles) == 0:
             # Nothing near: the plan of an empty plane.
             obstacles = None
+        if passage_wall is not None:
+            obstacles = with_wall(obstacles, passage_wall)
         inside = self._inside_obstacle(own.mean[:2])
         if inside is not None:
             # Every way out of an obstacle crosses its edges, which the walls' conditions
@@ -1214,11 +1273,11 @@ class PlannerAgent:
         self.map_pending = False
         if built is None:
             self._grid = self._map_built_for = self._obstacle_index = self._route_map = None
-            self._route_tree = None
+            self._route_tree = self._passage_map = None
         else:
             self._grid, self._map_built_for = built.grid, built.built_for
             self._obstacle_index, self._route_map = built.obstacle_index, built.route_map
-            self._route_tree = built.route_tree
+            self._route_tree, self._passage_map = built.route_tree, built.passage_map
         self._route = None
 
     @property

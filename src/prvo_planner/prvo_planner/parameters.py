@@ -296,6 +296,15 @@ _SPECS = (
                   'neighbour within 3 m publishes on <robot>/plan, where that route passes '
                   'nearer than their two radii and 0.1 m, and returns once it went by. '
                   'false = it stays at its goal.'),
+    # Right of way (`prvo_planner.right_of_way`): at a passage too narrow for two, found on the
+    # map, robots take turns by one rule from what all publish; off, they meet in it (ablation).
+    ParameterSpec('right_of_way', BOOL, False, 'With a map, robots take turns at passages too '
+                  "narrow for two to pass (found on the map for the route's clearance and "
+                  'margin): a robot inside, then the one with the shorter way to it (names '
+                  'break ties) goes first, those going the same way follow, and a robot '
+                  'without the right of way waits at the spot beside its entrance behind a '
+                  "virtual wall. Decided from the neighbours' routes on <robot>/plan. "
+                  'Off by default until it brings doorway8 through in every seed (issue 39).'),
     # Escalation (`prvo_planner.escalation`): a stalled robot (`prvo_planner.stalls`) turns its
     # preferred velocity to the right; off, the preferred velocity is the goal's or the route's
     # (the benchmarks' ablation). Only the preference changes, never the chance constraints.

@@ -1,0 +1,311 @@
+"""
+Right of way at one-way passages: who goes through a door first, decided alike by all, no ROS.
+
+Issue 39: robots that meet in a door too narrow for two (`prvo_planner.narrows`) freeze unless
+someone goes first, and everyone has to agree who. Every robot decides from what every robot
+publishes, its odometry and its route on ``<robot>/plan``, by the same rule, so that the robots
+of one team reach the same order without talking (in the manner of navground's
+``navground_narrow``; Open-RMF grants a door by a claim instead, which needs a server).
+
+**Uses.** A robot uses a passage when its route (the way ahead of it, `give_way.way_ahead`)
+enters the passage's cells within `LOOK_AHEAD` of it, or when it is inside them: it comes in by
+the end nearest the route where it enters (none, for a robot inside) and leaves by the end
+nearest where the route leaves (none where the route ends inside). Its *distance* is the length
+of route to the passage, zero inside; inside, the length of route left to its way out. Two uses
+*conflict* when one comes in where the other goes out, or when both are inside and go out by
+different ends: they would meet head-on. Robots going the same way never conflict, so a robot
+follows another in. A neighbour that publishes no route (a walker, a robot of another stack, a
+robot at its goal) uses nothing, claims nothing, and is avoided as every neighbour is.
+
+**The order.** A robot inside keeps the passage: one coming in where it goes out waits. Of two
+inside that conflict, the one with less of the passage left goes on and the other backs out.
+Between two outside that conflict, the one with the shorter way to the passage goes first; ways
+within `TIE` of each other are a tie, which the robots' names decide (the smaller first): noise
+on the distances, a few centimetres, flips a decision only near the edge of the tie, where the
+robot that decides wrongly waits a step or, both going, the rule inside sorts them out.
+
+**Waiting.** A robot without the right of way heads for the waiting spot of the end it comes in
+by (`narrows.PassageEnd.waiting_spot`, beside the entrance, off the way out), or holds its
+place where that end has none, and sees a *virtual wall* across its entrance: a static
+obstacle, certified as every wall is, so that it cannot be pushed into the door by whoever
+comes out. (Backing out of a passage, it sees none: it is on the wall's other side.)
+
+Only the preferred velocity and the static obstacles change: the chance constraints, and so the
+guarantee, are those of every plan.
+"""
+
+from dataclasses import dataclass
+import math
+
+import numpy as np
+
+from prvo_planner.core.obstacles import StaticObstacles
+from prvo_planner.give_way import way_ahead
+
+# A passage is looked at when a route enters it within this length of route [m]: about the
+# distance a robot needs to slow down and turn to its waiting spot.
+LOOK_AHEAD = 4.0
+# Ways to a passage that differ by less than this [m] are a tie (the names decide): several
+# position stds of the shipped noise, less than a robot's diameter.
+TIE = 0.3
+# A route is followed through a passage this far at most [m] to find where it leaves.
+MAX_THROUGH = 50.0
+# A route that leaves a passage's cells for less than this [m] has not left it.
+REENTRY = 1.0
+# Inside, a robot heads for the point this far [m] beyond the middle of its way out.
+AIM_BEYOND = 1.0
+
+
+@dataclass(frozen=True)
+class PassageUse:
+    """
+    One robot's use of one passage.
+
+    Attributes
+    ----------
+    name : str
+        The robot.
+    passage : int
+        The passage's index in `PassageMap.passages`.
+    entry : int or None
+        The end it comes in by; None for a robot inside.
+    exit : int or None
+        The end it leaves by; None where its route ends inside.
+    distance : float
+        Outside: the length of route to the passage [m]. Inside: the length of route left to
+        its way out (to its route's end inside), [m].
+
+    """
+
+    name: str
+    passage: int
+    entry: int | None
+    exit: int | None
+    distance: float
+
+    @property
+    def inside(self):
+        """Whether the robot is inside the passage."""
+        return self.entry is None
+
+
+@dataclass(frozen=True)
+class Decision:
+    """
+    A robot's right of way at the passage on its route.
+
+    Attributes
+    ----------
+    use : PassageUse
+        The robot's use of the passage.
+    goes : bool
+        Whether it may go on through; else it waits.
+    waiting_spot : numpy.ndarray or None
+        Shape (2,): where it waits [m] (it goes on: None; it waits with no spot: None).
+    wall : numpy.ndarray or None
+        Shape (2, 2): the virtual wall across its entrance [m], None when it goes or is inside.
+
+    """
+
+    use: PassageUse
+    goes: bool
+    waiting_spot: np.ndarray | None = None
+    wall: np.ndarray | None = None
+
+
+def conflict(first, second):
+    """Whether the `PassageUse`s FIRST and SECOND of one passage would meet head-on."""
+    if first.inside and second.inside:
+        return first.exit != second.exit
+    return ((first.entry is not None and first.entry == second.exit)
+            or (second.entry is not None and second.entry == first.exit))
+
+
+def ahead(first, second):
+    """Whether the outside `PassageUse` FIRST comes before SECOND (ways within TIE: names)."""
+    return (first.distance < second.distance - TIE
+            or (abs(first.distance - second.distance) <= TIE and first.name < second.name))
+
+
+def goes_first(me, others):
+    """
+    Whether the robot of the `PassageUse` ME may go on, given the uses OTHERS of the passage.
+
+    The order of the module's docstring; every robot that computes it from the same uses gets
+    the same answer.
+    """
+    if not _unopposed(me, others):
+        return False
+    return me.inside or not any(
+        other.entry == me.entry and ahead(other, me)
+        and _unopposed(other, [use for use in others if use is not other] + [me])
+        for other in others)
+
+
+def _unopposed(me, others):
+    """Whether no use of OTHERS that would meet ME head-on comes before it."""
+    for other in others:
+        if not conflict(me, other):
+            continue
+        if other.inside and not me.inside:
+            return False
+        if other.inside and me.inside:
+            if (other.distance, other.name) < (me.distance, me.name):
+                return False
+            continue
+        if me.inside:
+            continue
+        if ahead(other, me):
+            return False
+    return True
+
+
+class PassageMap:
+    """
+    The passages of a map, and which of them a route uses.
+
+    Parameters
+    ----------
+    grid : maps.GridMap
+        The map the passages were found on.
+    passages : tuple of narrows.Passage
+        `narrows.find_passages` of GRID.
+    radius : float
+        The radius [m] they were found for (the virtual wall keeps a robot's body out).
+
+    """
+
+    def __init__(self, grid, passages, radius):
+        self.passages = tuple(passages)
+        self.radius = float(radius)
+        self._origin, self._resolution = np.asarray(grid.origin, dtype=float), grid.resolution
+        # Each passage's cells as a mask over their bounding box: a point is looked up in the
+        # few boxes it may lie in.
+        self._boxes = []
+        for passage in self.passages:
+            low, high = passage.cells.min(axis=0), passage.cells.max(axis=0)
+            mask = np.zeros(tuple(high - low + 1), dtype=bool)
+            mask[tuple((passage.cells - low).T)] = True
+            self._boxes.append((low, high, mask))
+
+    def passage_at(self, points):
+        """Return the index (K,) int of the passage each of POINTS (K, 2) [m] is in, -1: none."""
+        points = np.asarray(points, dtype=float).reshape(-1, 2)
+        cells = np.floor((points - self._origin) / self._resolution).astype(np.int64)[:, ::-1]
+        found = np.full(len(points), -1)
+        for index, (low, high, mask) in enumerate(self._boxes):
+            within = np.all((cells >= low) & (cells <= high), axis=1) & (found < 0)
+            rows, columns = (cells[within] - low).T
+            hit = np.flatnonzero(within)[mask[rows, columns]]
+            found[hit] = index
+        return found
+
+    def use_of(self, name, position, route):
+        """
+        Return the `PassageUse` of the first passage on a robot's way, None: none ahead.
+
+        NAME: the robot; POSITION (2,) [m]: where it is; ROUTE (K, 2) [m], K >= 1: its route
+        (from wherever it was published; the way behind the robot is cut off).
+        """
+        if not self.passages:
+            return None
+        route, position = np.asarray(route, dtype=float), np.asarray(position, dtype=float)
+        ahead = way_ahead(route, position) if len(route) >= 2 else route
+        points, along = _sampled(np.vstack([position, ahead]), 0.5 * self._resolution,
+                                 LOOK_AHEAD + MAX_THROUGH)
+        inside = self.passage_at(points)
+        entered = np.flatnonzero((inside >= 0) & (along <= LOOK_AHEAD))
+        if len(entered) == 0:
+            return None
+        first = int(entered[0])
+        passage = int(inside[first])
+        # The way out: where the route leaves the passage's cells for longer than REENTRY (a
+        # route along the passage's rim may step out and back in).
+        within = np.flatnonzero(inside[first:] == passage) + first
+        gaps = np.flatnonzero(np.diff(along[within]) > REENTRY)
+        last = int(within[gaps[0]] if len(gaps) else within[-1])
+        if last == len(points) - 1:
+            last = None
+        ends = self.passages[passage].ends
+        exit_end = None if last is None else _nearest_end(ends, points[last])
+        if first == 0:
+            distance = float(along[last] if last is not None else along[-1])
+            return PassageUse(name, passage, None, exit_end, distance)
+        return PassageUse(name, passage, _nearest_end(ends, points[first]), exit_end,
+                          float(along[first]))
+
+    def aim(self, use):
+        """Return the point (2,) [m] the robot of USE heads for, None: none.
+
+        Outside: the middle of the entrance it comes in by; inside: `AIM_BEYOND` beyond the
+        middle of the one it leaves by. Through the middle
+        the jambs are farthest, and the walls' conditions leave the most room.
+        """
+        ends = self.passages[use.passage].ends
+        if not use.inside:
+            return ends[use.entry].entrance
+        # Beyond the way out: a passage's cells reach past its mouths.
+        return None if use.exit is None else (ends[use.exit].entrance
+                                              + ends[use.exit].outward * AIM_BEYOND)
+
+    def decision(self, me, others, position):
+        """
+        Return the `Decision` of the robot at POSITION (2,) [m] whose use is ME.
+
+        OTHERS: the `PassageUse`s of the robot's neighbours (of any passage; those of ME's
+        count).
+        """
+        others = [other for other in others if other.passage == me.passage]
+        if goes_first(me, others):
+            return Decision(me, True)
+        ends = self.passages[me.passage].ends
+        if me.inside:
+            # Backing out: by the nearest end it does not leave by.
+            back = [index for index in range(len(ends)) if index != me.exit] or [0]
+            end = ends[min(back, key=lambda index: np.hypot(*(ends[index].entrance
+                                                               - position)))]
+            return Decision(me, False, end.waiting_spot)
+        end = ends[me.entry]
+        return Decision(me, False, end.waiting_spot,
+                        self._wall(self.passages[me.passage], end, position))
+
+    def _wall(self, passage, end, position):
+        """Return the virtual wall (2, 2) across PASSAGE's END, None if the robot is at it.
+
+        The wall lies a radius outside the entrance, across the whole passage and a radius
+        beyond on either side, so that a robot it holds has its centre out of the passage; a
+        robot nearer than a radius and a cell to it is let be (it would start inside the wall).
+        """
+        line = end.entrance + end.outward * self.radius
+        offset = float(np.dot(position - line, end.outward))
+        if offset < self.radius + self._resolution:
+            return None
+        across = np.array([-end.outward[1], end.outward[0]])
+        half = 0.5 * passage.width + self.radius
+        return np.array([line - half * across, line + half * across])
+
+
+def with_wall(obstacles, wall):
+    """Return OBSTACLES (StaticObstacles or None) with the segment WALL (2, 2) [m] added."""
+    if obstacles is None:
+        obstacles = StaticObstacles.empty()
+    return StaticObstacles(np.concatenate([obstacles.segments, wall[None]]),
+                           np.append(obstacles.half_widths, 0.0), obstacles.disc_centres,
+                           obstacles.disc_radii)
+
+
+def _nearest_end(ends, point):
+    """Return the index of the end of ENDS whose entrance is nearest POINT (2,)."""
+    return int(np.argmin([math.hypot(*(end.entrance - point)) for end in ends]))
+
+
+def _sampled(line, step, reach):
+    """Return (points (K, 2), lengths (K,)): LINE (N, 2) sampled every STEP [m] up to REACH."""
+    edges = np.diff(line, axis=0)
+    lengths = np.linalg.norm(edges, axis=1)
+    starts = np.concatenate([[0.0], np.cumsum(lengths)])
+    along = np.arange(0.0, min(starts[-1], reach) + step, step)
+    along[-1] = min(along[-1], starts[-1])
+    index = np.clip(np.searchsorted(starts, along, side='right') - 1, 0, len(edges) - 1)
+    fraction = (along - starts[index]) / np.maximum(lengths[index], 1e-300)
+    return line[index] + np.clip(fraction, 0.0, 1.0)[:, None] * edges[index], along

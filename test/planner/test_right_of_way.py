@@ -1,0 +1,153 @@
+"""Right of way at a passage: one order for all, waiting spots, virtual walls (issue 39)."""
+
+import itertools
+
+import numpy as np
+import pytest
+
+from prvo_planner.maps import OCCUPIED, GridMap
+from prvo_planner.narrows import find_passages
+from prvo_planner.right_of_way import (
+    TIE,
+    PassageMap,
+    PassageUse,
+    conflict,
+    goes_first,
+    with_wall,
+)
+
+RESOLUTION = 0.05
+RADIUS = 0.25
+MARGIN = 0.3
+
+
+def _door_map():
+    """Two rooms 6 x 4 m, a wall 0.1 m thick at x = 3 with a 1.2 m door about y = 2."""
+    occupied = np.zeros((80, 120), dtype=bool)
+    occupied[[0, -1], :] = True
+    occupied[:, [0, -1]] = True
+    occupied[:, 59:61] = True
+    occupied[28:52, 59:61] = False
+    grid = GridMap(np.where(occupied, OCCUPIED, 0).astype(np.int8), RESOLUTION, (0.0, 0.0))
+    return PassageMap(grid, find_passages(grid, RADIUS, MARGIN), RADIUS)
+
+
+@pytest.fixture(scope='module')
+def door():
+    return _door_map()
+
+
+def _use(name, entry, exit_end, distance):
+    return PassageUse(name, 0, entry, exit_end, distance)
+
+
+def test_the_door_is_one_passage_with_an_end_in_each_room(door):
+    (passage,) = door.passages
+    assert [end.entrance[0] < 3.0 for end in passage.ends] == [True, False]
+    assert door.passage_at([[3.0, 2.0], [1.0, 2.0], [5.0, 2.0]]).tolist() == [0, -1, -1]
+
+
+def test_a_route_through_the_door_comes_in_by_its_side_and_leaves_by_the_other(door):
+    east = door.use_of('a', np.array([1.0, 2.0]), np.array([[1.0, 2.0], [5.0, 2.0]]))
+    west = door.use_of('b', np.array([5.0, 1.5]), np.array([[5.0, 1.5], [1.0, 2.5]]))
+    assert (east.entry, east.exit) == (0, 1) and (west.entry, west.exit) == (1, 0)
+    # The way to the passage: to where its cells begin, before the wall.
+    start = np.array([1.0, 2.0])
+    assert east.distance < 2.0
+    assert door.passage_at([start + [east.distance + 0.01, 0.0],
+                            start + [east.distance - 0.03, 0.0]]).tolist() == [0, -1]
+    assert conflict(east, west) and conflict(west, east)
+    inside = door.use_of('c', np.array([3.0, 2.0]), np.array([[3.0, 2.0], [5.0, 2.0]]))
+    assert inside.inside and inside.exit == 1 and inside.distance > 0.0
+
+
+def test_a_route_that_does_not_pass_or_passes_beyond_the_look_ahead_uses_nothing(door):
+    assert door.use_of('a', np.array([1.0, 1.0]), np.array([[1.0, 1.0], [1.0, 3.0]])) is None
+    far = np.array([[0.2, 2.0], [0.2, 3.8], [0.25, 0.2], [0.3, 3.8], [5.0, 2.0]])
+    assert door.use_of('a', far[0], far) is None
+
+
+def test_a_route_along_the_rim_that_steps_out_and_back_in_has_not_left(door):
+    # In by the west, out and back in within a cell's width of the rim, then east.
+    (passage,) = door.passages
+    west, east = (end.entrance for end in passage.ends)
+    wiggle = np.array([[1.5, 2.0], west + [0.05, 0.0], west + [-0.2, 0.0],
+                       west + [0.1, 0.0], east + [1.5, 0.0]])
+    use = door.use_of('a', wiggle[0], wiggle)
+    assert (use.entry, use.exit) == (0, 1)
+
+
+def test_inside_holds_and_the_shorter_way_goes_first():
+    inside = PassageUse('z', 0, None, 1, 1.0)
+    coming = _use('a', 1, 0, 0.1)
+    assert goes_first(inside, [coming]) and not goes_first(coming, [inside])
+    near, far = _use('b', 0, 1, 1.0), _use('a', 1, 0, 1.0 + 2.0 * TIE)
+    assert goes_first(near, [far]) and not goes_first(far, [near])
+    # Within the tie the smaller name goes first, whoever is a little nearer.
+    first, second = _use('a', 0, 1, 1.0 + 0.5 * TIE), _use('b', 1, 0, 1.0)
+    assert goes_first(first, [second]) and not goes_first(second, [first])
+
+
+def test_of_two_inside_that_meet_the_one_with_less_left_goes_on():
+    nearly_out, just_in = PassageUse('b', 0, None, 1, 0.3), PassageUse('a', 0, None, 0, 1.2)
+    assert goes_first(nearly_out, [just_in]) and not goes_first(just_in, [nearly_out])
+
+
+def test_robots_going_the_same_way_follow_one_another_in():
+    inside = PassageUse('z', 0, None, 1, 0.5)
+    leader, follower = _use('b', 0, 1, 0.4), _use('a', 0, 1, 1.5)
+    assert not conflict(inside, leader) and goes_first(leader, [inside, follower])
+    # The follower waits for the leader to be inside, not for the passage to be empty.
+    assert not goes_first(follower, [inside, leader])
+    assert goes_first(follower, [inside, PassageUse('b', 0, None, 1, 1.0)])
+
+
+def test_every_robot_computing_the_order_finds_no_two_that_meet_both_going():
+    # The property that makes the rule safe to decide apart: from the same uses, of any two
+    # that would meet head-on, at most one goes; and someone goes.
+    generator = np.random.default_rng(39)
+    for _ in range(300):
+        count = int(generator.integers(2, 7))
+        uses = []
+        for index in range(count):
+            inside = generator.random() < 0.25
+            entry = None if inside else int(generator.integers(0, 2))
+            exit_end = (1 - entry) if entry is not None else int(generator.integers(0, 2))
+            uses.append(PassageUse(f'robot_{index}', 0, entry, exit_end,
+                                   float(generator.uniform(0.0, 4.0))))
+        going = [goes_first(use, [other for other in uses if other is not use])
+                 for use in uses]
+        assert any(going)
+        for (first, goes_a), (second, goes_b) in itertools.combinations(
+                zip(uses, going, strict=True), 2):
+            assert not (conflict(first, second) and goes_a and goes_b), (first, second)
+
+
+def test_a_robot_without_the_right_of_way_waits_beside_its_entrance_behind_a_wall(door):
+    (passage,) = door.passages
+    inside = PassageUse('z', 0, None, 1, 0.5)
+    position = np.array([4.6, 2.1])
+    me = door.use_of('a', position, np.array([position, [1.0, 2.0]]))
+    decision = door.decision(me, [inside], position)
+    assert not decision.goes
+    end = passage.ends[me.entry]
+    np.testing.assert_array_equal(decision.waiting_spot, end.waiting_spot)
+    # The wall lies across the way in, a radius outside the passage's mouth, and the robot is
+    # on its open side.
+    wall = decision.wall
+    along = wall[1] - wall[0]
+    assert abs(np.dot(along, end.outward)) < 1e-9
+    assert np.dot(wall.mean(axis=0) - end.entrance, end.outward) == pytest.approx(RADIUS)
+    assert np.linalg.norm(along) >= passage.width
+    assert np.dot(position - wall[0], end.outward) > RADIUS
+    obstacles = with_wall(None, wall)
+    np.testing.assert_array_equal(obstacles.segments[-1], wall)
+
+
+def test_a_robot_at_the_mouth_gets_no_wall_it_would_start_inside(door):
+    (passage,) = door.passages
+    end = passage.ends[1]
+    position = end.entrance + end.outward * RADIUS
+    me = PassageUse('a', 0, 1, 0, 0.3)
+    decision = door.decision(me, [PassageUse('z', 0, None, 1, 0.5)], position)
+    assert not decision.goes and decision.wall is None
