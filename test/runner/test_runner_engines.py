@@ -43,25 +43,46 @@ def rows_of(path):
             for row in csv.DictReader(csv_file)}
 
 
+@pytest.fixture(scope='module')
+def engine_run(tmp_path_factory, module_runners):
+    """Return run(scenario, engine): the ended runner of SCENARIO on ENGINE and its output folder.
+
+    Each scenario runs on each engine once a module, the first time a test asks for it: the
+    engines' identity on mixed_drive and the mixed team's outcome share its in-process run.
+    With its bag, which the identity compares, and without the animation, which no test here
+    reads (drawing it cost more than the in-process run of circle8 itself).
+    """
+    folder = tmp_path_factory.mktemp('engine_runs')
+    runs = {}
+
+    def run(scenario, engine):
+        if (scenario, engine) not in runs:
+            path = SCENARIOS / f'{scenario}.yaml'
+            if scenario == 'walker2':
+                path = folder / 'walker2.yaml'
+                path.write_text(WALKER)
+            out = folder / scenario / engine
+            runner = start_runner([str(path), '--engine', engine, '--out', str(out), '--quiet',
+                                   '--no-animation'], folder, label=f'{scenario}_{engine}')
+            module_runners.append(runner)
+            runner.wait(timeout=900)
+            runs[scenario, engine] = runner, out
+        return runs[scenario, engine]
+
+    return run
+
+
 # In mixed_drive robots arrive (their shares change) near others still planning, and its robots
 # at their goal switch their announced share every few steps; half are unicycles (yaw and
 # body-frame commands). A switch is stamped with the step whose plan made it and counts from the
 # next step, however early it reaches a loaded planner.
 @pytest.mark.parametrize('scenario', ['crossing4', 'circle8', 'walker2', 'mixed_drive'])
-def test_both_engines_give_the_same_trajectories(scenario, tmp_path, runners):
-    path = SCENARIOS / f'{scenario}.yaml'
-    scripted = set()
-    if scenario == 'walker2':
-        path = tmp_path / 'walker2.yaml'
-        path.write_text(WALKER)
-        scripted = {'walker'}
+def test_both_engines_give_the_same_trajectories(scenario, engine_run):
+    scripted = {'walker'} if scenario == 'walker2' else set()
     outs = {}
     for engine in ('inprocess', 'ros'):
-        outs[engine] = tmp_path / engine
-        runner = start_runner([str(path), '--engine', engine,
-                               '--out', str(outs[engine]), '--quiet'], tmp_path, label=engine)
-        runners.append(runner)
-        assert runner.wait(timeout=900) == 0, output(runner)
+        runner, outs[engine] = engine_run(scenario, engine)
+        assert runner.returncode == 0, output(runner)
     inprocess, ros = (rows_of(outs[engine] / 'trajectories.csv')
                       for engine in ('inprocess', 'ros'))
     # The end is the step at which every robot has been home for the settle time, on both
@@ -142,6 +163,17 @@ def serialized_messages(folder):
         for connection, timestamp, data in reader.messages():
             messages[connection.topic].append((timestamp, bytes(data)))
     return messages
+
+
+def test_mixed_team_arrives_without_contact(engine_run):
+    # Robots as they are built (test_runner_kinematics), on the in-process run of mixed_drive:
+    # unicycles among holonomic robots, every one home, none touched, every yaw recorded.
+    runner, out = engine_run('mixed_drive', 'inprocess')
+    assert runner.returncode == 0, output(runner)
+    metrics = json.loads((out / 'metrics.json').read_text())
+    assert metrics['collisions'] == 0 and metrics['success_rate'] == 1.0, metrics
+    with open(out / 'trajectories.csv') as csv_file:
+        assert all(row['yaw'] for row in csv.DictReader(csv_file))
 
 
 def test_a_run_that_reaches_its_duration_ends_at_the_same_step_on_both_engines(tmp_path,

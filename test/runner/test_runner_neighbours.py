@@ -20,7 +20,8 @@ def run_inprocess(scenario, method, out_dir):
     """Run SCENARIO with METHOD on the in-process engine; return its metrics.json."""
     completed = subprocess.run(
         [sys.executable, '-m', 'prvo_sim.run_scenario', str(SCENARIOS / f'{scenario}.yaml'),
-         '--engine', 'inprocess', '--method', method, '--out', str(out_dir), '--quiet'],
+         '--engine', 'inprocess', '--method', method, '--out', str(out_dir), '--quiet',
+         '--no-bag', '--no-animation'],
         capture_output=True, text=True, timeout=900)
     assert completed.returncode == 0, completed.stderr
     return json.loads((out_dir / 'metrics.json').read_text())
