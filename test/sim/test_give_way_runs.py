@@ -67,15 +67,29 @@ def test_without_the_rule_the_robot_stops_in_front_of_the_two(tmp_path):
     assert arrived[PASSING] is None
 
 
+@pytest.fixture(scope='module')
+def checked_seed_1(tmp_path_factory):
+    """Return (arrived, team, checker) of seed 1's run with the rule, every plan sampled.
+
+    One run for the test of seed 1 and the check of its plans: the checker only reads the
+    team, with a generator of its own.
+    """
+    checker = EncounterChecker(np.random.default_rng(39))
+    arrived, team = run(tmp_path_factory.mktemp('give_way'), 1, True, checker.check)
+    return arrived, team, checker
+
+
 @pytest.mark.parametrize('seed', [1, 2])
-def test_with_the_rule_the_two_step_aside_let_it_through_and_return(tmp_path, seed):
-    arrived, team = run(tmp_path, seed, True)
+def test_with_the_rule_the_two_step_aside_let_it_through_and_return(request, tmp_path, seed):
+    if seed == 1:
+        arrived, team, _ = request.getfixturevalue('checked_seed_1')
+    else:
+        arrived, team = run(tmp_path, seed, True)
     assert arrived[PASSING] is not None
     assert all(command.arrived for command in team.last_commands)
 
 
-def test_every_encounter_plan_with_the_rule_keeps_its_probability(tmp_path):
-    checker = EncounterChecker(np.random.default_rng(39))
-    arrived, _ = run(tmp_path, 1, True, checker.check)
+def test_every_encounter_plan_with_the_rule_keeps_its_probability(checked_seed_1):
+    arrived, _, checker = checked_seed_1
     assert arrived[PASSING] is not None
     checker.assert_safe(at_least=100)
