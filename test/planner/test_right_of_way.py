@@ -8,6 +8,7 @@ import pytest
 from prvo_planner.maps import OCCUPIED, GridMap
 from prvo_planner.narrows import find_passages
 from prvo_planner.right_of_way import (
+    FOLLOW_GAP,
     TIE,
     PassageMap,
     PassageUse,
@@ -93,13 +94,24 @@ def test_of_two_inside_that_meet_the_one_with_less_left_goes_on():
     assert goes_first(nearly_out, [just_in]) and not goes_first(just_in, [nearly_out])
 
 
-def test_robots_going_the_same_way_follow_one_another_in():
-    inside = PassageUse('z', 0, None, 1, 0.5)
-    leader, follower = _use('b', 0, 1, 0.4), _use('a', 0, 1, 1.5)
-    assert not conflict(inside, leader) and goes_first(leader, [inside, follower])
-    # The follower waits for the leader to be inside, not for the passage to be empty.
-    assert not goes_first(follower, [inside, leader])
-    assert goes_first(follower, [inside, PassageUse('b', 0, None, 1, 1.0)])
+def test_robots_going_the_same_way_follow_one_another_in_a_gap_apart():
+    inside = PassageUse('z', 0, None, 1, 0.5, np.array([3.5, 2.0]))
+    leader = PassageUse('b', 0, 0, 1, 0.4, np.array([2.0, 2.0]))
+    assert not conflict(inside, leader) and goes_first(leader, [inside])
+    # A follower abreast of the leader holds its place; one a gap behind follows it in.
+    for behind, goes in ((0.3, False), (FOLLOW_GAP - 0.05, False), (FOLLOW_GAP + 0.05, True)):
+        follower = PassageUse('c', 0, 0, 1, 0.4 + behind, np.array([2.0 - behind, 2.0]))
+        assert goes_first(follower, [inside, leader]) is goes, behind
+    # Behind one inside, too.
+    close = PassageUse('a', 0, 0, 1, 0.2, np.array([3.0, 2.0]))
+    assert not goes_first(close, [inside])
+
+
+def test_a_robot_held_behind_a_leader_stands_without_a_spot_or_a_wall(door):
+    leader = PassageUse('b', 0, 0, 1, 0.4, np.array([2.0, 2.0]))
+    follower = PassageUse('c', 0, 0, 1, 0.8, np.array([1.6, 2.0]))
+    decision = door.decision(follower, [leader], follower.position)
+    assert not decision.goes and decision.waiting_spot is None and decision.wall is None
 
 
 def test_every_robot_computing_the_order_finds_no_two_that_meet_both_going():
@@ -114,7 +126,8 @@ def test_every_robot_computing_the_order_finds_no_two_that_meet_both_going():
             entry = None if inside else int(generator.integers(0, 2))
             exit_end = (1 - entry) if entry is not None else int(generator.integers(0, 2))
             uses.append(PassageUse(f'robot_{index}', 0, entry, exit_end,
-                                   float(generator.uniform(0.0, 4.0))))
+                                   float(generator.uniform(0.0, 4.0)),
+                                   generator.uniform(0.0, 3.0, size=2)))
         going = [goes_first(use, [other for other in uses if other is not use])
                  for use in uses]
         assert any(going)

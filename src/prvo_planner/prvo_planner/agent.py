@@ -1034,7 +1034,7 @@ class PlannerAgent:
         self.passage_decision = decision
         if decision.goes:
             # Through the middle of the passage's mouths, where the route's way is in sight.
-            aim = passages.aim(me)
+            aim = passages.aim(me, position)
             if (aim is None or np.hypot(*(aim - position)) < settings.goal_tolerance
                     or not self._route_map.in_sight(position, aim)):
                 return v_pref, None

@@ -54,6 +54,11 @@ MAX_THROUGH = 50.0
 REENTRY = 1.0
 # Inside, a robot heads for the point this far [m] beyond the middle of its way out.
 AIM_BEYOND = 1.0
+# Outside, for the line out of its entrance's middle this much [m] nearer the entrance.
+AIM_AHEAD = 0.5
+# A robot following another in keeps this far [m] behind it: two abreast at a mouth one robot
+# wide jam it.
+FOLLOW_GAP = 1.2
 
 
 @dataclass(frozen=True)
@@ -74,6 +79,9 @@ class PassageUse:
     distance : float
         Outside: the length of route to the passage [m]. Inside: the length of route left to
         its way out (to its route's end inside), [m].
+    position : numpy.ndarray or None
+        Shape (2,): where the robot is [m]; None: unknown (it follows no one and no one keeps
+        behind it).
 
     """
 
@@ -82,6 +90,7 @@ class PassageUse:
     entry: int | None
     exit: int | None
     distance: float
+    position: np.ndarray | None = None
 
     @property
     def inside(self):
@@ -134,12 +143,21 @@ def goes_first(me, others):
     The order of the module's docstring; every robot that computes it from the same uses gets
     the same answer.
     """
-    if not _unopposed(me, others):
+    return _unopposed(me, others) and not _too_close_behind(me, others)
+
+
+def _too_close_behind(me, others):
+    """Whether ME, outside, is within FOLLOW_GAP of one going the same way before it."""
+    if me.inside or me.position is None:
         return False
-    return me.inside or not any(
-        other.entry == me.entry and ahead(other, me)
-        and _unopposed(other, [use for use in others if use is not other] + [me])
-        for other in others)
+    for other in others:
+        same_way = (other.exit == me.exit if other.inside
+                    else other.entry == me.entry and ahead(other, me))
+        if (same_way and other.position is not None
+                and math.hypot(*(other.position - me.position)) < FOLLOW_GAP
+                and _unopposed(other, [use for use in others if use is not other] + [me])):
+            return True
+    return False
 
 
 def _unopposed(me, others):
@@ -230,20 +248,23 @@ class PassageMap:
         exit_end = None if last is None else _nearest_end(ends, points[last])
         if first == 0:
             distance = float(along[last] if last is not None else along[-1])
-            return PassageUse(name, passage, None, exit_end, distance)
+            return PassageUse(name, passage, None, exit_end, distance, position)
         return PassageUse(name, passage, _nearest_end(ends, points[first]), exit_end,
-                          float(along[first]))
+                          float(along[first]), position)
 
-    def aim(self, use):
-        """Return the point (2,) [m] the robot of USE heads for, None: none.
+    def aim(self, use, position):
+        """Return the point (2,) [m] the robot of USE at POSITION (2,) heads for, None: none.
 
-        Outside: the middle of the entrance it comes in by; inside: `AIM_BEYOND` beyond the
-        middle of the one it leaves by. Through the middle
-        the jambs are farthest, and the walls' conditions leave the most room.
+        Outside: the line out of its entrance's middle, `AIM_AHEAD` nearer the entrance than
+        the robot (the entrance itself once nearer than that), so that it comes in centred;
+        inside: `AIM_BEYOND` beyond the middle of the way out. Through the middle the jambs are
+        farthest, and the walls' conditions leave the most room.
         """
         ends = self.passages[use.passage].ends
         if not use.inside:
-            return ends[use.entry].entrance
+            end = ends[use.entry]
+            out = float(np.dot(position - end.entrance, end.outward))
+            return end.entrance + end.outward * max(0.0, out - AIM_AHEAD)
         # Beyond the way out: a passage's cells reach past its mouths.
         return None if use.exit is None else (ends[use.exit].entrance
                                               + ends[use.exit].outward * AIM_BEYOND)
@@ -256,8 +277,9 @@ class PassageMap:
         count).
         """
         others = [other for other in others if other.passage == me.passage]
-        if goes_first(me, others):
-            return Decision(me, True)
+        if _unopposed(me, others):
+            # Behind one going the same way, it holds its place until the gap opens.
+            return Decision(me, not _too_close_behind(me, others))
         ends = self.passages[me.passage].ends
         if me.inside:
             # Backing out: by the nearest end it does not leave by.
