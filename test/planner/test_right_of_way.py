@@ -68,6 +68,13 @@ def test_a_route_that_does_not_pass_or_passes_beyond_the_look_ahead_uses_nothing
     assert door.use_of('a', far[0], far) is None
 
 
+def test_a_route_that_only_grazes_a_mouth_uses_nothing(door):
+    # Past the door's east mouth, in and out of the passage's cells there by one end.
+    route = np.array([[4.4, 2.6], [3.9, 2.2], [4.4, 1.5], [5.5, 1.2]])
+    assert door.passage_at(route).tolist() == [-1, 0, -1, -1]
+    assert door.use_of('a', route[0], route) is None
+
+
 def test_a_route_along_the_rim_that_steps_out_and_back_in_has_not_left(door):
     # In by the west, out and back in within a cell's width of the rim, then east.
     (passage,) = door.passages

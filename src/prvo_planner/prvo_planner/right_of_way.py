@@ -249,8 +249,11 @@ class PassageMap:
         if first == 0:
             distance = float(along[last] if last is not None else along[-1])
             return PassageUse(name, passage, None, exit_end, distance, position)
-        return PassageUse(name, passage, _nearest_end(ends, points[first]), exit_end,
-                          float(along[first]), position)
+        entry = _nearest_end(ends, points[first])
+        if entry == exit_end:
+            # In and out by one end: the route only grazes the passage's cells at its mouth.
+            return None
+        return PassageUse(name, passage, entry, exit_end, float(along[first]), position)
 
     def aim(self, use, position):
         """Return the point (2,) [m] the robot of USE at POSITION (2,) heads for, None: none.
