@@ -73,3 +73,34 @@ def test_two_robots_meeting_at_a_door_take_turns_and_both_arrive(tmp_path, seed)
     # Turns were taken: one of them waited, and it arrived after the other.
     (waiter,) = [index for index in range(2) if waited[index] > 0]
     assert arrived[waiter] > arrived[1 - waiter]
+
+
+def test_the_status_says_who_goes_and_who_waits_where(tmp_path):
+    from prvo_msgs_util import diagnostic_values
+    from prvo_planner.reports import plan_status
+
+    path = tmp_path / 'door.yaml'
+    path.write_text(DOOR)
+    scenario = load_scenario(path, seed=1)
+    values = [{**planner_values(robot, scenario, 'prvo', None), 'right_of_way': True}
+              for robot in scenario.robots]
+    team = InProcessTeam(scenario, values, seed=1)
+    while not team.finished:
+        team.do_step()
+        decisions = [command.right_of_way for command in team.last_commands]
+        if all(decision is not None for decision in decisions) and not all(
+                decision.goes for decision in decisions):
+            break
+    statuses = [diagnostic_values(plan_status(robot.name, command, 1.0, 'prvo', 0.25))
+                for robot, command in zip(scenario.robots, team.last_commands, strict=True)]
+    waiting = [index for index, status in enumerate(statuses)
+               if status['right_of_way'] == 'waits']
+    assert len(waiting) == 1
+    (index,) = waiting
+    status, decision = statuses[index], team.last_commands[index].right_of_way
+    assert statuses[1 - index]['right_of_way'] == 'goes'
+    assert status['right_of_way_passage'] == '0'
+    assert float(status['waiting_spot_x']) == pytest.approx(decision.waiting_spot[0], abs=1e-3)
+    assert float(status['waiting_spot_y']) == pytest.approx(decision.waiting_spot[1], abs=1e-3)
+    assert (status['right_of_way_entry'], status['right_of_way_exit']) == (
+        str(decision.use.entry), str(decision.use.exit))

@@ -445,7 +445,9 @@ class Command:
     constrain it until it is there (None otherwise). `neighbour_routes`, in the order of
     `neighbour_names`, is each neighbour's `routes.NeighbourRoute` for `stamp`
     (`PlannerAgent.route_of`: the newest it published with a stamp before `stamp`), None where
-    it has none. `awaiting_map` marks a zero command held for a map still being built
+    it has none. `right_of_way` is the robot's `right_of_way.Decision` at the passage on its
+    route (None: none, or `right_of_way` off). `awaiting_map` marks a zero command held for a
+    map still being built
     (`PlannerAgent.awaiting_map`).
     """
 
@@ -472,6 +474,7 @@ class Command:
     inside_obstacle: tuple = None
     neighbour_routes: tuple = ()
     awaiting_map: bool = False
+    right_of_way: object = None
 
     def announcement_values(self):
         """Return {'neighbour.<robot>.radius': m, 'neighbour.<robot>.avoidance_share': a}."""
@@ -1382,7 +1385,7 @@ class PlannerAgent:
                        narrow_passage=self._passage_ahead(request),
                        inside_obstacle=request.inside_obstacle,
                        neighbour_routes=request.neighbour_routes,
-                       awaiting_map=request.awaiting_map)
+                       awaiting_map=request.awaiting_map, right_of_way=self.passage_decision)
 
     def _inside_obstacle(self, position):
         """Return (POSITION, the way out or None) if POSITION is in an occupied cell, else None.

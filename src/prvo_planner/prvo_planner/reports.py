@@ -59,6 +59,7 @@ def plan_status(robot, command, plan_time_ms, model, planning_radius):
     stall keys are `stall_values`'; a stalled robot's status is a WARN, as is that of a robot
     whose centre is inside an obstacle on its map (`inside_message`). `awaiting_map` is true
     while the robot holds for a map still being built (`AWAITING_MAP`, the message then).
+    The right of way keys are `right_of_way_values`'; a robot waiting for its turn says so.
     """
     result = command.result
     feasible = True if result is None else bool(result.feasible)
@@ -75,6 +76,9 @@ def plan_status(robot, command, plan_time_ms, model, planning_radius):
         messages.append(AWAITING_MAP)
     if not feasible:
         messages.append('no velocity meets the chance constraint')
+    decision = command.right_of_way
+    if decision is not None and not decision.goes:
+        messages.append(f'waits for its turn at passage {decision.use.passage}')
     if stalled:
         messages.append(stall_message(command.stall))
         if command.narrow_passage is not None:
@@ -92,7 +96,8 @@ def plan_status(robot, command, plan_time_ms, model, planning_radius):
          'plans': tally.plans, 'infeasible_plans': tally.infeasible,
          'min_achieved_eta': _or_none(tally.min_achieved_eta),
          'tally_stamp': _or_none(tally.last_stamp), **stall_values(command),
-         **command.announcement_values(), **command.route_values()},
+         **command.announcement_values(), **command.route_values(),
+         **right_of_way_values(decision)},
         level=(DiagnosticStatus.OK if feasible and not stalled and inside is None
                else DiagnosticStatus.WARN),
         hardware_id=robot)
@@ -119,6 +124,33 @@ def passage_message(passage):
     return (f'the way at ({passage.point[0]:.2f}, {passage.point[1]:.2f}) is '
             f'{passage.width:.2f} m wide; certifying it needs at least {passage.needed:.2f} m '
             '(holding)')
+
+
+def right_of_way_values(decision):
+    """Return the right of way keys of a `right_of_way.Decision` DECISION (None: none).
+
+    `right_of_way`: 'none' (no passage on the route, or the rule off), 'goes' or 'waits';
+    with a passage `right_of_way_passage` (its index on the map), `right_of_way_entry` and
+    `right_of_way_exit` (the ends the robot comes in and leaves by, 'none' inside or where its
+    route ends in it) and `right_of_way_distance` [m] (its way to the passage, inside the way
+    left through it); while it
+    waits, `waiting_spot_x`, `waiting_spot_y` [m] where it waits ('none': it holds its place).
+    """
+    if decision is None:
+        return {'right_of_way': 'none'}
+    use = decision.use
+    values = {'right_of_way': 'goes' if decision.goes else 'waits',
+              'right_of_way_passage': use.passage, 'right_of_way_entry': _end_or_none(use.entry),
+              'right_of_way_exit': _end_or_none(use.exit), 'right_of_way_distance': use.distance}
+    if not decision.goes:
+        spot = decision.waiting_spot
+        values['waiting_spot_x'] = _or_none(None if spot is None else float(spot[0]))
+        values['waiting_spot_y'] = _or_none(None if spot is None else float(spot[1]))
+    return values
+
+
+def _end_or_none(end):
+    return 'none' if end is None else end
 
 
 def stall_values(command):
