@@ -1,5 +1,6 @@
 """Right of way at a passage: one order for all, waiting spots, virtual walls (issue 39)."""
 
+import dataclasses
 import itertools
 
 import numpy as np
@@ -9,7 +10,10 @@ from prvo_planner.maps import OCCUPIED, GridMap
 from prvo_planner.narrows import find_passages
 from prvo_planner.right_of_way import (
     FOLLOW_GAP,
+    IDLE_INSIDE,
+    IDLE_MOVE,
     TIE,
+    IdleWatch,
     PassageMap,
     PassageUse,
     conflict,
@@ -171,3 +175,23 @@ def test_a_robot_at_the_mouth_gets_no_wall_it_would_start_inside(door):
     me = PassageUse('a', 0, 1, 0, 0.3)
     decision = door.decision(me, [PassageUse('z', 0, None, 1, 0.5)], position)
     assert not decision.goes and decision.wall is None
+
+
+def test_a_neighbour_standing_in_a_passage_stops_claiming_it_after_the_timeout():
+    watch = IdleWatch()
+    standing = PassageUse('broken', 0, None, 1, 0.6, np.array([3.0, 2.0]))
+    passing = PassageUse('passing', 0, None, 1, 0.6, np.array([2.5, 2.0]))
+    coming = PassageUse('coming', 0, 1, 0, 2.0, np.array([5.0, 2.0]))
+    for step in range(int(IDLE_INSIDE / 0.1) + 11):
+        stamp = 0.1 * step
+        moved = dataclasses.replace(passing, position=passing.position + [0.06 * step, 0.0])
+        kept = watch.claiming([standing, moved, coming], stamp)
+        names = [use.name for use in kept]
+        assert ('broken' in names) is (stamp <= IDLE_INSIDE + 1e-9), stamp
+        assert 'passing' in names and 'coming' in names
+    # The one coming the other way now goes, the broken-down robot no longer holding the door.
+    assert not goes_first(coming, [standing])
+    assert goes_first(coming, [use for use in kept if use.name != 'passing'])
+    # Once it moves again it claims the passage anew.
+    moved_on = dataclasses.replace(standing, position=standing.position + [IDLE_MOVE + 0.1, 0.0])
+    assert 'broken' in [use.name for use in watch.claiming([moved_on], stamp + 0.1)]

@@ -50,7 +50,7 @@ from prvo_planner.preferred import (
     PathFollower,
     path_preferred_velocity,
 )
-from prvo_planner.right_of_way import PassageMap, with_wall
+from prvo_planner.right_of_way import IdleWatch, PassageMap, with_wall
 from prvo_planner.route import RouteMap, path_length
 from prvo_planner.routes import (
     ROUTE_FOUND,
@@ -603,8 +603,10 @@ class PlannerAgent:
         self.escalation = Escalation()
         # The spot beside a neighbour's route the robot gives way at (`give_way`), None: none.
         self._give_way = None
-        # The right of way at the passage on its route (`right_of_way.Decision`), None: none.
+        # The right of way at the passage on its route (`right_of_way.Decision`), None: none;
+        # the neighbours standing in a passage (`right_of_way.IdleWatch`).
         self.passage_decision = None
+        self._idle_watch = IdleWatch()
         # The path followed (path mode); the upstream command waiting for its answer, when it
         # came and the last one answered (velocity mode); when the own state was last received.
         self._path = None
@@ -1013,12 +1015,13 @@ class PlannerAgent:
         return preferred_velocity(position, self._give_way, self.config.max_speed,
                                   settings.approach_time, 0.0, settings.max_acceleration)[0]
 
-    def _passage_turn(self, position, v_pref, names, beliefs, routes):
+    def _passage_turn(self, stamp, position, v_pref, names, beliefs, routes):
         """Return (V_PREF or toward a waiting spot, the virtual wall (2, 2) or None).
 
         The right of way at the passage on the robot's route (`prvo_planner.right_of_way`),
-        decided from the neighbours' beliefs and ROUTES (`routes.NeighbourRoute` or None, in the
-        order of NAMES); kept in `passage_decision`.
+        decided at STAMP [s] from the neighbours' beliefs and ROUTES (`routes.NeighbourRoute`
+        or None, in the order of NAMES), without those standing in a passage for longer than
+        `right_of_way.IDLE_INSIDE`; kept in `passage_decision`.
         """
         settings = self.settings
         self.passage_decision = None
@@ -1033,7 +1036,8 @@ class PlannerAgent:
         others = [passages.use_of(name, belief.mean[:2], route.points)
                   for name, belief, route in zip(names, beliefs, routes, strict=True)
                   if route is not None]
-        decision = passages.decision(me, [use for use in others if use is not None], position)
+        claiming = self._idle_watch.claiming([use for use in others if use is not None], stamp)
+        decision = passages.decision(me, claiming, position)
         self.passage_decision = decision
         if decision.goes:
             # Through the middle of the passage's mouths, where the route's way is in sight.
@@ -1184,7 +1188,7 @@ class PlannerAgent:
                           *self._announced_route.values()):
             announced.prune(stamp)
         v_pref = self._given_way(own.mean[:2], v_pref, neighbour_beliefs, announcements, routes)
-        v_pref, passage_wall = self._passage_turn(own.mean[:2], v_pref, names,
+        v_pref, passage_wall = self._passage_turn(stamp, own.mean[:2], v_pref, names,
                                                   neighbour_beliefs, routes)
         if self._command_stamp is not None and 0.0 < stamp - self._command_stamp:
             self._control_period = stamp - self._command_stamp

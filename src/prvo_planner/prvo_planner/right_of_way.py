@@ -15,7 +15,8 @@ of route to the passage, zero inside; inside, the length of route left to its wa
 *conflict* when one comes in where the other goes out, or when both are inside and go out by
 different ends: they would meet head-on. Robots going the same way never conflict, so a robot
 follows another in. A neighbour that publishes no route (a walker, a robot of another stack, a
-robot at its goal) uses nothing, claims nothing, and is avoided as every neighbour is.
+robot at its goal) uses nothing, claims nothing, and is avoided as every neighbour is; so is,
+after `IDLE_INSIDE`, one standing in a passage (`IdleWatch`: a robot broken down in a door).
 
 **The order.** A robot inside keeps the passage: one coming in where it goes out waits. Of two
 inside that conflict, the one with less of the passage left goes on and the other backs out.
@@ -59,6 +60,10 @@ AIM_AHEAD = 0.5
 # A robot following another in keeps this far [m] behind it: two abreast at a mouth one robot
 # wide jam it.
 FOLLOW_GAP = 1.2
+# A neighbour inside a passage that moves less than IDLE_MOVE [m] in IDLE_INSIDE [s] claims
+# nothing (`IdleWatch`): the stall monitor's 10 s without 0.5 m.
+IDLE_INSIDE = 10.0
+IDLE_MOVE = 0.5
 
 
 @dataclass(frozen=True)
@@ -308,6 +313,36 @@ class PassageMap:
         across = np.array([-end.outward[1], end.outward[0]])
         half = 0.5 * passage.width + self.radius
         return np.array([line - half * across, line + half * across])
+
+
+class IdleWatch:
+    """Neighbours that stay in a passage without moving: after `IDLE_INSIDE` they claim nothing.
+
+    A robot broken down in a door, or one of another stack parked there, would otherwise keep
+    the door from every robot coming the other way for good; after the timeout they are
+    avoided as every neighbour is, and the others go by the order without them.
+    """
+
+    def __init__(self):
+        # robot -> (passage, where its stay began (2,), when [s]).
+        self._stays = {}
+
+    def claiming(self, uses, stamp):
+        """Return the `PassageUse`s of USES that still claim their passage at STAMP [s]."""
+        kept, stays = [], {}
+        for use in uses:
+            if not use.inside or use.position is None:
+                kept.append(use)
+                continue
+            stay = self._stays.get(use.name)
+            if (stay is None or stay[0] != use.passage
+                    or math.hypot(*(use.position - stay[1])) > IDLE_MOVE):
+                stay = (use.passage, use.position, stamp)
+            stays[use.name] = stay
+            if stamp - stay[2] <= IDLE_INSIDE:
+                kept.append(use)
+        self._stays = stays
+        return kept
 
 
 def with_wall(obstacles, wall):
