@@ -12,6 +12,7 @@ from scipy.stats import chi2
 from visualization_msgs.msg import Marker, MarkerArray
 
 from prvo_msgs_util import CMD_VEL_QOS, MARKER_QOS, ODOM_QOS, make_odometry, stamp_to_seconds
+from prvo_sim.runner.session import LOCKSTEP_SYNC, STEP_TIMEOUT
 
 pytestmark = pytest.mark.integration
 
@@ -38,9 +39,13 @@ def run_crossing(team, observer, probe, seed):
     """Return whether every robot of TEAM (crossing4, lockstep, SEED) arrived in its run.
 
     The run ends when every robot arrived or the duration ended; the team is left running.
+    With the runner's lockstep waits: a step waits for every answer, a plan for every
+    neighbour's odometry of its step, however loaded the machine (with the team's 2 s and 1 s,
+    a planner starved beside another worker's team could miss one, and the run then differ
+    from another of the same seed).
     """
-    team.start_sim(seed=seed)
-    team.start_planners()
+    team.start_sim(seed=seed, step_timeout=STEP_TIMEOUT)
+    team.start_planners(**LOCKSTEP_SYNC)
     return _run_until_all_arrived(probe, observer, team, f'crossing4 seed {seed} to finish')
 
 
@@ -78,9 +83,9 @@ def test_lockstep_is_reproducible(crossing_seed_1, make_team, observe, probe, ch
     assert set(exit_codes.values()) == {0}, exit_codes
     team = make_team('crossing4')
     observer = observe(team)
-    team.start_sim(seed=1, label='sim_again')
+    team.start_sim(seed=1, label='sim_again', step_timeout=STEP_TIMEOUT)
     for spec in team.scenario.robots:
-        team.start_planner(spec.name, label=f'planner_{spec.name}_again')
+        team.start_planner(spec.name, label=f'planner_{spec.name}_again', **LOCKSTEP_SYNC)
     probe.wait_until(lambda: observer.sim_time() >= 8.0, timeout=90.0,
                      what='8 s of simulated time')
     for process in [team.sim, *team.planners.values()]:
