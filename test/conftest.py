@@ -22,6 +22,37 @@ os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
 os.environ.setdefault('FASTDDS_BUILTIN_TRANSPORTS', 'UDPv4')
 
 
+# The order the tests are handed out in. ./run.sh test runs two workers (pytest-xdist,
+# worksteal): each starts on its half of this order and takes tests off the end of the other's
+# queue once its own runs out. The 24-robot run (both cores for about 100 s) goes first, so that
+# the other worker's tests run beside it instead of it running alone at the end; then the
+# directories whose tests start teams, the longest first; the many short tests last, where they
+# even out the two workers' ends. Within a directory the order is the collection's (modules
+# stay whole for their module-scoped fixtures).
+FIRST_TESTS = (
+    'test/runner/test_runner_teardown.py::test_a_24_robot_lockstep_ros_run_ends_with_its_results',
+)
+DIRECTORY_ORDER = ('runner', 'integration', 'sim', 'foundation', 'core', 'planner', 'msgs_util')
+
+
+def pytest_collection_modifyitems(config, items):
+    """Order ITEMS as FIRST_TESTS and DIRECTORY_ORDER say (a stable sort)."""
+    root = pathlib.Path(__file__).resolve().parent
+
+    def rank(item):
+        if item.nodeid in FIRST_TESTS:
+            return (0, FIRST_TESTS.index(item.nodeid))
+        try:
+            directory = item.path.resolve().relative_to(root).parts[0]
+        except ValueError:
+            return (2, 0)
+        if directory in DIRECTORY_ORDER:
+            return (1, DIRECTORY_ORDER.index(directory))
+        return (2, 0)
+
+    items.sort(key=rank)
+
+
 @pytest.fixture
 def ros_domain():
     """Claim a ROS_DOMAIN_ID no test or scenario run on this machine holds; release it after."""
