@@ -104,6 +104,21 @@ def test_a_corridor_is_wide_enough_from_twice_the_certifiable_width():
     assert wide_enough(None, EGO, CONFIG, [1.0, 0.0])
 
 
+def test_a_door_in_a_thin_wall_ahead_is_not_wide_enough():
+    # A wall 0.1 thick across the way 0.4 AHEAD in front, its door one robot wide: the way at
+    # the robot and at AHEAD is open to both sides, the door between them is not.
+    half = 0.5 * certifiable_width(EGO, CONFIG) + 0.05
+    across = 0.4 * AHEAD
+    wall = StaticObstacles(np.array([[[across, half], [across, 5.0]],
+                                     [[across, -half], [across, -5.0]]]),
+                           np.array([0.05, 0.05]), np.zeros((0, 2)), np.zeros(0))
+    assert not wide_enough(wall, EGO, CONFIG, [1.0, 0.0])
+    coming = neighbour([3.0, 0.0], [-1.0, 0.0])
+    v_pref = np.array([1.0, 0.0])
+    turned, lean = keep_right(v_pref, 0.2, EGO, [coming], 5.0, wall, CONFIG)
+    assert lean == 0.0 and turned is v_pref
+
+
 def test_a_narrowing_ahead_straightens_the_robot_up_before_it():
     needed = 2.0 * certifiable_width(EGO, CONFIG)
     # A wide hall to x = 0.5 AHEAD, then a door one robot wide.

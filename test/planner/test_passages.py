@@ -14,7 +14,7 @@ from scipy.stats import norm
 from prvo_planner.core import AgentBelief, PlannerConfig
 from prvo_planner.core.obstacles import StaticObstacles
 from prvo_planner.core.walls import certifiable_width
-from prvo_planner.passages import STEP, clear_width
+from prvo_planner.passages import STEP, clear_width, way_width
 from prvo_planner.reports import passage_message, stall_values
 from prvo_sim.engine import InProcessTeam
 from prvo_sim.runner.session import planner_values
@@ -39,6 +39,48 @@ def test_the_clear_width_is_the_gap_between_the_walls_within_a_step():
     # One side open: no passage; inside a wall: none either.
     assert clear_width(_walls([[[-5.0, 0.5], [5.0, 0.5]]]), [0.0, 0.0], [1.0, 0.0]) == np.inf
     assert clear_width(corridor, [0.0, 0.5], [1.0, 0.0]) == 0.0
+
+
+def test_the_width_of_a_way_is_that_of_the_widest_free_strip_along_it():
+    # Slanted walls 0.1 thick on either side of the way and a pillar near it, seeded, against
+    # a raster of the way's strip (5 mm cells): the nearest occupied cells on either side.
+    generator = np.random.default_rng(3)
+    for _ in range(40):
+        low, high = generator.uniform(0.3, 0.9, 2), generator.uniform(0.3, 0.9, 2)
+        segments = np.array([[[-2.0, -low[0]], [3.0, -low[1]]], [[-2.0, high[0]], [3.0, high[1]]]])
+        centre, radius = generator.uniform([-0.5, -1.0], [1.5, 1.0]), generator.uniform(0.05, 0.2)
+        obstacles = StaticObstacles(segments, np.array([0.05, 0.05]), centre[None],
+                                    np.array([radius]))
+        point, length = generator.uniform(-0.2, 0.2, 2), generator.uniform(0.3, 1.0)
+        along, across = np.meshgrid(np.arange(0.0, length, 0.005), np.arange(-2.0, 2.0, 0.005))
+        cells = np.stack([point[0] + along.ravel(), point[1] + across.ravel()], axis=1)
+        occupied = np.hypot(*(cells - centre).T) <= radius
+        for (start, end) in segments:
+            t = np.clip((cells - start) @ (end - start) / np.sum((end - start) ** 2), 0.0, 1.0)
+            occupied |= np.hypot(*(cells - start - t[:, None] * (end - start)).T) <= 0.05
+        offsets = across.ravel()[occupied]
+        expected = (np.min(offsets[offsets > 0.0], initial=np.inf)
+                    - np.max(offsets[offsets < 0.0], initial=-np.inf))
+        width = way_width(obstacles, point, [1.0, 0.0], length)
+        if np.any(np.abs(offsets) < 0.005):
+            assert width == 0.0
+        else:
+            # The raster's cells reach at most a cell past a surface on each side; a wall's
+            # end counted a half-width early only narrows the way.
+            assert expected - STEP <= width <= expected + 1e-9
+
+
+def test_the_width_over_a_way_finds_a_door_thinner_than_its_spacing():
+    # A wall 0.1 thick across the way 0.5 m ahead, with a door 0.9 m wide in it: at the
+    # robot and 1 m ahead the sides are open.
+    wall = _walls([[[0.5, 0.5], [0.5, 4.0]], [[0.5, -0.5], [0.5, -4.0]]], [0.05, 0.05])
+    assert clear_width(wall, [0.0, 0.0], [1.0, 0.0]) == np.inf
+    assert clear_width(wall, [1.0, 0.0], [1.0, 0.0]) == np.inf
+    assert way_width(wall, [0.0, 0.0], [1.0, 0.0], 1.0) == pytest.approx(0.9)
+    # Short of the door, or beyond it, the way is open; across the wall, shut.
+    assert way_width(wall, [0.0, 0.0], [1.0, 0.0], 0.4) == np.inf
+    assert way_width(wall, [0.0, 0.0], [-1.0, 0.0], 1.0) == np.inf
+    assert way_width(wall, [0.0, 1.0], [1.0, 0.0], 1.0) == 0.0
 
 
 @pytest.mark.parametrize('sigma, eta', [(0.02, 0.95), (0.05, 0.95), (0.05, 0.99)])

@@ -13,8 +13,8 @@ route (the carrot ahead pulls it back as far as the lean pushes it off), in a co
 the wall on its right, where the walls' conditions hold it.
 
 The lean is taken only where the free space is wide enough for two robots to pass: in open space
-always, among walls where the clear width across the robot's way, at its position and `AHEAD`
-in front, is at least two of the widths one robot needs to be certified through
+always, among walls where the narrowest clear width across the robot's way, from its position
+to `AHEAD` in front, is at least two of the widths one robot needs to be certified through
 (`core.walls.certifiable_width`, with the robot's own noise): through a door one robot wide,
 leaning would only press the robot against a jamb. It fades out over the last `FADE` metres to
 the goal, so that a robot arrives as it would without it.
@@ -33,7 +33,7 @@ import numpy as np
 
 from prvo_planner.core.walls import certifiable_width
 from prvo_planner.escalation import turned_right
-from prvo_planner.passages import clear_width
+from prvo_planner.passages import way_width
 
 # Default of the planner parameter `keep_right` [rad] (`prvo_planner.parameters`): about 17
 # degrees, at most 4.7 % longer ways. At 0.17 rad the lanes formed too late in a corridor: robots
@@ -78,16 +78,14 @@ def wide_enough(obstacles, ego, config, direction):
     Return whether the way along DIRECTION is wide enough for two robots to pass.
 
     OBSTACLES are the `StaticObstacles` near the robot (None: open space, always wide enough),
-    EGO its `AgentBelief`, CONFIG its `PlannerConfig`. The clear width across the way at the
-    robot and AHEAD in front (`passages.clear_width`) must be at least twice the width the
-    robot needs to be certified through.
+    EGO its `AgentBelief`, CONFIG its `PlannerConfig`. The narrowest clear width across the way
+    from the robot to AHEAD in front (`passages.way_width`) must be at least twice the width
+    the robot needs to be certified through.
     """
     if obstacles is None:
         return True
     needed = 2.0 * certifiable_width(ego, config)
-    unit = np.asarray(direction, dtype=float) / math.hypot(*direction)
-    return all(clear_width(obstacles, ego.position + distance * unit, unit) >= needed
-               for distance in (0.0, AHEAD))
+    return way_width(obstacles, ego.position, direction, AHEAD) >= needed
 
 
 def lean_angle(angle, distance_to_goal):

@@ -77,6 +77,67 @@ def clear_width(obstacles, point, direction):
     return float(width)
 
 
+def way_width(obstacles, point, direction, length):
+    """
+    Return the clear width of the way from POINT, LENGTH [m] along DIRECTION: a straight strip.
+
+    The free distance to the left of the line from POINT (2,) along DIRECTION (2,) nonzero,
+    the least over the way, plus the same to the right, over the obstacles of OBSTACLES
+    (`StaticObstacles`) beside the way (those whose extent along it overlaps [0, LENGTH]): inf
+    where a side is open all along, 0 where an obstacle reaches the line. This is the widest
+    strip along the way that no obstacle enters; unlike `clear_width` at a few points, it does
+    not step over a wall thinner than their spacing (a door's jambs). A wall's ends are
+    counted a half-width early (a conservative width, by at most the half-width).
+    """
+    unit = np.asarray(direction, dtype=float) / np.hypot(*direction)
+    left = np.array([-unit[1], unit[0]])
+    point = np.asarray(point, dtype=float)
+    sides = [np.inf, np.inf]
+    if len(obstacles.segments):
+        relative = obstacles.segments - point
+        along, across = relative @ unit, relative @ left
+        grown = obstacles.half_widths
+        # The part of each segment whose position along the way is within the way, widened
+        # by the segment's half-width at either end.
+        start, end = along[:, 0], along[:, 1]
+        span = end - start
+        low, high = -grown, length + grown
+        with np.errstate(divide='ignore', invalid='ignore'):
+            first = np.where(span != 0.0, (low - start) / span, -np.inf)
+            second = np.where(span != 0.0, (high - start) / span, np.inf)
+        enter = np.clip(np.minimum(first, second), 0.0, 1.0)
+        leave = np.clip(np.maximum(first, second), 0.0, 1.0)
+        level = span == 0.0
+        overlaps = np.where(level, (start >= low) & (start <= high), enter < leave)
+        across_enter = across[:, 0] + enter * (across[:, 1] - across[:, 0])
+        across_leave = across[:, 0] + leave * (across[:, 1] - across[:, 0])
+        across_enter = np.where(level, across[:, 0], across_enter)
+        across_leave = np.where(level, across[:, 1], across_leave)
+        nearest = np.minimum(np.abs(across_enter), np.abs(across_leave)) - grown
+        crosses = (across_enter * across_leave <= 0.0) | (nearest <= 0.0)
+        if np.any(overlaps & crosses):
+            return 0.0
+        for index, sign in enumerate((1.0, -1.0)):
+            on_side = overlaps & (sign * across_enter > 0.0)
+            if np.any(on_side):
+                sides[index] = min(sides[index], float(np.min(nearest[on_side])))
+    if len(obstacles.disc_centres):
+        relative = obstacles.disc_centres - point
+        along, across = relative @ unit, relative @ left
+        radii = obstacles.disc_radii
+        # A disc's nearest point within the way: its chord at the way's end beyond its centre.
+        beyond = np.maximum(np.maximum(-along, along - length), 0.0)
+        overlaps = beyond < radii
+        nearest = np.abs(across) - np.sqrt(np.maximum(radii ** 2 - beyond ** 2, 0.0))
+        if np.any(overlaps & (nearest <= 0.0)):
+            return 0.0
+        for index, sign in enumerate((1.0, -1.0)):
+            on_side = overlaps & (sign * across > 0.0)
+            if np.any(on_side):
+                sides[index] = min(sides[index], float(np.min(nearest[on_side])))
+    return float(sides[0] + sides[1])
+
+
 def narrow_passage(obstacles, ego, config, direction):
     """
     Return the `NarrowPassage` ahead of EGO along DIRECTION, or None where it can be certified.
