@@ -4,10 +4,13 @@ A 1.2 m door between two rooms, one robot each way (noise 0.05, the planner's de
 certified 0.95, `right_of_way` on). Each robot decides from its neighbour's route on
 <robot>/plan (held by the agents as a ROS run holds it): one goes through while the other waits
 beside its entrance, and no robot's decision ever lets both be in the door going opposite ways.
+Only preferences and a virtual wall change: a Monte Carlo check with a sampler of its own finds
+every encounter plan at the door safe within its horizon with at least eta.
 """
 
 import numpy as np
 import pytest
+from sampled_safety import EncounterChecker
 
 from prvo_sim.engine import InProcessTeam
 from prvo_sim.runner.session import planner_values
@@ -41,8 +44,11 @@ robots:
 """
 
 
-@pytest.mark.parametrize('seed', [1, 2])
-def test_two_robots_meeting_at_a_door_take_turns_and_both_arrive(tmp_path, seed):
+def take_turns(tmp_path, seed, on_step=None):
+    """Run the door with the rule; return (arrival times, steps each waited, least gap [m]).
+
+    Asserts at every step that the two are never both let go head-on through the door.
+    """
     path = tmp_path / 'door.yaml'
     path.write_text(DOOR)
     scenario = load_scenario(path, seed=seed)
@@ -55,6 +61,8 @@ def test_two_robots_meeting_at_a_door_take_turns_and_both_arrive(tmp_path, seed)
     closest = np.inf
     while not team.finished and None in arrived:
         step = team.do_step()
+        if on_step is not None:
+            on_step(team, step.states[:, :2])
         decisions = [agent.passage_decision for agent in team.agents]
         going = [decision is not None and decision.goes for decision in decisions]
         for index, decision in enumerate(decisions):
@@ -68,11 +76,39 @@ def test_two_robots_meeting_at_a_door_take_turns_and_both_arrive(tmp_path, seed)
         for index, distance in enumerate(np.hypot(*(positions - goals).T)):
             if arrived[index] is None and distance < scenario.goal_tolerance:
                 arrived[index] = step.time
+    return arrived, waited, closest
+
+
+@pytest.fixture(scope='module')
+def checked_seed_1(tmp_path_factory):
+    """Return (take_turns of seed 1, the checker that sampled each of its encounter plans).
+
+    One run for the turns of seed 1 and the check of its plans: the checker only reads the
+    team, with a generator of its own.
+    """
+    checker = EncounterChecker(np.random.default_rng(39))
+    return take_turns(tmp_path_factory.mktemp('turns'), 1, checker.check), checker
+
+
+@pytest.mark.parametrize('seed', [1, 2])
+def test_two_robots_meeting_at_a_door_take_turns_and_both_arrive(request, tmp_path, seed):
+    if seed == 1:
+        (arrived, waited, closest), _ = request.getfixturevalue('checked_seed_1')
+    else:
+        arrived, waited, closest = take_turns(tmp_path, seed)
     assert None not in arrived, arrived
     assert closest > 0.0
     # Turns were taken: one of them waited, and it arrived after the other.
     (waiter,) = [index for index in range(2) if waited[index] > 0]
     assert arrived[waiter] > arrived[1 - waiter]
+
+
+def test_every_encounter_plan_at_the_door_keeps_its_probability(checked_seed_1):
+    # The rule changes preferences and adds a virtual wall; against the neighbour, each plan
+    # is as safe as it states, sampled with a generator of the check's own.
+    (arrived, _, _), checker = checked_seed_1
+    assert None not in arrived
+    checker.assert_safe(at_least=50)
 
 
 def test_the_status_says_who_goes_and_who_waits_where(tmp_path):
