@@ -148,20 +148,20 @@ def test_ray_intervals_of_every_condition_match_dense_evaluation(receding_gate, 
         gap_direction, lower, upper = ray_gaps(means, variances, layout.margins(encounter),
                                                layout, 'exact', False, directions[:, 0])
         # Independent: each condition's closed-form moments at every grid velocity, accepted
-        # by section 7's rule: f, or g, or (h1 and h2) at k' for eta = k^2 / (1 + k^2).
+        # by section 7's rule: f, or g, or (h1 and h2) at k' for eta = k^2 / (1 + k^2), or h3.
         velocities = (config.max_speed * t[None, :, None] * directions[:, None, :]).reshape(-1, 2)
         grid_means, grid_variances = condition_moments(
             encounter.origin, encounter.cov, encounter.combined_radius, velocities,
             time_horizon, receding_gate)
         eta = k * k / (1.0 + k * k)
         margins = [k] + [k] * receding_gate + [math.sqrt((1.0 + eta) / (1.0 - eta))] * (
-            2 * math.isfinite(time_horizon))
+            2 * math.isfinite(time_horizon)) + [k] * math.isfinite(time_horizon)
         meets = grid_means - np.array(margins) * np.sqrt(np.maximum(grid_variances, 0.0)) >= 0.0
         pair_accepted = meets[..., 0]
         if receding_gate:
             pair_accepted = pair_accepted | meets[..., 1]
         if math.isfinite(time_horizon):
-            pair_accepted = pair_accepted | (meets[..., -2] & meets[..., -1])
+            pair_accepted = pair_accepted | (meets[..., -3] & meets[..., -2]) | meets[..., -1]
         accepted = np.all(pair_accepted, axis=0).reshape(directions.shape[0], t.size)
         assert_gaps_match(gap_direction, lower, upper, t, accepted)
 

@@ -42,15 +42,18 @@ def relative_gaussian(ego, neighbour, command, actuation_cov):
     return linear @ mean_x + offset, linear @ cov_x @ linear.T
 
 
-def condition_values(z, radius, tau):
-    """``f``, ``g``, ``h1``, ``h2`` of samples ``z`` (..., 4) from their definitions."""
+def condition_values(z, radius, tau, weight):
+    """``f``, ``g``, ``h1``, ``h2``, ``h3`` (of WEIGHT) of samples ``z`` (..., 4) by definition."""
     r, w = z[..., :2], z[..., 2:]
     cross = r[..., 0] * w[..., 1] - r[..., 1] * w[..., 0]
     dot = np.sum(r * w, axis=-1)
     speed_sq = np.sum(w * w, axis=-1)
     reach = r + tau * w
+    distance_sq = np.sum(r * r, axis=-1)
     return np.stack([cross ** 2 - radius ** 2 * speed_sq, dot, -dot - tau * speed_sq,
-                     np.sum(reach * reach, axis=-1) - radius ** 2], axis=-1)
+                     np.sum(reach * reach, axis=-1) - radius ** 2,
+                     (1.0 - weight) * (distance_sq - tau ** 2 * speed_sq / weight)
+                     - radius ** 2], axis=-1)
 
 
 def random_pair(rng, share):
@@ -78,7 +81,10 @@ def test_condition_moments_of_every_share_match_quadrature(share):
         mean_z, cov_z = relative_gaussian(ego, neighbour, command, actuation_cov)
         eigenvalues, eigenvectors = np.linalg.eigh(cov_z)
         nodes = mean_z + _GRID @ (eigenvectors * np.sqrt(np.maximum(eigenvalues, 0.0))).T
-        values = condition_values(nodes, encounter.combined_radius[0], tau)
+        # h3's weight: 1 - R / |mean r|, within [0.05, 0.95].
+        radius = encounter.combined_radius[0]
+        weight = min(max(1.0 - radius / np.hypot(*mean_z[:2]), 0.05), 0.95)
+        values = condition_values(nodes, radius, tau, weight)
         first = _GRID_WEIGHTS @ values
         second = _GRID_WEIGHTS @ values ** 2
         np.testing.assert_allclose(means[0, 0], first, rtol=0.0, atol=1e-9 * np.sqrt(second).max())

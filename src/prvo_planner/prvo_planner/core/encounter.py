@@ -163,7 +163,7 @@ class ConditionLayout:
     has_receding : bool
         A ``g`` column exists (index 1).
     has_horizon : bool
-        ``h1`` and ``h2`` columns exist (the last two).
+        ``h1``, ``h2`` and ``h3`` columns exist (the last three).
     receding_enabled : numpy.ndarray
         Per neighbour, whether ``g`` is accepted, shape (N,).
 
@@ -176,7 +176,8 @@ class ConditionLayout:
     def margins(self, encounter):
         """Return the ``k`` of each condition column (``k'`` for ``h1``, ``h2``), shape (C,)."""
         return np.array([encounter.margin] * (1 + self.has_receding)
-                        + [encounter.horizon_margin] * (2 * self.has_horizon))
+                        + [encounter.horizon_margin, encounter.horizon_margin,
+                           encounter.margin] * self.has_horizon)
 
 
 def condition_layout(encounter, config):

@@ -12,6 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .moments import reach_weights
 from .probability import rvo_condition_of
 from .ray_solver import (
     SEGMENTS,
@@ -26,7 +27,7 @@ from .ray_solver import (
 def combine_conditions(per_condition, layout, receding_enabled, any_of=np.logical_or,
                        all_of=np.logical_and):
     """
-    Combine per-condition values into ``f or g or (h1 and h2)``.
+    Combine per-condition values into ``f or g or (h1 and h2) or h3``.
 
     Parameters
     ----------
@@ -50,7 +51,8 @@ def combine_conditions(per_condition, layout, receding_enabled, any_of=np.logica
         disabled = False if per_condition.dtype == bool else -np.inf
         result = any_of(result, np.where(receding_enabled, per_condition[..., 1], disabled))
     if layout.has_horizon:
-        result = any_of(result, all_of(per_condition[..., -2], per_condition[..., -1]))
+        result = any_of(result, all_of(per_condition[..., -3], per_condition[..., -2]))
+        result = any_of(result, per_condition[..., -1])
     return result
 
 
@@ -61,7 +63,8 @@ def achieved_margins(means, variances, layout, receding_enabled):
     Per condition the achieved ``k`` is ``mean / sigma`` (``+-inf`` when ``sigma = 0``). The
     pair ``h1 and h2`` meets ``k' = min(k_h1, k_h2)``, which is reported as the pairwise ``k``
     with that ``k'``: ``sqrt((k'^2 - 1) / 2)`` (and ``k' - 1 < 0`` below ``k' = 1``, where the
-    pair bounds nothing). The largest over the accepted alternatives is returned.
+    pair bounds nothing); ``h3`` alone meets its own. The largest over the accepted
+    alternatives is returned.
 
     Parameters
     ----------
@@ -88,7 +91,7 @@ def achieved_margins(means, variances, layout, receding_enabled):
     if layout.has_receding:
         result = np.maximum(result, np.where(receding_enabled, margins[..., 1], -np.inf))
     if layout.has_horizon:
-        joint = np.minimum(margins[..., -2], margins[..., -1])
+        joint = np.minimum(margins[..., -3], margins[..., -2])
         # sqrt((k'^2 - 1) / 2) for k' >= 1, else k' - 1, in place.
         pairwise = np.multiply(joint, joint)
         pairwise -= 1.0
@@ -96,6 +99,7 @@ def achieved_margins(means, variances, layout, receding_enabled):
         np.sqrt(pairwise, out=pairwise, where=joint >= 1.0)
         np.subtract(joint, 1.0, out=pairwise, where=joint < 1.0)
         result = np.maximum(result, pairwise)
+        result = np.maximum(result, margins[..., -1])
     return result
 
 
@@ -184,8 +188,8 @@ def _relevant_conditions(reject_all, layout, receding_enabled):
     if layout.has_receding:
         relevant[..., 1] = receding_enabled
     if layout.has_horizon:
-        relevant[..., -2] = ~reject_all[..., -1]
-        relevant[..., -1] = ~reject_all[..., -2]
+        relevant[..., -3] = ~reject_all[..., -2]
+        relevant[..., -2] = ~reject_all[..., -3]
     return relevant
 
 
@@ -464,6 +468,7 @@ def monte_carlo_probabilities(encounter, layout, directions, speeds, config, rng
 
     """
     command = config.max_speed * speeds[..., None] * directions[:, None, :]
+    weights = reach_weights(encounter.origin, encounter.combined_radius)
     probabilities = []
     for index in range(encounter.origin.shape[0]):
         velocity = encounter.lead[index] * command
@@ -483,5 +488,8 @@ def monte_carlo_probabilities(encounter, layout, directions, speeds, config, rng
             tau = config.time_horizon
             event |= ((-closing - tau * speed_sq >= 0.0)
                       & ((rel_x + tau * u_x) ** 2 + (rel_y + tau * u_y) ** 2 >= radius_sq))
+            weight = weights[index]
+            event |= ((1.0 - weight) * (rel_x * rel_x + rel_y * rel_y
+                                        - tau * tau * speed_sq / weight) >= radius_sq)
         probabilities.append(np.mean(event, axis=-1))
     return np.array(probabilities)

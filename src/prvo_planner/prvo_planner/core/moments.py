@@ -1,5 +1,5 @@
 """
-Closed-form moments of the RVO condition and of the receding and horizon conditions.
+Closed-form moments of the RVO condition and of the receding, horizon and reach conditions.
 
 With ``z = (r_x, r_y, u_x, u_y) ~ N(mu, S)`` every condition of docs/method.md is a quadratic
 form ``z'Xz`` or, for ``f``, ``q^2 - R^2 p`` with quadratic forms ``q = r x u = z'Az`` and
@@ -43,6 +43,10 @@ _DOT = np.array([[0.0, 0.0, 0.5, 0.0],
 _POSITION = np.diag([1.0, 1.0, 0.0, 0.0])
 
 NUM_RVO_FORMS = 9
+# The reach condition h3 (docs/method.md, section 7) trades |r|^2 against tau^2 |w|^2 by a
+# weight eps in (0, 1), chosen per neighbour from its mean distance d as 1 - R / d (where h3
+# is exact), within these bounds.
+REACH_WEIGHT_BOUNDS = (0.05, 0.95)
 
 
 def poly_eval(poly, t):
@@ -90,7 +94,26 @@ def _horizon_lefts(time_horizon):
         inverse.reshape(np.shape(time_horizon))]
 
 
-def form_matrices(cov, time_horizon=math.inf):
+def reach_weights(origin, combined_radius):
+    """Return the weight ``eps`` of each neighbour's reach condition ``h3``, shape (N,).
+
+    ORIGIN (N, 4) is the mean of ``z`` (its first two components the relative position's),
+    COMBINED_RADIUS (N,) ``R``: ``1 - R / |mu_r|`` within `REACH_WEIGHT_BOUNDS`.
+    """
+    distance = np.hypot(origin[:, 0], origin[:, 1])
+    with np.errstate(divide='ignore', invalid='ignore'):
+        weight = 1.0 - combined_radius / distance
+    return np.clip(np.nan_to_num(weight, nan=REACH_WEIGHT_BOUNDS[0]), *REACH_WEIGHT_BOUNDS)
+
+
+def _reach_lefts(time_horizon, weights):
+    """Return ``H3 = (1 - eps) P - (1 - eps) / eps tau^2 B`` per weight: shape (N, 4, 4)."""
+    weights = np.asarray(weights, dtype=float)[:, None, None]
+    horizon = np.reshape(time_horizon, (-1, 1, 1))
+    return (1.0 - weights) * (_POSITION - horizon ** 2 / weights * _SPEED)
+
+
+def form_matrices(cov, time_horizon=math.inf, weights=None):
     """
     Quadratic-form matrices and traces that the moments of every condition need.
 
@@ -99,23 +122,30 @@ def form_matrices(cov, time_horizon=math.inf):
     Parameters
     ----------
     cov : numpy.ndarray
-        Covariance ``S`` of ``z``, shape (..., 4, 4).
+        Covariance ``S`` of ``z``, shape (N, 4, 4) (or (..., 4, 4) with an infinite horizon).
     time_horizon : float or numpy.ndarray
-        ``tau``, or one per covariance, shape (...), all finite or all infinite; ``h1`` and
-        ``h2`` are included only when it is finite.
+        ``tau``, or one per covariance, shape (N,), all finite or all infinite; ``h1``, ``h2``
+        and ``h3`` are included only when it is finite.
+    weights : numpy.ndarray
+        With a finite horizon, ``h3``'s ``eps`` per covariance, shape (N,)
+        (:func:`reach_weights`).
 
     Returns
     -------
     matrices : numpy.ndarray
         Shape (..., F, 4, 4): the nine of ``f``, ``A, ASA, (AS)^2 A, (AS)^3 A, ASB, (AS)^2 B,
         ASBSA, B, BSB``, then ``X, XSX`` for ``X`` = ``G`` (of ``g``) and, with a finite
-        horizon, ``H1`` and ``H2``.
+        horizon, ``H1``, ``H2`` and ``H3``.
     traces : numpy.ndarray
         Shape (..., T): the eight of ``f``, ``tr AS, tr (AS)^2, tr (AS)^3, tr (AS)^4,
         tr ASBS, tr (AS)^2 BS, tr BS, tr (BS)^2``, then ``tr XS, tr XSXS`` per ``X`` as above.
 
     """
     left = _horizon_lefts(time_horizon)
+    if np.isfinite(time_horizon).all():
+        # H3 is each neighbour's own: the shared forms, then its.
+        left = np.concatenate([np.broadcast_to(left, cov.shape[:1] + left.shape[-3:]),
+                               _reach_lefts(time_horizon, weights)[:, None]], axis=1)
     # X S and X S X for every X at once: (..., K, 4, 4).
     form_cov = left @ cov[..., None, :, :]
     sandwich = form_cov @ left
@@ -224,8 +254,8 @@ def condition_moments(origin, cov, combined_radius, velocities, time_horizon, re
     """
     Mean and variance of every condition at given commanded velocities.
 
-    The conditions are, in order: ``f``; ``g`` if ``receding_gate``; ``h1`` and ``h2`` if
-    ``time_horizon`` is finite (docs/method.md, sections 3 and 7).
+    The conditions are, in order: ``f``; ``g`` if ``receding_gate``; ``h1``, ``h2`` and
+    ``h3`` if ``time_horizon`` is finite (docs/method.md, sections 3 and 7).
 
     Parameters
     ----------
@@ -238,8 +268,8 @@ def condition_moments(origin, cov, combined_radius, velocities, time_horizon, re
     velocities : numpy.ndarray
         Commanded velocities ``v_c``, shape (P, 2) or (N, P, 2).
     time_horizon : float or numpy.ndarray
-        ``tau`` (``inf`` drops ``h1`` and ``h2``), or one per neighbour, shape (N,), all finite
-        or all infinite.
+        ``tau`` (``inf`` drops ``h1``, ``h2`` and ``h3``), or one per neighbour, shape (N,),
+        all finite or all infinite.
     receding_gate : bool
         Whether ``g`` is a condition.
     lead : float or numpy.ndarray
@@ -252,7 +282,9 @@ def condition_moments(origin, cov, combined_radius, velocities, time_horizon, re
         Shape (N, P, C) each.
 
     """
-    matrices, traces = form_matrices(cov, time_horizon)
+    finite = np.isfinite(time_horizon).all()
+    matrices, traces = form_matrices(
+        cov, time_horizon, reach_weights(origin, combined_radius) if finite else None)
     rvo_traces, extra_traces = traces[:, :8], traces[:, 8:]
     # The mean of z at every point, points last: (N, 4, P).
     velocities = np.asarray(velocities, dtype=float)
@@ -273,7 +305,7 @@ def condition_moments(origin, cov, combined_radius, velocities, time_horizon, re
     forms = forms.swapaxes(-1, -2)
     f_mean, f_variance = rvo_moments_from_forms(forms[..., :NUM_RVO_FORMS],
                                                 rvo_traces[:, None, :], combined_radius[:, None])
-    # The quadratic-form conditions (g, h1, h2) from their (mu'X mu, mu'XSX mu) pairs, with g's
+    # The quadratic-form conditions (g, h1, h2, h3) from their (mu'X mu, mu'XSX mu) pairs, with g's
     # pair skipped when it is not a condition.
     first = 0 if receding_gate else 2
     extra_forms = forms[..., NUM_RVO_FORMS + first:]
@@ -283,9 +315,9 @@ def condition_moments(origin, cov, combined_radius, velocities, time_horizon, re
     variances = np.empty(f_mean.shape + (conditions,))
     means[..., 0], variances[..., 0] = f_mean, f_variance
     np.add(extra_traces[..., 0::2], extra_forms[..., 0::2], out=means[..., 1:])
-    if np.isfinite(time_horizon).all():
-        # h2 = |r + tau u|^2 - R^2.
-        means[..., -1] -= combined_radius[:, None] ** 2
+    if finite:
+        # h2 = |r + tau u|^2 - R^2, h3 = (1 - eps) (|r|^2 - tau^2 |u|^2 / eps) - R^2.
+        means[..., -2:] -= combined_radius[:, None, None] ** 2
     np.multiply(extra_forms[..., 1::2], 4.0, out=variances[..., 1:])
     variances[..., 1:] += 2.0 * extra_traces[..., 1::2]
     return means, variances

@@ -608,8 +608,9 @@ def _certified_choice(search):
     Choose velocities that meet each neighbour's probability by a stated bound (section 13).
 
     The f and g conditions are searched with :func:`search_margin` of each neighbour's
-    required probability, the horizon pair (where the gate counts, so that its certificate
-    applies) with :func:`horizon_search_margin`, and the choice certified.
+    required probability, the horizon pair and the reach condition (where the gate counts, so
+    that the horizon certificate applies) with :func:`horizon_search_margin`, and the choice
+    certified.
     A robot whose choice falls short for some neighbours searches again with Cantelli's margins
     on those neighbours' links; after a second shortfall, with Cantelli's margins everywhere.
     A robot without a feasible velocity keeps its fallback: larger margins accept no more.
@@ -622,7 +623,8 @@ def _certified_choice(search):
     margins[:, :columns] = search_margin(required)[link_pair, None]
     if plans[0].layout.has_horizon:
         gated = np.concatenate([plan.layout.receding_enabled for plan in plans])[link_pair]
-        margins[gated, -2:] = horizon_search_margin(required)[link_pair[gated], None]
+        # The reach condition h3 implies the horizon certificate's event, which certifies it.
+        margins[gated, -3:] = horizon_search_margin(required)[link_pair[gated], None]
     choice = _choose(search, margins, required, np.ones(len(plans), dtype=bool))
     retry = (choice.candidates_feasible > 0) & _any_per_robot(search, choice.bounds < required)
     if retry.any():
