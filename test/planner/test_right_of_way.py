@@ -9,6 +9,7 @@ import pytest
 from prvo_planner.maps import OCCUPIED, GridMap
 from prvo_planner.narrows import find_passages
 from prvo_planner.right_of_way import (
+    AIM_BEYOND,
     FOLLOW_GAP,
     IDLE_INSIDE,
     IDLE_MOVE,
@@ -116,6 +117,20 @@ def test_robots_going_the_same_way_follow_one_another_in_a_gap_apart():
     # Behind one inside, too.
     close = PassageUse('a', 0, 0, 1, 0.2, np.array([3.0, 2.0]))
     assert not goes_first(close, [inside])
+
+
+def test_inside_a_robot_aims_beyond_its_way_out_until_it_is_out_past_the_entrance(door):
+    (passage,) = door.passages
+    way_out = passage.ends[1]
+    use = PassageUse('a', 0, None, 1, 1.0)
+    before = way_out.entrance - 0.2 * way_out.outward
+    assert door.passage_at([before])[0] == 0
+    aim = door.aim(use, before)
+    assert np.allclose(aim, way_out.entrance + way_out.outward * AIM_BEYOND)
+    # Out past the entrance, still among the passage's cells: its route leads it on.
+    beyond = way_out.entrance + 0.1 * way_out.outward
+    assert door.passage_at([beyond])[0] == 0
+    assert door.aim(use, beyond) is None
 
 
 def test_a_robot_held_behind_a_leader_stands_without_a_spot_or_a_wall(door):

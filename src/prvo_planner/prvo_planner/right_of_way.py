@@ -265,17 +265,22 @@ class PassageMap:
 
         Outside: the line out of its entrance's middle, `AIM_AHEAD` nearer the entrance than
         the robot (the entrance itself once nearer than that), so that it comes in centred;
-        inside: `AIM_BEYOND` beyond the middle of the way out. Through the middle the jambs are
-        farthest, and the walls' conditions leave the most room.
+        inside: `AIM_BEYOND` beyond the middle of the way out, until it is out past that
+        entrance (a passage's cells reach past its mouths): then its route leads it on, which
+        may turn at once (a door onto a corridor). Through the middle the jambs are farthest,
+        and the walls' conditions leave the most room.
         """
         ends = self.passages[use.passage].ends
         if not use.inside:
             end = ends[use.entry]
             out = float(np.dot(position - end.entrance, end.outward))
             return end.entrance + end.outward * max(0.0, out - AIM_AHEAD)
-        # Beyond the way out: a passage's cells reach past its mouths.
-        return None if use.exit is None else (ends[use.exit].entrance
-                                              + ends[use.exit].outward * AIM_BEYOND)
+        if use.exit is None:
+            return None
+        end = ends[use.exit]
+        if np.dot(position - end.entrance, end.outward) > 0.0:
+            return None
+        return end.entrance + end.outward * AIM_BEYOND
 
     def decision(self, me, others, position):
         """
