@@ -259,6 +259,19 @@ def test_doorway8_has_one_passage_its_door():
     _check_waiting_spots(grid, (passage,), radius)
 
 
+def test_every_passage_of_a_generated_office_joins_its_mouths():
+    # map_bench's seeded office, 30 m square: 83 passages; some mouths are not reached through
+    # the ridge's cells at the bottleneck's clearance (the search ended in an IndexError).
+    from prvo_planner.map_bench import CLEARANCE, office
+
+    passages = find_passages(office(30.0, RESOLUTION), CLEARANCE, 0.3)
+    assert len(passages) > 50
+    for passage in passages:
+        assert len(passage.centre_lines) == len(passage.ends) - 1
+        for line in passage.centre_lines:
+            assert len(line) >= 2 and np.all(np.isfinite(line))
+
+
 def test_office_has_a_passage_at_each_of_its_eight_doors():
     grid, radius = _shipped('office')
     passages = find_passages(grid, radius, MARGIN)

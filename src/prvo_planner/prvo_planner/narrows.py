@@ -366,7 +366,8 @@ def _centre_lines(grid, box, keeps, mouths, entrances):
 
     KEEPS and MOUTHS (h, w) bool, in the grid's slices BOX. Each way runs, in 8-connected
     steps of one or sqrt(2) cells, between the cells of KEEPS in its two mouths nearest their
-    ENTRANCES (2,) [m] (the first of equals in row-major order).
+    ENTRANCES (2,) [m] (the first of equals in row-major order). A mouth that KEEPS does not
+    reach is joined by the straight line between the two cells.
     """
     from scipy.sparse import coo_matrix
     from scipy.sparse.csgraph import dijkstra
@@ -393,6 +394,9 @@ def _centre_lines(grid, box, keeps, mouths, entrances):
     _, predecessors = dijkstra(graph, indices=starts[0], return_predecessors=True)
     lines = []
     for goal in starts[1:]:
+        if goal != starts[0] and predecessors[goal] < 0:
+            lines.append(centres.reshape(-1, 2)[[starts[0], goal]])
+            continue
         path = [goal]
         while path[-1] != starts[0]:
             path.append(int(predecessors[path[-1]]))
