@@ -22,8 +22,9 @@ def test_a_map_of_a_million_cells_is_built_within_the_runners_estimate_per_cell(
     """Issue 36 item 2: a planner's map costs a small constant per cell (it was 280 bytes)."""
     row = map_bench.build_memory(map_bench.office(50.0, 0.05))
     assert row['peak_bytes_per_cell'] <= MAP_BYTES_PER_CELL
-    # What a planner keeps: the grid's flags, the steps allowed, the margin's costs, a tree.
-    assert row['kept_bytes_per_cell'] <= 10.0
+    # What a planner keeps: the grid's flags, the steps allowed, the margin's costs, a tree, the
+    # passages' cells.
+    assert row['kept_bytes_per_cell'] <= 20.0
 
 
 def test_the_callback_table_times_a_node_that_takes_each_map(tmp_path, capsys, monkeypatch,

@@ -291,7 +291,7 @@ class AgentSettings:
     stall_turn_max: float = TURN_MAX
     keep_right: float = KEEP_RIGHT
     give_way: bool = True
-    right_of_way: bool = False
+    right_of_way: bool = True
 
     @classmethod
     def from_parameters(cls, values):

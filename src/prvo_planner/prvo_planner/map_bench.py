@@ -37,8 +37,9 @@ QUERY_DISTANCE = 3.0
 CLEARANCE = 0.3
 QUERIES = 200
 # The map key of the whole map's build (`agent.map_key_of`): unknown cells occupied, obstacles
-# within QUERY_DISTANCE, a robot of CLEARANCE with the default route margin, no right of way.
-BUILT_FOR = (True, QUERY_DISTANCE, CLEARANCE, 0.3, False)
+# within QUERY_DISTANCE, a robot of CLEARANCE with the default route margin, right of way (its
+# passages).
+BUILT_FOR = (True, QUERY_DISTANCE, CLEARANCE, 0.3, True)
 
 
 def office(size, resolution, seed=0):

@@ -298,7 +298,7 @@ _SPECS = (
                   'false = it stays at its goal.'),
     # Right of way (`prvo_planner.right_of_way`): at a passage too narrow for two, found on the
     # map, robots take turns by one rule from what all publish; off, they meet in it (ablation).
-    ParameterSpec('right_of_way', BOOL, False, 'With a map, robots take turns at passages too '
+    ParameterSpec('right_of_way', BOOL, True, 'With a map, robots take turns at passages too '
                   "narrow for two to pass (found on the map for the route's clearance and "
                   'margin): a robot inside, then the one with the shorter way to it (names '
                   'break ties) goes first, those going the same way follow, and a robot '

@@ -113,12 +113,12 @@ INPROCESS_ROBOT_MEMORY_MIB = 0.5
 BAG_ROBOT_STEP_KIB = 8.0
 BAG_NEIGHBOUR_STEP_KIB = 0.25
 # A planner's map while it is built, per cell of the world's grid [bytes]: the route's obstacle
-# distances, steps and tree and the obstacles' index. `python -m prvo_planner.map_bench --sizes
-# 50 100 200` (offices of 1, 4 and 16 M cells at 0.05 m): tracemalloc's peak over
-# `agent.build_map` 18.4, 18.3 and 18.2 B per cell (9.2 kept after; test_map_bench holds the
-# peak under this); a process building one grew its resident size (ru_maxrss) by 22.8, 21.1
-# and 16.5. Rounded up. Every planner builds its own, on either engine.
-MAP_BYTES_PER_CELL = 24
+# distances, steps and tree, the obstacles' index and the passages of right of way.
+# `python -m prvo_planner.map_bench` on a 50 m office of 0.05 m cells (1 M cells): tracemalloc's
+# peak over `agent.build_map` 38.5 B per cell, 16.6 kept after (without the passages 18.4 and
+# 9.2; test_map_bench holds the peak under this). Rounded up. Every planner builds its own, on
+# either engine.
+MAP_BYTES_PER_CELL = 40
 # Every topic the stack names after a robot: /<name>/<leaf>.
 _ROBOT_TOPIC_LEAVES = (ODOM, GROUND_TRUTH, CMD_VEL, GOAL_POSE, MARKERS, FOOTPRINT, AVOIDANCE_SHARE)
 # The longest name of the services rclpy gives the robot's planner node: /<name>/<service>.
