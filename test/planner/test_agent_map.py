@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 from prvo_planner import agent as agent_module
+from prvo_planner import narrows
 from prvo_planner.agent import (
     ROUTE_FOUND,
     ROUTE_NONE,
@@ -101,6 +102,19 @@ def stand(agent, position, steps, dt=0.1, t0=0.0):
                                       np.zeros(2), 1e-4 * np.eye(4)), 0.0)
         command = agent.plan()
     return command
+
+
+def test_a_map_whose_passages_are_beyond_their_bounds_is_planned_on_without_turns(
+        monkeypatch):
+    # The room's gap at x > 6 m is a passage; with the passages' work bounded below it, the map
+    # keeps its route and obstacles, without right of way, and says why.
+    key = agent_module.map_key_of(SETTINGS, 0.0)
+    assert key[-1] is True
+    assert agent_module.build_map(walled_room(), key).passage_map is not None
+    monkeypatch.setattr(narrows, 'MAX_LOCAL_CELLS', 10)
+    built = agent_module.build_map(walled_room(), key, [1.0, 5.0])
+    assert built.passage_map is None and built.route_tree is not None
+    assert built.passages_refused.endswith('(at most 10)')
 
 
 def test_a_goal_behind_a_wall_is_reached_by_the_way_around(planned_obstacles):

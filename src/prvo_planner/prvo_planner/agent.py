@@ -31,6 +31,7 @@ from prvo_planner.give_way import give_way_spot
 from prvo_planner.lanes import KEEP_RIGHT, keep_right
 from prvo_planner.maps import (
     GridMap,
+    MapTooLargeError,
     ObstacleIndex,
     check_route_work,
     grid_obstacles,
@@ -339,11 +340,12 @@ class BuiltMap:
 
     `built_for` is the `PlannerAgent.map_key` it was made for; `obstacle_index` holds the grid's
     obstacles (`maps.ObstacleIndex`), `route_map` its route graph (`route.RouteMap`),
-    `passage_map` its passages (`right_of_way.PassageMap`, None without `right_of_way`) and
-    `route_tree` the shortest paths on it to `goal` (None without a goal). `build_map` makes it
-    from the grid and the key alone, in any thread: a node builds a large map beside its
-    planning and swaps the result in whole (`PlannerAgent.install_map`), so that no plan ever
-    sees a map half made.
+    `passage_map` its passages (`right_of_way.PassageMap`, None without `right_of_way`, or
+    where finding them would take more than `narrows.find_passages` allows: `passages_refused`
+    says why) and `route_tree` the shortest paths on it to `goal` (None without a goal).
+    `build_map` makes it from the grid and the key alone, in any thread: a node builds a large
+    map beside its planning and swaps the result in whole (`PlannerAgent.install_map`), so that
+    no plan ever sees a map half made.
     """
 
     grid: GridMap
@@ -353,6 +355,7 @@ class BuiltMap:
     passage_map: PassageMap
     goal: np.ndarray = None
     route_tree: object = None
+    passages_refused: str = None
 
 
 def same_grid(grid, other):
@@ -389,13 +392,19 @@ def build_map(grid, built_for, goal=None):
                          grid.origin, clearance, route_margin)
     # With the right of way, the passages for robots of the route's clearance, each keeping the
     # route's margin beside its lane: the same for a team built alike (`prvo_planner.narrows`).
-    passage_map = None if not passages else PassageMap(
-        grid, find_passages(grid, clearance, route_margin, unknown_is_occupied), clearance)
+    # A map whose passages are beyond their bounds is still planned on, without turns.
+    passage_map, refused = None, None
+    if passages:
+        try:
+            passage_map = PassageMap(grid, find_passages(grid, clearance, route_margin,
+                                                         unknown_is_occupied), clearance)
+        except MapTooLargeError as error:
+            refused = str(error)
     return BuiltMap(grid, built_for, ObstacleIndex(grid_obstacles(grid, unknown_is_occupied),
                                                    obstacle_distance),
                     route_map, passage_map,
                     None if goal is None else np.array(goal, dtype=float),
-                    None if goal is None else route_map.tree_to(goal))
+                    None if goal is None else route_map.tree_to(goal), refused)
 
 
 @dataclasses.dataclass(frozen=True)

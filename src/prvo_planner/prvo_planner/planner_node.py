@@ -636,6 +636,10 @@ class PlannerNode(Node):
             self._build_map(built.grid)
             return False
         agent.install_map(built)
+        if built.passages_refused is not None:
+            self._warnings.warn((self._map_topic, 'passages'), f'no right of way on the map on '
+                                f'{self._map_topic} (planning without turns at its passages): '
+                                f'{built.passages_refused}')
         height, width = built.grid.shape
         self.get_logger().info(
             f'map {width} x {height} cells of {built.grid.resolution:g} m from '
