@@ -109,18 +109,13 @@ def way_width(obstacles, point, direction, length):
         leave = np.clip(np.maximum(first, second), 0.0, 1.0)
         level = span == 0.0
         overlaps = np.where(level, (start >= low) & (start <= high), enter < leave)
+        # (A segment across the way, level, is taken whole: enter 0, leave 1.)
         across_enter = across[:, 0] + enter * (across[:, 1] - across[:, 0])
         across_leave = across[:, 0] + leave * (across[:, 1] - across[:, 0])
-        across_enter = np.where(level, across[:, 0], across_enter)
-        across_leave = np.where(level, across[:, 1], across_leave)
         nearest = np.minimum(np.abs(across_enter), np.abs(across_leave)) - grown
-        crosses = (across_enter * across_leave <= 0.0) | (nearest <= 0.0)
-        if np.any(overlaps & crosses):
+        if np.any(overlaps & ((across_enter * across_leave <= 0.0) | (nearest <= 0.0))):
             return 0.0
-        for index, sign in enumerate((1.0, -1.0)):
-            on_side = overlaps & (sign * across_enter > 0.0)
-            if np.any(on_side):
-                sides[index] = min(sides[index], float(np.min(nearest[on_side])))
+        _narrow_sides(sides, overlaps, across_enter, nearest)
     if len(obstacles.disc_centres):
         relative = obstacles.disc_centres - point
         along, across = relative @ unit, relative @ left
@@ -131,11 +126,19 @@ def way_width(obstacles, point, direction, length):
         nearest = np.abs(across) - np.sqrt(np.maximum(radii ** 2 - beyond ** 2, 0.0))
         if np.any(overlaps & (nearest <= 0.0)):
             return 0.0
-        for index, sign in enumerate((1.0, -1.0)):
-            on_side = overlaps & (sign * across > 0.0)
-            if np.any(on_side):
-                sides[index] = min(sides[index], float(np.min(nearest[on_side])))
+        _narrow_sides(sides, overlaps, across, nearest)
     return float(sides[0] + sides[1])
+
+
+def _narrow_sides(sides, overlaps, across, nearest):
+    """Lower SIDES [left, right] [m] to the NEAREST (K,) of the OVERLAPS (K,) on each side.
+
+    ACROSS (K,) [m]: each obstacle's offset to the left of the way (negative: to the right).
+    """
+    for index, sign in enumerate((1.0, -1.0)):
+        on_side = overlaps & (sign * across > 0.0)
+        if np.any(on_side):
+            sides[index] = min(sides[index], float(np.min(nearest[on_side])))
 
 
 def narrow_passage(obstacles, ego, config, direction):
