@@ -14,6 +14,7 @@ from prvo_planner.agent import (
 )
 from prvo_planner.core import AgentBelief, PlannerConfig, plan_velocity
 from prvo_planner.estimation import ConstantVelocityTracker
+from prvo_planner.preferred import PATH
 from prvo_planner.tracks import MAX_STAMP_JUMP_SECONDS, TrackTable
 
 GOAL = np.array([4.0, 0.5])
@@ -143,6 +144,28 @@ def test_the_robot_announces_its_radius_and_a_share_only_on_its_way():
     agent.receive_own(standing(0.0, GOAL + [0.1, 0.0]), 0.0)
     agent.plan()
     assert agent.arrived and agent.own_announcement == NeighbourAnnouncement(0.3, 0.0)
+
+
+def test_a_robot_waiting_for_its_path_announces_from_the_start_the_share_it_takes():
+    # Its first plan is made on its path: a neighbour's first plan counts on its share whether
+    # the announcement it heard was sent before or after the path came (a ROS run's first
+    # commands otherwise depended on the order, issue 35).
+    settings = dataclasses.replace(SETTINGS, preferred_source=PATH, wait_for_path=True)
+    agent = PlannerAgent('self', CONFIG, settings)
+    before = agent.own_announcement
+    agent.set_path(np.array([[0.0, 0.0], GOAL]))
+    assert before == agent.own_announcement == NeighbourAnnouncement(0.3, 0.5)
+    assert agent.own_announcement_stamp == 0.0
+    # Its wait ran out without a path: it planned standing, and says so from the next plan on.
+    waited = PlannerAgent('self', CONFIG, settings)
+    waited.receive_own(standing(0.0, [0.0, 0.0]), 0.0)
+    assert waited.awaiting_listed(1.0) and waited.ready(2.5)
+    waited.plan()
+    assert waited.own_announcement == NeighbourAnnouncement(0.3, 0.0)
+    assert waited.own_announcement_stamp > 0.0
+    # Without the wait it plans at once, path or none: no share until it has a path.
+    at_once = PlannerAgent('self', CONFIG, dataclasses.replace(SETTINGS, preferred_source=PATH))
+    assert at_once.own_announcement == NeighbourAnnouncement(0.3, 0.0)
 
 
 @pytest.mark.parametrize('far_stamp', [2.0 ** 31 - 1.0, 1.7e9, 1.0 + MAX_STAMP_JUMP_SECONDS + 0.1])

@@ -712,7 +712,10 @@ class PlannerAgent:
         On its way, the reciprocal share. Without a goal it does not plan, and at its goal it
         stands until someone comes: its neighbours must not count on it mirroring their moves,
         as a reciprocal planner does (a robot heading away from a standing one would otherwise
-        see the standing one's half coming after it), so it announces none.
+        see the standing one's half coming after it), so it announces none. A robot that waits
+        for its path before its first plan (`wait_for_path`) plans its first step on it: it
+        announces the share it will take from the start, so that what its neighbours' first
+        plans count on does not depend on whether its path or their plans came first.
         """
         moving = self._moving()
         # A unicycle's path strays up to its tracking error from its plan: its neighbours must
@@ -940,8 +943,12 @@ class PlannerAgent:
 
     def _moving(self):
         """Whether the robot is on its way (it then takes its share of the avoidance)."""
-        if self.settings.preferred_source == VELOCITY:
+        source = self.settings.preferred_source
+        if source == VELOCITY:
             return self._upstream_answered is not None and not self._upstream_answered.is_zero
+        if (source == PATH and self.settings.wait_for_path and self._path is None
+                and self._command_stamp is None):
+            return True
         return self.goal is not None and not self.arrived
 
     def _preference(self, own):
