@@ -11,8 +11,9 @@ of `grid_shape(N)` rows (along y, SPACING_Y apart, centred on y = 0) and columns
 SPACING_X apart, the nearest NEAREST_X from the wall); each robot's goal is its start mirrored
 through the door's centre, so every straight line from a start to its goal runs through that
 centre and each robot has to cross. The rooms' inner faces are ROOM_MARGIN_X beyond the
-farthest column and ROOM_MARGIN_Y beyond the outer rows; the run lasts DURATION_BASE +
-DURATION_PER_PAIR N seconds (90 s for four each way, `doorway8`'s). Four each way is
+farthest column and ROOM_MARGIN_Y beyond the outer rows. A run lasts at most DURATION_BASE +
+DURATION_PER_PAIR N (30 s and 15 s a robot each way: 90 s for four each way, `doorway8`'s
+duration), and ends sooner once every robot has been at its goal for 1 s. Four each way is
 `doorway8`'s world and robots, at the planner's defaults instead of its `eta` 0.8 (Cantelli's).
 Noise 0.05 on position, velocity and actuation, dt 0.1 s, goal tolerance 0.2 m, seeds from
 FIRST_SEED. Each world is written as a scenario file in a temporary directory and read through
@@ -73,8 +74,9 @@ from prvo_sim.bench.walls import (
 from prvo_sim.scenario import load_scenario
 
 DEFAULT_COUNTS = (1, 2, 4, 8, 12)
-# Robots each way at most: 48 robots for up to DURATION_BASE + 24 DURATION_PER_PAIR = 390 s of
-# sim time a seed, already hours of wall time on one core.
+# Robots each way at most: 48 robots for up to 390 s of sim time a seed. Twelve each way (210 s)
+# took 10-13 minutes a seed on a shared core; the planning grows with the neighbours, so 24 each
+# way would take over an hour a seed (not measured).
 MAX_COUNT = 24
 DOOR_WIDTH = 1.2
 WALL_THICKNESS = 0.1
