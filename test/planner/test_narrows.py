@@ -9,7 +9,7 @@ import pytest
 
 from prvo_planner import narrows
 from prvo_planner.maps import OCCUPIED, GridMap, MapTooLargeError, occupied_cells
-from prvo_planner.narrows import QUEUE, QUEUE_APART, find_passages, passing_width
+from prvo_planner.narrows import find_passages, passing_width
 from prvo_sim.narrows_figure import main as figure_main
 from prvo_sim.scenario import find_scenario, load_scenario
 
@@ -54,39 +54,25 @@ def _square_distances(grid, point):
 
 
 def _check_waiting_spots(grid, passages, radius=RADIUS, margin=MARGIN):
-    """Each spot: free, clear of every occupied cell, outside every passage, off its axis.
-
-    Spots of different ends a lane apart, those of one end's queue QUEUE_APART lanes.
-    """
-    lane = 2.0 * radius + margin
-    spots = np.array([spot for passage in passages for end in passage.ends
-                      for spot in end.waiting_spots]).reshape(-1, 2)
-    owners = np.array([index for index, end in enumerate(
-        end for passage in passages for end in passage.ends) for _ in end.waiting_spots])
+    """Each spot: free, clear of every occupied cell, outside every passage, off its axis."""
+    spots = np.array([end.waiting_spot for passage in passages
+                      for end in passage.ends]).reshape(-1, 2)
     gaps = np.linalg.norm(spots[:, None] - spots[None], axis=-1)
-    same = owners[:, None] == owners[None]
-    assert np.all(gaps[~np.eye(len(spots), dtype=bool)] >= lane - 1e-9)
-    assert np.all(gaps[same & ~np.eye(len(spots), dtype=bool)] >= QUEUE_APART * lane - 1e-9)
+    assert np.all(gaps[~np.eye(len(spots), dtype=bool)] >= 2.0 * radius + margin - 1e-9)
     for passage in passages:
         for end in passage.ends:
-            assert 1 <= len(end.waiting_spots) <= QUEUE
-            assert end.waiting_spot is end.waiting_spots[0]
-            for spot in end.waiting_spots:
-                _check_spot(grid, passages, end, spot, radius, margin)
-
-
-def _check_spot(grid, passages, end, spot, radius, margin):
-    """SPOT of END: clear, ahead of the entrance, off the way out, a lane from every passage."""
-    # Clear by the radius and the margin, to the rounding of a distance transform (a cell
-    # centre's distance to a diagonal square is at most 0.21 cells less).
-    assert _square_distances(grid, spot).min() >= radius + margin - 0.25 * RESOLUTION
-    offset = spot - end.entrance
-    assert offset @ end.outward >= 0.0
-    assert abs(offset @ np.array([-end.outward[1], end.outward[0]])) >= (
-        2.0 * radius + margin - 1e-9)
-    for other in passages:
-        centres = grid.origin + RESOLUTION * (other.cells[:, ::-1] + 0.5)
-        assert np.hypot(*(centres - spot).T).min() >= 2.0 * radius + margin - 1e-9
+            spot = end.waiting_spot
+            assert spot is not None
+            # Clear by the radius and the margin, to the rounding of a distance transform
+            # (a cell centre's distance to a diagonal square is at most 0.21 cells less).
+            assert _square_distances(grid, spot).min() >= radius + margin - 0.25 * RESOLUTION
+            offset = spot - end.entrance
+            assert offset @ end.outward >= 0.0
+            assert abs(offset @ np.array([-end.outward[1], end.outward[0]])) >= (
+                2.0 * radius + margin - 1e-9)
+            for other in passages:
+                centres = grid.origin + RESOLUTION * (other.cells[:, ::-1] + 0.5)
+                assert np.hypot(*(centres - spot).T).min() >= 2.0 * radius + margin - 1e-9
 
 
 @pytest.mark.parametrize('door_cells', [11, 16, 20, 25])

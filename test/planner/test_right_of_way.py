@@ -183,36 +183,6 @@ def test_a_robot_without_the_right_of_way_waits_beside_its_entrance_behind_a_wal
     np.testing.assert_array_equal(obstacles.segments[-1], wall)
 
 
-def test_robots_waiting_at_one_end_stand_at_spots_of_their_own_and_keep_them(door):
-    # Three come in by the east end while one comes out of it: the first in the order takes
-    # the first spot, the next ones the next, and one standing at a spot keeps it however the
-    # order goes; one more than the spots holds its place.
-    (passage,) = door.passages
-    spots = passage.ends[1].waiting_spots
-    assert len(spots) >= 3
-    inside = PassageUse('z', 0, None, 1, 0.5, np.array([3.0, 2.0]))
-    coming = [PassageUse(name, 0, 1, 0, distance, np.array([5.5, y]))
-              for name, distance, y in (('a', 1.0, 1.0), ('b', 1.5, 2.0), ('c', 2.0, 3.0))]
-
-    def spot_of(me, uses):
-        decision = door.decision(me, [inside] + [use for use in uses if use is not me],
-                                 me.position)
-        assert not decision.goes
-        return decision.waiting_spot
-
-    for place, me in enumerate(coming):
-        np.testing.assert_array_equal(spot_of(me, coming), spots[place])
-    # 'c' reached the first spot before the others: it keeps it, the others take the next.
-    at_first = dataclasses.replace(coming[2], distance=1.4, position=spots[0] + 0.1)
-    uses = [coming[0], coming[1], at_first]
-    np.testing.assert_array_equal(spot_of(at_first, uses), spots[0])
-    np.testing.assert_array_equal(spot_of(coming[0], uses), spots[1])
-    np.testing.assert_array_equal(spot_of(coming[1], uses), spots[2])
-    crowd = [PassageUse(f'q{index}', 0, 1, 0, 1.0 + 0.5 * index, np.array([5.5, 2.0]))
-             for index in range(len(spots) + 1)]
-    assert spot_of(crowd[-1], crowd) is None
-
-
 def test_a_robot_at_the_mouth_gets_no_wall_it_would_start_inside(door):
     (passage,) = door.passages
     end = passage.ends[1]

@@ -30,10 +30,7 @@ margin to any robot inside) and from the spots chosen before it (passages in the
 their cells, row by row); that lies ahead of the entrance (on the open side), at least 2 r + m
 off the line out of the passage at that end (a robot coming out along it passes with its
 margin), and can be reached from the end without entering a passage; searched within
-``WAIT_REACH`` passing widths of the entrance, None where no cell qualifies. Behind it a queue:
-up to ``QUEUE - 1`` more spots by the same rule, each the nearest to the entrance that keeps
-``QUEUE_APART`` lanes (2 r + m each) from the end's spots chosen before it, so that the robots
-waiting at one end stand apart instead of crowding the first spot and the way out.
+``WAIT_REACH`` passing widths of the entrance, None where no cell qualifies.
 
 Widths come from a Euclidean distance transform of the grid (scipy.ndimage), from cell centres
 to occupied cells' edges; they are exact to within a cell (never more than the grid leaves).
@@ -49,12 +46,6 @@ from prvo_planner.maps import MAX_PADDED_CELLS, MapTooLargeError, occupied_cells
 
 # Waiting spots are searched for within this many passing widths of an entrance.
 WAIT_REACH = 2.0
-# Waiting spots at most per end (`PassageEnd.waiting_spots`): the first and its queue.
-QUEUE = 6
-# The spots of one end's queue keep this many lanes (2 r + m) apart: two robots standing a lane
-# apart, each with its noise, cannot both certify standing still, and jostle each other and
-# whoever passes them (doorway8 with noise).
-QUEUE_APART = 1.5
 # Bounds on the work of `find_passages`, in the style of `maps.check_route_work`. The distance
 # transforms and labellings visit every cell a few times and hold about 22 bytes a cell at
 # their peak (a 2000 x 2000 map of open space: 0.5 s of one core, 90 MB), on at most
@@ -82,21 +73,15 @@ class PassageEnd:
         Shape (2,): the middle of the passage's cells that touch this open space [m].
     outward : numpy.ndarray
         Shape (2,): unit vector from the entrance into the open space.
-    waiting_spots : tuple of numpy.ndarray
-        Shape (2,) each: where robots wait to enter [m], the first nearest the entrance (see
-        the module's rule); at most `QUEUE` of them, none where no cell near the entrance
-        qualifies.
+    waiting_spot : numpy.ndarray or None
+        Shape (2,): where a robot waits to enter [m] (see the module's rule), None where no
+        cell near the entrance qualifies.
 
     """
 
     entrance: np.ndarray
     outward: np.ndarray
-    waiting_spots: tuple
-
-    @property
-    def waiting_spot(self):
-        """The first of `waiting_spots` (2,) [m], None if there is none."""
-        return self.waiting_spots[0] if self.waiting_spots else None
+    waiting_spot: np.ndarray | None
 
 
 @dataclass(frozen=True)
@@ -319,10 +304,11 @@ def _passage(grid, clearance, fits, open_space, in_passages, mask, box, cells, r
                 for tail, index, entrance in zip(tails, order, entrances, strict=True)]
     ends = []
     for entrance, outward in zip(entrances, outwards, strict=True):
-        spots = _waiting_spots(grid, clearance, fits, in_passages, entrance, outward, radius,
-                               margin, window, taken)
-        ends.append(PassageEnd(entrance, outward, spots))
-        taken.extend(spots)
+        spot = _waiting_spot(grid, clearance, fits, in_passages, entrance, outward, radius,
+                             margin, window, taken)
+        ends.append(PassageEnd(entrance, outward, spot))
+        if spot is not None:
+            taken.append(spot)
     return Passage(
         ends=tuple(ends),
         width=2.0 * float(bottleneck), centre_lines=tuple(lines),
@@ -418,10 +404,10 @@ def _centre_lines(grid, box, keeps, mouths, entrances):
     return lines
 
 
-def _waiting_spots(grid, clearance, fits, in_passages, entrance, outward, radius, margin,
-                   window, taken):
+def _waiting_spot(grid, clearance, fits, in_passages, entrance, outward, radius, margin,
+                  window, taken):
     """
-    Return the waiting spots (a tuple of (2,) [m]) of the end at ENTRANCE facing OUTWARD.
+    Return the waiting spot (2,) [m] of the end at ENTRANCE facing OUTWARD, or None.
 
     The module's rule, searched in the square of WINDOW cells on every side of the entrance's
     cell: through cells the robot FITS in outside IN_PASSAGES (height, width) bool, reached
@@ -447,25 +433,13 @@ def _waiting_spots(grid, clearance, fits, in_passages, entrance, outward, radius
     apart = 2.0 * radius + margin
     good = (reached & (clearance[box][rows, columns] >= radius + margin) & (along >= 0.0)
             & (away >= apart) & (np.abs(across) >= apart))
-    # A passage's cells beyond the window are not seen: a spot keeps `apart` inside its edges
-    # (but for the map's, beyond which there is nothing).
-    seen = int(math.ceil(apart / resolution))
-    for index, part, size in ((rows, box[0], fits.shape[0]), (columns, box[1], fits.shape[1])):
-        if part.start > 0:
-            good &= index >= seen
-        if part.stop < size:
-            good &= index < part.stop - part.start - seen
     # Only the spots within reach of the window: their number, not all of them, costs.
     others = np.reshape(taken, (-1, 2)) - entrance
     others = others[np.max(np.abs(others), axis=1) <= (window + 1) * resolution + apart]
     for other in others:
         good &= np.linalg.norm(offsets - other, axis=1) >= apart
-    candidates = offsets[good][np.lexsort((columns[good], rows[good], across[good] > 0.0,
-                                           np.round(np.hypot(*offsets[good].T) / resolution,
-                                                    9)))]
-    spots = []
-    while len(candidates) and len(spots) < QUEUE:
-        spots.append(entrance + candidates[0])
-        candidates = candidates[np.linalg.norm(candidates - candidates[0], axis=1)
-                                >= QUEUE_APART * apart]
-    return tuple(spots)
+    if not good.any():
+        return None
+    distances = np.round(np.hypot(*offsets[good].T) / resolution, 9)
+    best = np.lexsort((columns[good], rows[good], across[good] > 0.0, distances))[0]
+    return entrance + offsets[good][best]

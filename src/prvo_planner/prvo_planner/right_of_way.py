@@ -25,15 +25,11 @@ within `TIE` of each other are a tie, which the robots' names decide (the smalle
 on the distances, a few centimetres, flips a decision only near the edge of the tie, where the
 robot that decides wrongly waits a step or, both going, the rule inside sorts them out.
 
-**Waiting.** A robot without the right of way heads for a waiting spot of the end it comes in
-by (`narrows.PassageEnd.waiting_spots`, beside the entrance, off the way out), or holds its
-place where that end has none left, and sees a *virtual wall* across its entrance: a static
+**Waiting.** A robot without the right of way heads for the waiting spot of the end it comes in
+by (`narrows.PassageEnd.waiting_spot`, beside the entrance, off the way out), or holds its
+place where that end has none, and sees a *virtual wall* across its entrance: a static
 obstacle, certified as every wall is, so that it cannot be pushed into the door by whoever
-comes out. (Backing out of a passage, it sees none: it is on the wall's other side.) The
-spots make a queue, so that the robots waiting at one end stand apart and clear of the way out
-instead of crowding the entrance: a robot standing within `AT_SPOT` of one keeps it (robots
-trading places would move about those passing), and the others waiting at that end take the
-free ones in the order above, the first of them the first free spot.
+comes out. (Backing out of a passage, it sees none: it is on the wall's other side.)
 
 Only the preferred velocity and the static obstacles change: the chance constraints, and so the
 guarantee, are those of every plan.
@@ -68,9 +64,6 @@ FOLLOW_GAP = 1.2
 # nothing (`IdleWatch`): the stall monitor's 10 s without 0.5 m.
 IDLE_INSIDE = 10.0
 IDLE_MOVE = 0.5
-# A robot this near [m] a waiting spot stands at it: the others leave it the spot. Well above
-# the shipped noise, below half the spots' distance apart.
-AT_SPOT = 0.3
 
 
 @dataclass(frozen=True)
@@ -308,7 +301,7 @@ class PassageMap:
                                                                - position)))]
             return Decision(me, False, end.waiting_spot)
         end = ends[me.entry]
-        return Decision(me, False, _queue_spot(me, others, end.waiting_spots),
+        return Decision(me, False, end.waiting_spot,
                         self._wall(self.passages[me.passage], end, position))
 
     def _wall(self, passage, end, position):
@@ -355,31 +348,6 @@ class IdleWatch:
                 kept.append(use)
         self._stays = stays
         return kept
-
-
-def _queue_spot(me, others, spots):
-    """
-    Return the spot of SPOTS ((2,) each, [m]) where the outside use ME waits, None: none left.
-
-    The spot it stands at (`AT_SPOT`) if no one waiting there stands nearer; else, of the spots
-    no one waiting at its entrance stands at, the one its place in the order gives it among
-    those who wait there and stand at none.
-    """
-    if me.position is None:
-        return spots[0] if spots else None
-    queue = [me] + [other for other in others
-                    if not other.inside and other.entry == me.entry and other.position is not None
-                    and not _unopposed(other, [use for use in others if use is not other]
-                                       + [me])]
-    held = []
-    for spot in spots:
-        distance, name = min((math.hypot(*(use.position - spot)), use.name) for use in queue)
-        held.append(name if distance <= AT_SPOT else None)
-    if me.name in held:
-        return spots[held.index(me.name)]
-    free = [spot for spot, name in zip(spots, held, strict=True) if name is None]
-    place = sum(1 for other in queue[1:] if other.name not in held and ahead(other, me))
-    return free[place] if place < len(free) else None
 
 
 def with_wall(obstacles, wall):

@@ -46,11 +46,10 @@ def draw_passages(axes, grid, passages, radius):
             axes.plot(*end.entrance, 'o', color=_PASSAGE_COLOUR, markersize=4)
             axes.annotate('', xy=end.entrance + 0.5 * end.outward, xytext=end.entrance,
                           arrowprops={'arrowstyle': '->', 'color': _PASSAGE_COLOUR})
-            # The first spot drawn bold, its queue fainter.
-            for place, spot in enumerate(end.waiting_spots):
-                axes.add_patch(Circle(spot, radius, fill=False, color=_SPOT_COLOUR,
-                                      linewidth=1.2 if place == 0 else 0.6))
-                axes.plot(*spot, '.', color=_SPOT_COLOUR)
+            if end.waiting_spot is not None:
+                axes.add_patch(Circle(end.waiting_spot, radius, fill=False, color=_SPOT_COLOUR,
+                                      linewidth=1.2))
+                axes.plot(*end.waiting_spot, '.', color=_SPOT_COLOUR)
         middle = passage.centre_lines[0][len(passage.centre_lines[0]) // 2]
         axes.annotate(f'{passage.width:.2f} m', middle, xytext=(6, 6),
                       textcoords='offset points', fontsize=7, color='black')
