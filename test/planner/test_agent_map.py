@@ -6,6 +6,7 @@ import inspect
 import numpy as np
 import pytest
 
+from prvo_msgs_util import diagnostic_values
 from prvo_planner import agent as agent_module
 from prvo_planner import narrows
 from prvo_planner.agent import (
@@ -19,6 +20,7 @@ from prvo_planner.agent import (
 from prvo_planner.core import PlannerConfig, plan_velocity
 from prvo_planner.maps import GridMap, occupied_at, way_out
 from prvo_planner.reports import plan_status
+from prvo_planner.right_of_way import IDLE_INSIDE
 from prvo_planner.route import path_length
 
 SETTINGS = AgentSettings(radius=0.3, goal_tolerance=0.15, obstacle_distance=1.5,
@@ -339,3 +341,36 @@ def test_a_filter_inside_an_obstacle_passes_its_controller_s_command_on():
     command = agent.plan()
     assert command.inside_obstacle is not None and command.passed_through
     np.testing.assert_array_equal(command.velocity, [0.0, 0.4])
+
+
+def door_room():
+    """Two rooms 6 x 4 m, a wall 0.1 m thick at x = 3 with a 1.2 m door about y = 2."""
+    cells = np.zeros((80, 120), dtype=np.int8)
+    cells[[0, -1], :] = 100
+    cells[:, [0, -1]] = 100
+    cells[:, 59:61] = 100
+    cells[28:52, 59:61] = 0
+    return GridMap(cells, 0.05, [0.0, 0.0])
+
+
+def test_a_neighbour_standing_in_the_door_is_named_once_it_claims_nothing():
+    # 'broken' stands in the door on its way west: the robot bound east waits for it until
+    # it has stood there IDLE_INSIDE, then goes, its status naming the neighbour.
+    agent = PlannerAgent('self', CONFIG, dataclasses.replace(SETTINGS, radius=0.25),
+                         np.array([5.0, 2.0]))
+    agent.set_map(door_room())
+    agent.receive_route('broken', np.array([[3.0, 2.0], [1.0, 2.0]]), 0.0)
+    idle, goes = [], []
+    for step in range(int(IDLE_INSIDE / 0.1) + 5):
+        stamp = round(0.1 * step, 9)
+        agent.receive_neighbour('broken', Measurement(stamp, np.array([3.0, 2.0]), np.zeros(2),
+                                                      1e-4 * np.eye(4)), 0.0)
+        command = stand(agent, [1.0, 2.0], 1, t0=stamp)
+        idle.append(command.idle_in_passage)
+        goes.append(command.right_of_way.goes)
+    settled = int(IDLE_INSIDE / 0.1) + 1
+    assert set(idle[:settled]) == {()} and set(idle[settled:]) == {('broken',)}
+    assert not any(goes[:settled]) and all(goes[settled:])
+    status = plan_status('self', command, 1.0, 'prvo', 0.25)
+    assert diagnostic_values(status)['idle_in_passage'] == 'broken'
+    assert 'neighbour broken stood in a passage' in status.message

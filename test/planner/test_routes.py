@@ -16,8 +16,11 @@ from prvo_planner.agent import (
     PlannerAgent,
 )
 from prvo_planner.routes import (
+    FLIP_CHANGES,
+    FLIP_WINDOW,
     MAX_ROUTE_POINTS,
     NeighbourRoute,
+    RouteFlips,
     RouteIntent,
     checked_route,
     route_stamp,
@@ -42,6 +45,41 @@ def test_a_route_is_bounded_and_finite_and_shared_read_only():
             (np.zeros((MAX_ROUTE_POINTS + 1, 2)), f'more than {MAX_ROUTE_POINTS}')):
         with pytest.raises(ValueError, match=fault):
             checked_route(points)
+
+
+def test_a_route_that_flips_every_step_is_refused_until_it_changes_less_often():
+    flips = RouteFlips()
+    ways = (ROUTE_A, ROUTE_B)
+    for step in range(FLIP_CHANGES):
+        flips.check('x', ways[step % 2], 0.1 * step)
+    with pytest.raises(ValueError, match=f'changed {FLIP_CHANGES + 1} times within '
+                       f'{FLIP_WINDOW:g} s.*flips, and claims nothing'):
+        flips.check('x', ways[FLIP_CHANGES % 2], 0.1 * FLIP_CHANGES)
+    # Another neighbour is counted apart; the same route sent again is no change.
+    flips.check('y', ROUTE_A, 1.0)
+    with pytest.raises(ValueError):
+        flips.check('x', ways[FLIP_CHANGES % 2], 1.2)
+    # Its changes out of the window: a route is a claim again.
+    flips.check('x', ROUTE_B, 1.0 + FLIP_WINDOW + 0.1)
+    # A planner re-planning once a second (Nav2's planner_server), or sending one route every
+    # step, never flips.
+    steady = RouteFlips()
+    for step in range(200):
+        steady.check('nav2', ROUTE_A + 0.01 * (step // 10), 0.1 * step)
+        steady.check('same', ROUTE_A, 0.1 * step)
+    # A neighbour dropped and heard anew starts afresh.
+    flips.forget('x')
+    flips.check('x', ROUTE_A, 1.0 + FLIP_WINDOW + 0.2)
+
+
+def test_a_neighbour_whose_route_flips_claims_nothing():
+    agent = PlannerAgent('self', CONFIG, SETTINGS, GOAL)
+    for step in range(FLIP_CHANGES):
+        agent.receive_route('a', (ROUTE_A, ROUTE_B)[step % 2], 0.1 * step)
+    assert agent.route_of('a', 1.05) is not None
+    with pytest.raises(ValueError, match='flips'):
+        agent.receive_route('a', ROUTE_A, 0.1 * FLIP_CHANGES)
+    assert agent.route_of('a', 1.05) is None
 
 
 def test_a_plan_of_stamp_zero_stamps_its_route_after_the_start():

@@ -58,6 +58,7 @@ from prvo_planner.routes import (
     ROUTE_NONE,
     ROUTE_UNREACHABLE,
     NeighbourRoute,
+    RouteFlips,
     checked_route,
 )
 from prvo_planner.stalls import StallMonitor, binding_conditions
@@ -455,9 +456,10 @@ class Command:
     `neighbour_names`, is each neighbour's `routes.NeighbourRoute` for `stamp`
     (`PlannerAgent.route_of`: the newest it published with a stamp before `stamp`), None where
     it has none. `right_of_way` is the robot's `right_of_way.Decision` at the passage on its
-    route (None: none, or `right_of_way` off). `awaiting_map` marks a zero command held for a
-    map still being built
-    (`PlannerAgent.awaiting_map`).
+    route (None: none, or `right_of_way` off), `idle_in_passage` the sorted names of the
+    neighbours in that passage that stood in it too long and claim nothing
+    (`right_of_way.IdleWatch`). `awaiting_map` marks a zero command held for a map still being
+    built (`PlannerAgent.awaiting_map`).
     """
 
     stamp: float
@@ -484,6 +486,7 @@ class Command:
     neighbour_routes: tuple = ()
     awaiting_map: bool = False
     right_of_way: object = None
+    idle_in_passage: tuple = ()
 
     def announcement_values(self):
         """Return {'neighbour.<robot>.radius': m, 'neighbour.<robot>.avoidance_share': a}."""
@@ -592,6 +595,8 @@ class PlannerAgent:
         self._announced_share = {}
         # The routes each neighbour published on <robot>/plan, likewise (`receive_route`).
         self._announced_route = {}
+        # How often each neighbour's route changes (`routes.RouteFlips`).
+        self._route_flips = RouteFlips()
         self._pending_stamp = None
         self._own_yaw = 0.0
         # The last planned velocity in the world frame, for the inertia term; None after a stop.
@@ -613,8 +618,10 @@ class PlannerAgent:
         # The spot beside a neighbour's route the robot gives way at (`give_way`), None: none.
         self._give_way = None
         # The right of way at the passage on its route (`right_of_way.Decision`), None: none;
-        # the neighbours standing in a passage (`right_of_way.IdleWatch`).
+        # the neighbours standing in a passage (`right_of_way.IdleWatch`), and those of them
+        # that stood too long and claim nothing (sorted names).
         self.passage_decision = None
+        self.idle_in_passage = ()
         self._idle_watch = IdleWatch()
         # The path followed (path mode); the upstream command waiting for its answer, when it
         # came and the last one answered (velocity mode); when the own state was last received.
@@ -790,6 +797,7 @@ class PlannerAgent:
         dropped = self._neighbour_tracks.forget(now, wanted)
         for robot, _ in dropped:
             self.forget_route(robot)
+            self._route_flips.forget(robot)
         return dropped
 
     def receive_route(self, robot, points, stamp):
@@ -799,12 +807,14 @@ class PlannerAgent:
         announcement does (`receive_share`); a robot publishes the route its plan of a step made
         stamped with that step (`routes.route_stamp`). Raises ValueError naming the fault for
         a route `routes.checked_route` refuses (empty, not finite, more than MAX_ROUTE_POINTS
-        points) or a STAMP not finite and >= 0: the neighbour then has no route
-        (`forget_route`), it claims nothing.
+        points), a STAMP not finite and >= 0, or a route of a neighbour that flips
+        (`routes.RouteFlips`): the neighbour then has no route (`forget_route`), it claims
+        nothing.
         """
         try:
-            self._take(self._announced_route, robot,
-                       NeighbourRoute(checked_route(points), float(stamp)), stamp)
+            route = checked_route(points)
+            self._take(self._announced_route, robot, NeighbourRoute(route, float(stamp)), stamp)
+            self._route_flips.check(robot, route, float(stamp))
         except ValueError:
             self.forget_route(robot)
             raise
@@ -1037,10 +1047,12 @@ class PlannerAgent:
         The right of way at the passage on the robot's route (`prvo_planner.right_of_way`),
         decided at STAMP [s] from the neighbours' beliefs and ROUTES (`routes.NeighbourRoute`
         or None, in the order of NAMES), without those standing in a passage for longer than
-        `right_of_way.IDLE_INSIDE`; kept in `passage_decision`.
+        `right_of_way.IDLE_INSIDE` (kept, sorted, in `idle_in_passage`); kept in
+        `passage_decision`.
         """
         settings = self.settings
         self.passage_decision = None
+        self.idle_in_passage = ()
         if (not settings.right_of_way or self._passage_map is None or self.arrived
                 or self._give_way is not None or settings.preferred_source != GOAL
                 or self._route_status != ROUTE_FOUND):
@@ -1052,7 +1064,10 @@ class PlannerAgent:
         others = [passages.use_of(name, belief.mean[:2], route.points)
                   for name, belief, route in zip(names, beliefs, routes, strict=True)
                   if route is not None]
-        claiming = self._idle_watch.claiming([use for use in others if use is not None], stamp)
+        uses = [use for use in others if use is not None]
+        claiming = self._idle_watch.claiming(uses, stamp)
+        self.idle_in_passage = tuple(sorted({use.name for use in uses}
+                                            - {use.name for use in claiming}))
         decision = passages.decision(me, claiming, position)
         self.passage_decision = decision
         if decision.goes:
@@ -1405,7 +1420,8 @@ class PlannerAgent:
                        narrow_passage=self._passage_ahead(request),
                        inside_obstacle=request.inside_obstacle,
                        neighbour_routes=request.neighbour_routes,
-                       awaiting_map=request.awaiting_map, right_of_way=self.passage_decision)
+                       awaiting_map=request.awaiting_map, right_of_way=self.passage_decision,
+                       idle_in_passage=self.idle_in_passage)
 
     def _inside_obstacle(self, position):
         """Return (POSITION, the way out or None) if POSITION is in an occupied cell, else None.

@@ -91,6 +91,7 @@ from prvo_planner.reports import (
     AWAITING_MAP,
     PlanReporter,
     command_message,
+    idle_message,
     inside_message,
     passage_message,
 )
@@ -746,6 +747,8 @@ class PlannerNode(Node):
                 self._warnings.warn('narrow', passage_message(command.narrow_passage))
         if command.inside_obstacle is not None:
             self._warnings.warn('inside', inside_message(command.inside_obstacle))
+        for robot in command.idle_in_passage:
+            self._warnings.warn(('idle', robot), idle_message(robot))
         self._reporter.report(
             time.monotonic(), self._values['status_period'], command, plan_time_ms,
             self._config, self._agent.settings.planning_radius, self._values['frame_id'])

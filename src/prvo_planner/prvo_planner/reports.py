@@ -23,6 +23,7 @@ from prvo_msgs_util import (
     world_to_body,
 )
 from prvo_planner.core.probability import confidence_ellipse_scale
+from prvo_planner.right_of_way import IDLE_INSIDE, IDLE_MOVE
 
 # What a robot holding for its map says (`PlannerAgent.awaiting_map`), in its status and log.
 AWAITING_MAP = ('holding with zero commands: no map in force yet, and the one that arrived is '
@@ -60,6 +61,9 @@ def plan_status(robot, command, plan_time_ms, model, planning_radius):
     whose centre is inside an obstacle on its map (`inside_message`). `awaiting_map` is true
     while the robot holds for a map still being built (`AWAITING_MAP`, the message then).
     The right of way keys are `right_of_way_values`'; a robot waiting for its turn says so.
+    `idle_in_passage` names the neighbours that stood in the passage on the robot's route too
+    long and claim nothing (comma-separated; 'none'), and the message says so of each
+    (`idle_message`).
     """
     result = command.result
     feasible = True if result is None else bool(result.feasible)
@@ -79,6 +83,7 @@ def plan_status(robot, command, plan_time_ms, model, planning_radius):
     decision = command.right_of_way
     if decision is not None and not decision.goes:
         messages.append(f'waits for its turn at passage {decision.use.passage}')
+    messages.extend(idle_message(robot) for robot in command.idle_in_passage)
     if stalled:
         messages.append(stall_message(command.stall))
         if command.narrow_passage is not None:
@@ -97,7 +102,8 @@ def plan_status(robot, command, plan_time_ms, model, planning_radius):
          'min_achieved_eta': _or_none(tally.min_achieved_eta),
          'tally_stamp': _or_none(tally.last_stamp), **stall_values(command),
          **command.announcement_values(), **command.route_values(),
-         **right_of_way_values(decision)},
+         **right_of_way_values(decision),
+         'idle_in_passage': ','.join(command.idle_in_passage) or 'none'},
         level=(DiagnosticStatus.OK if feasible and not stalled and inside is None
                else DiagnosticStatus.WARN),
         hardware_id=robot)
@@ -124,6 +130,12 @@ def passage_message(passage):
     return (f'the way at ({passage.point[0]:.2f}, {passage.point[1]:.2f}) is '
             f'{passage.width:.2f} m wide; certifying it needs at least {passage.needed:.2f} m '
             '(holding)')
+
+
+def idle_message(robot):
+    """Return the line of neighbour ROBOT that stood in a passage too long: it claims nothing."""
+    return (f'neighbour {robot} stood in a passage, moving less than {IDLE_MOVE:g} m in '
+            f'{IDLE_INSIDE:g} s: it claims nothing (avoided as any neighbour)')
 
 
 def right_of_way_values(decision):

@@ -7,8 +7,9 @@ its goal its goal alone, and while no way on its map reaches the goal its own po
 (it holds its place). A route is stamped like an announcement (`route_stamp`): it holds for
 the neighbours' plans of odometry stamped strictly later, so that in lockstep a route made by
 the plan of step `t_k` is seen by every neighbour from its plan of `t_(k+1)` on, on both
-engines. A neighbour's route that cannot be used (`checked_route`) claims nothing: its
-neighbours treat the robot as one without a route.
+engines. A neighbour's route that cannot be used (`checked_route`), or that changes too often
+to be a claim (`RouteFlips`), claims nothing: its neighbours treat the robot as one without a
+route.
 """
 
 import dataclasses
@@ -26,6 +27,12 @@ MAX_ROUTE_POINTS = 10_000
 # The stamp of a route made by the plan of stamp 0 (the simulator's clock starts at 0): 1 ns,
 # so that it counts from the next plan on, not from the start.
 _AFTER_STAMP_ZERO = 1e-9
+# A neighbour's route that changes more than FLIP_CHANGES times within FLIP_WINDOW [s] of its
+# stamps flips (`RouteFlips`). A planner's route changes with a new goal, a new way on its map,
+# an arrival: a few times a minute; Nav2's planner_server replans at 1 Hz by default. A route
+# that changes every step of a 10 Hz loop is no claim another robot can keep its turn by.
+FLIP_WINDOW = 5.0
+FLIP_CHANGES = 10
 
 
 @dataclasses.dataclass(frozen=True)
@@ -64,6 +71,35 @@ def checked_route(points):
     # Every plan until the next route shares it.
     route.flags.writeable = False
     return route
+
+
+class RouteFlips:
+    """Neighbours whose routes change too often to be claims: they claim nothing while they do.
+
+    A route the same as the one before (a publisher that sends it again) is no change. A
+    neighbour flips while more than FLIP_CHANGES of its changes fall within FLIP_WINDOW before
+    the stamp of its newest route: each route it sends then is refused, until its changes slow.
+    """
+
+    def __init__(self):
+        # robot -> (its last route (K, 2), the stamps [s] of its changes within the window).
+        self._seen = {}
+
+    def check(self, robot, route, stamp):
+        """Count ROBOT's ROUTE (K, 2) stamped STAMP [s]; raise ValueError while ROBOT flips."""
+        last, changes = self._seen.get(robot, (None, ()))
+        changes = [changed for changed in changes if changed > stamp - FLIP_WINDOW]
+        if last is None or not np.array_equal(last, route):
+            changes.append(stamp)
+        self._seen[robot] = (route, changes[-(FLIP_CHANGES + 1):])
+        if len(changes) > FLIP_CHANGES:
+            raise ValueError(f'the route changed {len(changes)} times within {FLIP_WINDOW:g} s, '
+                             f'more than {FLIP_CHANGES}: it flips, and claims nothing until it '
+                             'changes less often')
+
+    def forget(self, robot):
+        """Forget ROBOT (it left): a robot heard anew starts with no changes counted."""
+        self._seen.pop(robot, None)
 
 
 class RouteIntent:
