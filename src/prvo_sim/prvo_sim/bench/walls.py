@@ -298,13 +298,21 @@ def noise_free(scenario):
         dataclasses.replace(robot, noise=quiet) for robot in scenario.robots))
 
 
-def prvo_row(scenario, method):
-    """Run SCENARIO on the in-process engine with METHOD; return its measured row."""
+def prvo_trajectory(scenario, method):
+    """Run SCENARIO on the in-process engine with METHOD; return (times, positions, plan_ms).
+
+    `times` (T,) [s], `positions` (T, N, 2) [m] after each step, `plan_ms` each robot-step's
+    planning time [ms], as `peer_trajectory` gives them.
+    """
     _, steps = run_team(scenario, method)
     times = np.array([step.time for step in steps])
     positions = np.array([step.states[:, :2] for step in steps])
-    plan_ms = np.concatenate([step.plan_ms for step in steps])
-    return trajectory_row(scenario, times, positions, plan_ms)
+    return times, positions, np.concatenate([step.plan_ms for step in steps])
+
+
+def prvo_row(scenario, method):
+    """Run SCENARIO on the in-process engine with METHOD; return its measured row."""
+    return trajectory_row(scenario, *prvo_trajectory(scenario, method))
 
 
 def noise_label(scenario):
