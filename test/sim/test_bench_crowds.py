@@ -18,6 +18,7 @@ from prvo_sim.bench.crowds import (
     random_team_document,
     run_row,
 )
+from prvo_sim.bench.engine import table
 from prvo_sim.engine import InProcessTeam, StepRecord
 from prvo_sim.runner.session import planner_values
 from prvo_sim.scenario import find_scenario, load_scenario
@@ -252,5 +253,5 @@ def test_a_run_row_has_the_stall_columns_of_the_planners_rule(tmp_path):
     assert row['longest_stall_s'] == 0.0
     # Driving at up to 1 m/s, 0.5 s apart: near one spot only while slowing into its goal.
     assert 0.0 <= row['longest_dwell_s'] < 2.0
-    heading = bench_crowds.table([row], bench_crowds.COLUMNS).splitlines()[0]
+    heading = table([row], bench_crowds.COLUMNS).splitlines()[0]
     assert 'longest stall s' in heading and 'longest near one spot s' in heading

@@ -153,7 +153,7 @@ def test_bad_input_is_one_line_and_exit_2(tmp_path, monkeypatch, capsys):
     assert bench_walls.main(['--seeds', '0']) == 2
     assert bench_walls.main(['--scenarios', str(tmp_path / 'missing.yaml')]) == 2
     # A map is not given to the peers: refused before anything runs.
-    monkeypatch.setattr(bench_walls, 'peer_importable', lambda peer: True)
+    monkeypatch.setattr(bench_walls, 'importable_peers', lambda peers, notes: list(peers))
     assert bench_walls.main(['--scenarios', 'office', '--peers', 'rvo2-orca']) == 2
     errors = capsys.readouterr().err.splitlines()
     prefix = 'prvo_sim.bench.walls: error: '

@@ -43,7 +43,6 @@ when interrupted.
 
 import argparse
 import collections
-import json
 import math
 import pathlib
 import sys
@@ -53,7 +52,7 @@ import numpy as np
 from prvo_planner import stalls
 from prvo_planner.core.config import CERTIFICATES, RISKS
 from prvo_planner.parameters import DEFAULTS
-from prvo_sim.bench.engine import run_team, table
+from prvo_sim.bench.engine import report, run_team
 from prvo_sim.bench.team import DT, GOAL_TOLERANCE, NOISE_STD, circle_document, write_scenario
 
 CIRCLE_RADII = {8: 4.0, 16: 4.0, 24: 6.0, 48: 7.7}
@@ -502,12 +501,7 @@ def main(argv=None):
     except KeyboardInterrupt:
         print('prvo_sim.bench.crowds: interrupted', file=sys.stderr)
         return 130
-    print(table(rows, COLUMNS))
-    for note in notes:
-        print(f'note: {note}')
-    if options.json is not None:
-        options.json.parent.mkdir(parents=True, exist_ok=True)
-        options.json.write_text(json.dumps({'runs': rows, 'notes': notes}, indent=2) + '\n')
+    report(rows, COLUMNS, notes, options.json)
     # The deterministic baseline's circle is there for its separation, not its arrivals.
     checked = [row for row in rows if row['planner'] == options.method]
     return 0 if all(row['all_arrived'] for row in checked) else 1

@@ -46,7 +46,6 @@ bad input (one line naming the option), 130 when interrupted.
 """
 
 import argparse
-import json
 import math
 import pathlib
 import sys
@@ -56,14 +55,13 @@ import numpy as np
 import yaml
 
 from prvo_planner.stalls import SUMMARY_COLUMNS
-from prvo_sim.bench.engine import table
+from prvo_sim.bench.engine import report
 from prvo_sim.bench.walls import (
-    PEER_PACKAGES,
     PEERS,
     combined,
+    importable_peers,
     labelled,
     noise_label,
-    peer_importable,
     peer_trajectory,
     peer_world,
     planner_overrides,
@@ -367,13 +365,8 @@ def main(argv=None):
     if error is not None:
         print(f'prvo_sim.bench.doorway_sweep: error: {error}', file=sys.stderr)
         return 2
-    notes, peers = [], []
-    for peer in options.peers:
-        if peer_importable(peer):
-            peers.append(peer)
-        else:
-            notes.append(f'{peer}: {PEER_PACKAGES[peer]} is not importable here, skipped')
-            print(f'note: {notes[-1]}', flush=True)
+    notes = []
+    peers = importable_peers(options.peers, notes)
     rows, firsts = [], {}
     try:
         with tempfile.TemporaryDirectory() as folder:
@@ -383,12 +376,7 @@ def main(argv=None):
     except KeyboardInterrupt:
         print('prvo_sim.bench.doorway_sweep: interrupted', file=sys.stderr)
         return 130
-    print(table(rows, COLUMNS))
-    for note in notes:
-        print(f'note: {note}')
-    if options.json is not None:
-        options.json.parent.mkdir(parents=True, exist_ok=True)
-        options.json.write_text(json.dumps({'runs': rows, 'notes': notes}, indent=2) + '\n')
+    report(rows, COLUMNS, notes, options.json)
     if options.figure is not None:
         count = options.figure_count or max(
             (count for count, (*_, completed) in firsts.items() if completed),

@@ -145,6 +145,19 @@ def peer_row(count, out_dir):
             'prvo_collisions': engine_row['collisions']}
 
 
+def report(rows, columns, notes, json_path):
+    """Print ROWS as a table of COLUMNS [(key, header)], then NOTES; write both to JSON_PATH.
+
+    JSON_PATH (a pathlib.Path; None: none) gets {'runs': ROWS, 'notes': NOTES}.
+    """
+    print(table(rows, columns))
+    for note in notes:
+        print(f'note: {note}')
+    if json_path is not None:
+        json_path.parent.mkdir(parents=True, exist_ok=True)
+        json_path.write_text(json.dumps({'runs': rows, 'notes': notes}, indent=2) + '\n')
+
+
 def table(rows, columns):
     """Return a Markdown table of ROWS with COLUMNS [(key, header)]."""
     lines = ['| ' + ' | '.join(header for _, header in columns) + ' |',

@@ -40,7 +40,6 @@ interrupted.
 import argparse
 import dataclasses
 import importlib
-import json
 import math
 import pathlib
 import sys
@@ -52,7 +51,7 @@ import yaml
 from prvo_planner.parameters import DEFAULTS, check_parameter
 from prvo_planner.stalls import SUMMARY_COLUMNS, trajectory_stalls
 from prvo_sim.bench.crowds import preferred_velocities
-from prvo_sim.bench.engine import run_team, table
+from prvo_sim.bench.engine import report, run_team
 from prvo_sim.metrics import run_metrics, wall_metrics
 from prvo_sim.scenario import NoiseSpec, find_scenario, load_scenario
 
@@ -151,13 +150,18 @@ def peer_world(scenario):
         disc_radii=world.disc_radii)
 
 
-def peer_importable(peer):
-    """Return whether PEER's package imports here."""
-    try:
-        importlib.import_module(PEER_PACKAGES[peer])
-    except ImportError:
-        return False
-    return True
+def importable_peers(peers, notes):
+    """Return those of PEERS whose package imports here; note (and print) each that does not."""
+    found = []
+    for peer in peers:
+        try:
+            importlib.import_module(PEER_PACKAGES[peer])
+        except ImportError:
+            notes.append(f'{peer}: {PEER_PACKAGES[peer]} is not importable here, skipped')
+            print(f'note: {notes[-1]}', flush=True)
+            continue
+        found.append(peer)
+    return found
 
 
 def rvo2_stepper(world):
@@ -420,13 +424,7 @@ def main(argv=None):
               file=sys.stderr)
         return 2
     notes = []
-    peers = []
-    for peer in options.peers:
-        if peer_importable(peer):
-            peers.append(peer)
-        else:
-            notes.append(f'{peer}: {PEER_PACKAGES[peer]} is not importable here, skipped')
-            print(f'note: {notes[-1]}', flush=True)
+    peers = importable_peers(options.peers, notes)
     try:
         planner_overrides(options.planner)
         paths = [find_scenario(name) for name in options.scenarios]
@@ -445,12 +443,7 @@ def main(argv=None):
     except KeyboardInterrupt:
         print('prvo_sim.bench.walls: interrupted', file=sys.stderr)
         return 130
-    print(table(rows, COLUMNS))
-    for note in notes:
-        print(f'note: {note}')
-    if options.json is not None:
-        options.json.parent.mkdir(parents=True, exist_ok=True)
-        options.json.write_text(json.dumps({'runs': rows, 'notes': notes}, indent=2) + '\n')
+    report(rows, COLUMNS, notes, options.json)
     checked = [row for row in rows if row['planner'].startswith('prvo --method prvo')]
     return 0 if all(row['arrived'] == row['robots'] for row in checked) else 1
 
