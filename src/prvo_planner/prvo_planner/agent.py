@@ -1323,6 +1323,14 @@ class PlannerAgent:
         """The `route.RouteMap` of the map in force, None without a map."""
         return self._route_map
 
+    @property
+    def passage_map(self):
+        """The `right_of_way.PassageMap` of the map in force, None: none (see `BuiltMap`).
+
+        The passages that `passage_decision`'s `use.passage` indexes.
+        """
+        return self._passage_map
+
     def install_route_tree(self, tree):
         """Take TREE, the shortest paths to the goal in force searched elsewhere, if it fits.
 

@@ -50,6 +50,7 @@ from prvo_planner.preferred import GOAL, UpstreamCommand
 from prvo_planner.routes import RouteIntent, route_stamp
 from prvo_planner.tracks import TrackTable
 from prvo_sim.planned_path import PlannedPath
+from prvo_sim.turns import TurnBook
 from prvo_sim.upstream import PurePursuitUpstream
 from prvo_sim.world import TeamWorld
 from prvo_sim.world_messages import serialized_odometry
@@ -65,7 +66,9 @@ class StepRecord:
     planned robot) each planned robot's share of the team's planning time [ms of wall time];
     `contacts` the `world.Contact`s the step made; `feasible` (N,) whether each robot's command
     met every constraint (True for a robot standing still or scripted); `yaws` (N,) the
-    ground-truth headings of the state.
+    ground-truth headings of the state; `turns` (N,) each robot's right of way at its passage
+    (`turns.NONE`, `GOES` or `WAITS`) and `turn_passages` (N,) that passage's index in the
+    team's `turn_book.shapes` (`turns.NO_PASSAGE`: none).
     """
 
     time: float
@@ -75,6 +78,8 @@ class StepRecord:
     contacts: tuple
     feasible: np.ndarray = None
     yaws: np.ndarray = None
+    turns: np.ndarray = None
+    turn_passages: np.ndarray = None
 
 
 def _received(message):
@@ -178,6 +183,8 @@ class InProcessTeam:
         self.last_commands = ()
         # Each planned robot's `PlanRequest` of the last step: the beliefs it planned with.
         self.last_requests = ()
+        # The passages the robots went or waited at, numbered for the whole run.
+        self.turn_book = TurnBook()
         # What each robot announces: a planned one its agent's (it changes on arrival), a
         # scripted one, as the simulator announces it, its radius and no share of the avoidance.
         self._scripted_announcements = {
@@ -333,8 +340,13 @@ class InProcessTeam:
         feasible = np.ones(len(self.agents), dtype=bool)
         for result, (index, _) in zip(results, self._planned, strict=True):
             feasible[index] = result is None or result.feasible
+        turns, turn_passages = self.turn_book.record(
+            [None if command is None else command.right_of_way for command in planned],
+            [None if agent is None else agent.passage_map for agent in self.agents],
+            [None if agent is None else agent.grid_map for agent in self.agents])
         return StepRecord(time=now, states=states[:, :4], commands=commands, plan_ms=plan_ms,
-                          contacts=tuple(contacts), feasible=feasible, yaws=states[:, 4])
+                          contacts=tuple(contacts), feasible=feasible, yaws=states[:, 4],
+                          turns=turns, turn_passages=turn_passages)
 
 
 def _decoded(messages):

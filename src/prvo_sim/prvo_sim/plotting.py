@@ -4,9 +4,13 @@ import matplotlib
 
 matplotlib.use('Agg')
 
-from matplotlib.patches import Circle, Polygon  # noqa: E402  (the backend must be chosen first)
+from matplotlib.colors import to_rgb  # noqa: E402  (the backend must be chosen first)
+from matplotlib.lines import Line2D  # noqa: E402
+from matplotlib.patches import Circle, Patch, Polygon  # noqa: E402
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
+
+from prvo_sim.turns import GOES, WAITS  # noqa: E402
 
 SCRIPTED_COLOUR = 'grey'
 STATIC_COLOUR = '#555560'
@@ -15,6 +19,13 @@ _UNKNOWN_RGBA = (0.8, 0.8, 0.82, 0.6)
 _OCCUPIED_RGB = (0.33, 0.33, 0.38)
 # Points on each end's half circle of a drawn wall.
 _CAP_POINTS = 12
+# The right of way (Okabe-Ito colours, told apart also by those who confuse red and green):
+# passages orange, a robot that holds one green, one waiting for its turn purple.
+PASSAGE_COLOUR = '#e69f00'
+GOES_COLOUR = '#009e73'
+WAITS_COLOUR = '#cc79a7'
+GOES_LABEL = 'holds a passage (goes)'
+WAITS_LABEL = 'waits for its turn'
 
 
 def robot_colours(count):
@@ -100,6 +111,71 @@ def draw_static_world(axes, static_world):
         axes.add_patch(Polygon(vertices, closed=True, color=STATIC_COLOUR, zorder=1))
 
 
+def draw_passages(axes, turns):
+    """Draw the passages of TURNS (`turns.Turns`): their cells, shaded and outlined.
+
+    Each end's waiting spot is a hollow dot. Returns the legend's handles of what is drawn
+    (none without a passage).
+    """
+    for shape in turns.shapes:
+        mask, extent = shape.mask()
+        shown = np.zeros((*mask.shape, 4))
+        shown[mask] = (*to_rgb(PASSAGE_COLOUR), 0.35)
+        axes.imshow(shown, origin='lower', extent=extent, interpolation='nearest', zorder=0.5)
+        # Sampled at the cells' centres, the level halfway between a passage cell and its
+        # neighbour outside lies on the edge between them: the outline of the cells.
+        x0, x1, y0, y1 = extent
+        rows, columns = mask.shape
+        half = 0.5 * shape.resolution
+        axes.contour(np.linspace(x0 + half, x1 - half, columns),
+                     np.linspace(y0 + half, y1 - half, rows), mask.astype(float),
+                     levels=[0.5], colors=PASSAGE_COLOUR, linewidths=1.0, zorder=0.6)
+        for end in shape.passage.ends:
+            if end.waiting_spot is not None:
+                axes.plot(*end.waiting_spot, 'o', markerfacecolor='none',
+                          markeredgecolor=PASSAGE_COLOUR, markersize=6, zorder=0.6)
+    if not turns.shapes:
+        return []
+    return [Patch(facecolor=PASSAGE_COLOUR, alpha=0.35, edgecolor=PASSAGE_COLOUR,
+                  label='passage (o: waiting spots)')]
+
+
+def turn_handles(rings=False):
+    """Return the legend's handles of a robot that goes and one that waits.
+
+    As `draw_turns` marks them, or with RINGS as the animation does.
+    """
+    if rings:
+        return [Line2D([], [], linestyle=style, color=colour, label=label)
+                for style, colour, label in (('-', GOES_COLOUR, GOES_LABEL),
+                                             ('--', WAITS_COLOUR, WAITS_LABEL))]
+    return [Line2D([], [], linestyle='none', marker=marker, markerfacecolor=colour,
+                   markeredgecolor='black', markeredgewidth=0.5, label=label)
+            for marker, colour, label in (('^', GOES_COLOUR, GOES_LABEL),
+                                          ('s', 'white', WAITS_LABEL))]
+
+
+def draw_turns(axes, times, positions, turns, interval=0.5):
+    """Draw the passages of TURNS and, on POSITIONS (T, N, 2), who went and who waited.
+
+    Every INTERVAL [s] of TIMES (T,) a robot that holds a passage (goes) is marked with a green
+    triangle, one that waits for its turn with a white square, edged in black so as not to be
+    taken for a robot's colour. Returns the legend's handles (none if no robot went or
+    waited).
+    """
+    handles = draw_passages(axes, turns)
+    steps = np.array(_steps_every(np.asarray(times, dtype=float), interval), dtype=int)
+    for state, handle in zip((GOES, WAITS), turn_handles(), strict=True):
+        marked, robots = np.nonzero(turns.states[steps] == state)
+        axes.plot(positions[steps[marked], robots, 0], positions[steps[marked], robots, 1],
+                  linestyle='none', marker=handle.get_marker(),
+                  markerfacecolor=handle.get_markerfacecolor(), markeredgecolor='black',
+                  markeredgewidth=0.5, markersize=4.5, alpha=0.8, zorder=2.5)
+    if not np.any(turns.states):
+        return handles
+    return handles + turn_handles()
+
+
 def static_world_bounds(static_world):
     """Return (low (2,), high (2,)) of what draw_static_world draws, or None if nothing."""
     if static_world is None or static_world.empty:
@@ -137,17 +213,22 @@ def _steps_every(times, interval):
 
 
 def plot_run(path, times, positions, starts, goals, radii, robot_names, contacts, title,
-             scripted=None, yaws=None, static_world=None):
+             scripted=None, yaws=None, static_world=None, turns=None):
     """Write a PNG of one run's trajectories to PATH (SCRIPTED, YAWS: see draw_trajectories).
 
-    STATIC_WORLD (`prvo_sim.static_world.StaticWorld`), if given, is drawn under them.
+    STATIC_WORLD (`prvo_sim.static_world.StaticWorld`), if given, is drawn under them; TURNS
+    (`prvo_sim.turns.Turns`), if given, the passages and who held them (`draw_turns`).
     """
     figure, axes = plt.subplots(figsize=(7.0, 7.0))
     draw_static_world(axes, static_world)
+    positions = np.asarray(positions, dtype=float)
+    turn_legend = [] if turns is None else draw_turns(axes, times, positions, turns)
     draw_trajectories(axes, times, positions, starts, goals, radii, contacts,
                       labels=list(robot_names), scripted=scripted, yaws=yaws)
     axes.set_title(title, fontsize=10)
-    axes.legend(loc='upper left', fontsize=7, ncol=2, framealpha=0.7)
+    handles, _ = axes.get_legend_handles_labels()
+    axes.legend(handles=handles + turn_legend, loc='upper left', fontsize=7, ncol=2,
+                framealpha=0.7)
     figure.tight_layout()
     figure.savefig(path, dpi=110)
     plt.close(figure)

@@ -21,6 +21,7 @@ from prvo_sim.runner.session import (
     ProgressLine,
     planner_values,
 )
+from prvo_sim.turns import Turns
 
 
 class _TimedOutError(Exception):
@@ -69,22 +70,31 @@ def run_inprocess(spec):
     with INTERRUPTS.teardown() as teardown:
         progress.finish()
         wall_time = time.monotonic() - started
-        recording = None
-        if steps:
-            recording = Recording(
-                np.array([step.time for step in steps]),
-                np.array([step.states for step in steps]),
-                np.array([step.commands for step in steps]),
-                tuple(np.concatenate([step.plan_ms for step in steps]).tolist()),
-                deadline_misses=0, yaws=np.array([step.yaws for step in steps]),
-                bag_messages=None if messages is None else messages.bag_messages,
-                plan_tallies={robot: (tally.plans, tally.infeasible, tally.min_achieved_eta)
-                              for robot, tally in team.plan_tallies().items() if tally.plans})
+        recording = recording_of(team, steps, messages) if steps else None
         spec.out_dir.mkdir(parents=True, exist_ok=True)
         run_metrics = write_outputs(spec, recording, ending, failure, wall_time)
         if interrupted is None:
             interrupted = teardown.last_signal
     return RunResult(ending, run_metrics, interrupted)
+
+
+def recording_of(team, steps, messages=None):
+    """Return the `Recording` of TEAM's STEPS (`engine.StepRecord`s, at least one).
+
+    MESSAGES: the run's `TeamMessages` for its bag, None: no bag.
+    """
+    return Recording(
+        np.array([step.time for step in steps]),
+        np.array([step.states for step in steps]),
+        np.array([step.commands for step in steps]),
+        tuple(np.concatenate([step.plan_ms for step in steps]).tolist()),
+        deadline_misses=0, yaws=np.array([step.yaws for step in steps]),
+        bag_messages=None if messages is None else messages.bag_messages,
+        plan_tallies={robot: (tally.plans, tally.infeasible, tally.min_achieved_eta)
+                      for robot, tally in team.plan_tallies().items() if tally.plans},
+        turns=Turns(np.array([step.turns for step in steps]),
+                    np.array([step.turn_passages for step in steps]),
+                    tuple(team.turn_book.shapes)))
 
 
 def run_steps(spec, team, messages, steps, progress):

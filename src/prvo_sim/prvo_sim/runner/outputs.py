@@ -26,6 +26,7 @@ import numpy as np
 from prvo_sim import metrics
 from prvo_sim.runner.bag import BAG_FOLDER
 from prvo_sim.runner.processes import INTERRUPTS, RunInterruptedError
+from prvo_sim.turns import GOES, NONE, WAITS
 
 RUN_RESULTS = ('trajectories.csv', 'trajectories.png', 'trajectories.gif', 'metrics.json')
 AGGREGATED_KEYS = ('success_rate', 'collisions', 'min_separation', 'wall_contacts',
@@ -33,6 +34,8 @@ AGGREGATED_KEYS = ('success_rate', 'collisions', 'min_separation', 'wall_contact
                    'mean_time_to_goal', 'infeasible_fraction', 'min_achieved_eta',
                    'planner_ms.median', 'planner_ms.p95', 'planner_ms.max', 'deadline_misses',
                    'sim_time', 'wall_time')
+# The right of way's states as trajectories.csv names them.
+TURN_NAMES = {NONE: 'none', GOES: 'goes', WAITS: 'waits'}
 
 
 class OutputError(Exception):
@@ -63,7 +66,8 @@ class Recording:
     ground-truth headings [rad], None where unknown; `bag_messages` the run's messages for its
     bag (`runner.bag.BagMessages`), None when not recorded; `plan_tallies` {robot: (plans,
     infeasible plans, lowest achieved eta)} of the planned robots that planned, None where
-    unknown.
+    unknown; `turns` who held each passage and who waited at each step (`prvo_sim.turns.Turns`),
+    None where unknown (a ROS run).
     """
 
     times: np.ndarray
@@ -74,6 +78,7 @@ class Recording:
     yaws: np.ndarray = None
     bag_messages: object = None
     plan_tallies: dict = None
+    turns: object = None
 
     @classmethod
     def empty(cls, robot_count):
@@ -155,7 +160,7 @@ def write_outputs(spec, recording, ending, failure, wall_time):
         clear_results(out_dir, RUN_RESULTS)
         write_result(out_dir, 'metrics.json', lambda path: write_json(path, run_metrics))
         write_result(out_dir, 'trajectories.csv', lambda path: write_trajectories_csv(
-            path, times, names, states, commands, recording.yaws))
+            path, times, names, states, commands, recording.yaws, recording.turns))
         if times.size:
             from prvo_sim.plotting import plot_run
 
@@ -163,7 +168,7 @@ def write_outputs(spec, recording, ending, failure, wall_time):
                 path, times, states[..., :2],
                 np.array([robot.start for robot in scenario.robots], dtype=float), goals, radii,
                 names, contacts, plot_title(run_metrics), scripted, yaws=recording.yaws,
-                static_world=scenario.static_world))
+                static_world=scenario.static_world, turns=recording.turns))
         write_run_bag(spec, recording)
         if times.size and spec.animation:
             from prvo_sim.animation import animate_run
@@ -175,7 +180,8 @@ def write_outputs(spec, recording, ending, failure, wall_time):
                 write_view(out_dir, 'trajectories.gif', lambda path: animate_run(
                     path, times, drawn, goals, radii, names, plot_title(run_metrics),
                     position_std=[robot.noise.position_std for robot in scenario.robots],
-                    scripted=scripted, static_world=scenario.static_world))
+                    scripted=scripted, static_world=scenario.static_world,
+                    turns=recording.turns))
             if INTERRUPTS.last_signal is not None:
                 warn(f'trajectories.gif not written: interrupted by '
                      f'{signal.Signals(INTERRUPTS.last_signal).name}')
@@ -302,24 +308,34 @@ def replace_result(folder, name, write):
         pathlib.Path(temporary).unlink(missing_ok=True)
 
 
-def write_trajectories_csv(path, times, names, states, commands, yaws=None):
+def write_trajectories_csv(path, times, names, states, commands, yaws=None, turns=None):
     """Write one row per time and robot: ground truth, the command answering it, the heading.
 
-    The columns are x, y, vx, vy, cmd_vx, cmd_vy and the ground-truth `yaw` (empty where YAWS
-    is None). Numbers are written exactly (the shortest text that reads back as the same
+    The columns are x, y, vx, vy, cmd_vx, cmd_vy, the ground-truth `yaw` (empty where YAWS
+    is None), the robot's `right_of_way` ('none', 'goes' or 'waits') and its `passage` (an
+    index of TURNS' shapes, empty with 'none'), both empty where TURNS (`prvo_sim.turns.Turns`)
+    is None. Numbers are written exactly (the shortest text that reads back as the same
     double), so that runs can be compared to the last bit.
     """
     with open(path, 'w', newline='') as csv_file:
         writer = csv.writer(csv_file)
-        writer.writerow(['time', 'robot', 'x', 'y', 'vx', 'vy', 'cmd_vx', 'cmd_vy', 'yaw'])
+        writer.writerow(['time', 'robot', 'x', 'y', 'vx', 'vy', 'cmd_vx', 'cmd_vy', 'yaw',
+                         'right_of_way', 'passage'])
         for step, time_s in enumerate(times):
             for robot, name in enumerate(names):
                 command = ['' if math.isnan(value) else repr(float(value))
                            for value in commands[step, robot]]
                 yaw = '' if yaws is None else repr(float(yaws[step, robot]))
+                turn = ['', ''] if turns is None else turn_columns(turns, step, robot)
                 writer.writerow([f'{time_s:.6g}', name,
                                  *(repr(float(value)) for value in states[step, robot]),
-                                 *command, yaw])
+                                 *command, yaw, *turn])
+
+
+def turn_columns(turns, step, robot):
+    """Return [right_of_way, passage] of ROBOT at STEP of TURNS, as trajectories.csv has them."""
+    state = int(turns.states[step, robot])
+    return [TURN_NAMES[state], '' if state == NONE else str(int(turns.passages[step, robot]))]
 
 
 def outcome(run_metrics):
