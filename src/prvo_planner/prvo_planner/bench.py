@@ -15,10 +15,22 @@ agree bit for bit), and both are timed per robot-step.
 the ego of each seeded encounter (N neighbours in {0, 1, 5, 10, 20}, 64 directions, prvo) is
 planned with and without 50 seeded wall segments around it (``bench_walls``), alternately, and
 the ratio of the median times is reported with the plan's feasibility either way.
+
+``python -m prvo_planner.bench --profile [--repeats R] [--top K] [--json PATH] [--clock
+wall|cpu]``: one plan at the planner node's defaults (certified bound, eta 0.95, M = 64, no
+actuation noise) of the encounters of 10, 20 and 50 neighbours, without
+and with the walls of ``bench_walls``: its time per call, then the same calls under cProfile
+(timed by the same clock): Python function calls and calls of numpy's Python functions and C
+methods per plan, and the functions of ``prvo_planner.core`` that take the most time, by
+cumulative and by self time. A function's self time includes the numpy arithmetic its
+operators (``a * b``) and ufuncs run, which cProfile does not see as calls.
 """
 
 import argparse
+import cProfile
 import json
+import os
+import pstats
 import sys
 import time
 
@@ -27,6 +39,7 @@ import numpy as np
 from prvo_planner.core import AgentBelief, PlannerConfig, plan_velocities, plan_velocity
 from prvo_planner.core.obstacles import StaticObstacles
 from prvo_planner.encounters import EncounterDistribution, random_encounter
+from prvo_planner.parameters import planner_config_from
 
 NEIGHBOURS = (1, 5, 10, 20, 50)
 DIRECTIONS = (16, 64, 128)
@@ -121,6 +134,114 @@ def obstacle_table(rows):
                      f"| {row['with_ms']:.3f} | {row['ratio']:.2f} "
                      f"| {row['feasible_without']} / {row['feasible_with']} "
                      f"| {row['clearance']:.2f} | {row['obstacle_probability']:.3f} |")
+    return '\n'.join(lines)
+
+
+PROFILE_NEIGHBOURS = (10, 20, 50)
+PROFILE_TOP = 12
+CORE_DIRECTORY = os.path.join(os.path.dirname(os.path.abspath(__file__)), 'core') + os.sep
+
+
+def profile_config():
+    """Return the planner node's default PlannerConfig."""
+    return planner_config_from({})
+
+
+def _function_name(key):
+    """Name a pstats key (file, line, function): ``module.function`` for prvo's core."""
+    filename, _, function = key
+    if filename.startswith(CORE_DIRECTORY):
+        return f'{os.path.basename(filename)[:-3]}.{function}'
+    return function
+
+
+def _is_numpy(key):
+    """Whether a pstats key is a function of numpy (Python, or a C method or function)."""
+    filename, _, function = key
+    return (f'{os.sep}numpy{os.sep}' in filename
+            or (filename == '~' and ('numpy' in function or 'ufunc' in function)))
+
+
+def profile_case(ego, neighbours, config, repeats, clock, obstacles):
+    """
+    Time and profile ``repeats`` plans of one encounter; return its row.
+
+    The row holds the median and p95 time per plan without the profiler [ms], the profiled
+    time per plan, calls per plan (every Python function, numpy's functions and methods, the
+    functions of ``prvo_planner.core``) and per function of the core its calls, self and
+    cumulative time per plan [ms].
+    """
+    times = time_calls(ego, neighbours, config, repeats, clock, obstacles)
+    profiler = cProfile.Profile(clock)
+    profiler.enable()
+    for _ in range(repeats):
+        plan_velocity(ego, neighbours, [1.0, 0.0], config, obstacles=obstacles)
+    profiler.disable()
+    stats = pstats.Stats(profiler).stats
+    core = {key: value for key, value in stats.items() if key[0].startswith(CORE_DIRECTORY)}
+    return {'neighbours': len(neighbours),
+            'walls': 0 if obstacles is None else len(obstacles.segments),
+            'median_ms': float(np.median(times)), 'p95_ms': float(np.percentile(times, 95)),
+            'profiled_ms': 1e3 * sum(value[2] for value in stats.values()) / repeats,
+            'calls': sum(value[1] for value in stats.values()) / repeats,
+            'numpy_calls': sum(value[1] for key, value in stats.items()
+                               if _is_numpy(key)) / repeats,
+            'core_calls': sum(value[1] for value in core.values()) / repeats,
+            'core_self_ms': 1e3 * sum(value[2] for value in core.values()) / repeats,
+            'functions': {_function_name(key): {'calls': value[1] / repeats,
+                                                'self_ms': 1e3 * value[2] / repeats,
+                                                'cumulative_ms': 1e3 * value[3] / repeats}
+                          for key, value in core.items()}}
+
+
+def run_profile(repeats, clock=time.perf_counter):
+    """Profile the default plan of each encounter of PROFILE_NEIGHBOURS, without and with walls."""
+    config, walls = profile_config(), bench_walls()
+    rows = []
+    for count in PROFILE_NEIGHBOURS:
+        ego, neighbours = bench_encounter(count)
+        rows.extend(profile_case(ego, neighbours, config, repeats, clock, obstacles)
+                    for obstacles in (None, walls))
+    return rows
+
+
+def _case(row):
+    return f"{row['neighbours']}{' + walls' if row['walls'] else ''}"
+
+
+def profile_tables(rows, top=PROFILE_TOP):
+    """
+    Markdown tables of profiled rows: the plans, then the core's top functions by each time.
+
+    A function is listed if it is among the TOP of any row; each cell is its ms per plan and
+    its share of the profiled plan.
+    """
+    lines = ['| neighbours | walls | median / p95 ms | profiled ms | Python calls | numpy calls '
+             '| core calls | core self ms (share) |', '|---|---|---|---|---|---|---|---|']
+    for row in rows:
+        lines.append(f"| {row['neighbours']} | {row['walls']} | {row['median_ms']:.2f} / "
+                     f"{row['p95_ms']:.2f} | {row['profiled_ms']:.2f} | {row['calls']:.0f} | "
+                     f"{row['numpy_calls']:.0f} | {row['core_calls']:.0f} | "
+                     f"{row['core_self_ms']:.2f} ({row['core_self_ms'] / row['profiled_ms']:.0%})"
+                     ' |')
+    for measure in ('cumulative_ms', 'self_ms'):
+        names = []
+        for row in rows:
+            ranked = sorted(row['functions'], key=lambda name: -row['functions'][name][measure])
+            names.extend(name for name in ranked[:top] if name not in names)
+        names.sort(key=lambda name: -max(row['functions'].get(name, {measure: 0.0})[measure]
+                                         for row in rows))
+        lines += ['', f"{measure.split('_')[0]} ms per plan (share of the profiled plan)",
+                  '| function | calls per plan | '
+                  + ' | '.join(_case(row) for row in rows) + ' |',
+                  '|---|---|' + '---|' * len(rows)]
+        for name in names:
+            cells = [row['functions'].get(name) for row in rows]
+            calls = [cell['calls'] for cell in cells if cell is not None]
+            lines.append(f'| {name} | {min(calls):.3g}-{max(calls):.3g} | ' + ' | '.join(
+                '-' if cell is None
+                else f"{cell[measure]:.2f} ({cell[measure] / row['profiled_ms']:.0%})"
+                for cell, row in zip(cells, rows, strict=True)) + ' |')
     return '\n'.join(lines)
 
 
@@ -282,9 +403,17 @@ def main(argv=None):
     parser.add_argument('--obstacles', action='store_true',
                         help=f'time plans beside {WALL_COUNT} wall segments against plans '
                         'without them instead')
+    parser.add_argument('--profile', action='store_true',
+                        help='profile default plans (certified, with and without walls) instead')
+    parser.add_argument('--top', type=int, default=PROFILE_TOP,
+                        help='functions of each --profile row listed per table')
     arguments = parser.parse_args(argv)
     clock = time.perf_counter if arguments.clock == 'wall' else time.process_time
-    if arguments.obstacles:
+    if arguments.profile:
+        rows = run_profile(arguments.repeats, clock)
+        print(f'default plans, per plan_velocity call ({arguments.clock} clock)')
+        print(profile_tables(rows, arguments.top))
+    elif arguments.obstacles:
         rows = run_obstacles(arguments.repeats, clock)
         print(f'median ms per plan_velocity call, with and without walls ({arguments.clock} '
               'clock)')
