@@ -374,3 +374,28 @@ def test_a_neighbour_standing_in_the_door_is_named_once_it_claims_nothing():
     status = plan_status('self', command, 1.0, 'prvo', 0.25)
     assert diagnostic_values(status)['idle_in_passage'] == 'broken'
     assert 'neighbour broken stood in a passage' in status.message
+
+
+def test_at_a_passage_its_order_leads_and_the_robot_does_not_keep_right():
+    # Bound east through the door, 0.2 m below its middle, a robot meets one coming west in
+    # the far room (it publishes no route: it claims nothing). In open space it would lean
+    # right (test_lanes); here it heads for the door's middle, as the right of way aims it.
+    settings = dataclasses.replace(SETTINGS, radius=0.25)
+    position = np.array([2.0, 1.8])
+    preferences = {}
+    for keep_right in (0.0, 0.3):
+        agent = PlannerAgent('self', CONFIG, dataclasses.replace(settings, keep_right=keep_right),
+                             np.array([5.0, 2.0]))
+        agent.set_map(door_room())
+        for step in range(3):
+            stamp = round(0.1 * step, 9)
+            agent.receive_neighbour('coming', Measurement(
+                stamp, np.array([5.0 - 0.1 * step, 2.0]), np.array([-1.0, 0.0]),
+                1e-4 * np.eye(4)), 0.0)
+            agent.receive_own(Measurement(stamp, position, np.zeros(2), 1e-4 * np.eye(4)), 0.0)
+            request = agent.plan_request()
+        assert agent.passage_decision is not None and agent.passage_decision.goes
+        preferences[keep_right] = request.problem[2]
+    np.testing.assert_allclose(preferences[0.3], preferences[0.0], atol=1e-12)
+    # It heads up toward the middle (y = 2) of the door, not down along the wall on its right.
+    assert preferences[0.3][1] > 0.0

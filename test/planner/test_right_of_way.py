@@ -9,7 +9,7 @@ import pytest
 from prvo_planner.maps import OCCUPIED, GridMap
 from prvo_planner.narrows import find_passages
 from prvo_planner.right_of_way import (
-    AIM_BEYOND,
+    AIM_ALONG,
     FOLLOW_GAP,
     IDLE_INSIDE,
     IDLE_MOVE,
@@ -119,18 +119,34 @@ def test_robots_going_the_same_way_follow_one_another_in_a_gap_apart():
     assert not goes_first(close, [inside])
 
 
-def test_inside_a_robot_aims_beyond_its_way_out_until_it_is_out_past_the_entrance(door):
+def test_inside_a_robot_follows_the_centre_line_beyond_its_way_out_until_it_is_out(door):
     (passage,) = door.passages
-    way_out = passage.ends[1]
+    way_in, way_out = passage.ends
     use = PassageUse('a', 0, None, 1, 1.0)
     before = way_out.entrance - 0.2 * way_out.outward
     assert door.passage_at([before])[0] == 0
+    # The centre line runs on straight out of the way out, AIM_ALONG ahead of the robot.
     aim = door.aim(use, before)
-    assert np.allclose(aim, way_out.entrance + way_out.outward * AIM_BEYOND)
+    assert np.allclose(aim, way_out.entrance + way_out.outward * (AIM_ALONG - 0.2), atol=0.03)
     # Out past the entrance, still among the passage's cells: its route leads it on.
     beyond = way_out.entrance + 0.1 * way_out.outward
     assert door.passage_at([beyond])[0] == 0
     assert door.aim(use, beyond) is None
+
+
+def test_inside_off_the_middle_a_robot_heads_back_to_it_before_the_jambs(door):
+    # Just in by the west, 0.3 m off the middle (y = 2) of a door in the wall at x = 2.95-3.05:
+    # it aims at the middle AIM_ALONG on, short of the wall, not at the way out past the jamb.
+    (passage,) = door.passages
+    way_in, way_out = passage.ends
+    off = way_in.entrance + np.array([0.2, -0.3])
+    assert door.passage_at([off])[0] == 0
+    for use in (PassageUse('a', 0, None, 1, 1.0), PassageUse('a', 0, None, 0, 1.0)):
+        end = passage.ends[use.exit]
+        aim = door.aim(use, off)
+        assert abs(aim[1] - 2.0) < 0.05
+        assert abs(aim[0] - off[0]) == pytest.approx(AIM_ALONG, abs=0.05)
+        assert np.dot(aim - off, end.entrance - off) > 0.0
 
 
 def test_a_robot_held_behind_a_leader_stands_without_a_spot_or_a_wall(door):

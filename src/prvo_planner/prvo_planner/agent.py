@@ -1255,7 +1255,9 @@ class PlannerAgent:
                 distance_to_goal, max_speed, self.settings.approach_time,
                 self.config.time_horizon)
             problem = self._problem(own, stamp, tracks, announcements, v_pref, horizon)
-            if inside is None:
+            if inside is None and self.passage_decision is None:
+                # At a passage its order leads: a lean would turn a robot off the passage's
+                # middle, or off its waiting spot.
                 problem = self._kept_right(problem, distance_to_goal, obstacles)
             if ((self.arrived and self._give_way is None or route_status == ROUTE_UNREACHABLE)
                     and nobody_comes(problem)):
