@@ -80,6 +80,9 @@ def test_cantelli_mapping_matches_the_closed_form():
         assert eta_from_k(k) == pytest.approx(eta)
         assert k_from_eta(eta) == pytest.approx(k)
     assert eta_from_k(math.inf) == 1.0
+    # Margins whose square overflows (a plan at a neighbour with no noise left) still give 1.
+    assert eta_from_k(3e160) == 1.0
+    assert eta_from_k(np.array([3e160, 1e300])).tolist() == [1.0, 1.0]
     with pytest.raises(ValueError, match='k'):
         eta_from_k(-1.0)
     with pytest.raises(ValueError, match='eta'):

@@ -52,10 +52,10 @@ bounded from below by two normal tails per half-plane (:func:`horizon_certificat
 
 Rounding is made to go the safe way where it is cheap: the ranges of ``m`` and ``s^2`` are
 widened by a relative 1e-9 of their scales, the density bound is shrunk by a relative 1e-9, and
-``SLACK = 1e-9`` is subtracted from every bound, which covers the error of :func:`normal_cdf`
-(below 2e-14 per call) summed over up to ``MAX_WEDGES`` wedges and the rounding of the sums. This
-holds for covariances that are not ill conditioned; the bound is not computed in interval
-arithmetic.
+``SLACK = 1e-9`` is subtracted from every bound, which covers the error of ``Phi`` (scipy's
+``ndtr``, below 2e-14 per call, checked against ``math.erfc``) summed over up to ``MAX_WEDGES``
+wedges and the rounding of the sums. This holds for covariances that are not ill conditioned; the
+bound is not computed in interval arithmetic.
 """
 
 from dataclasses import dataclass
@@ -64,7 +64,7 @@ import math
 import numpy as np
 
 from .moments import rvo_moments
-from .special import ndtri
+from .special import ndtr, ndtri
 
 DEFAULT_WEDGES = 64
 MIN_WEDGES = 4
@@ -89,13 +89,7 @@ SEARCH_MARGINS = (0.99, 1.26, 1.51, 1.89)
 # Relative widening of the ranges of m and s^2, and shrinking of the density bound.
 _WIDENING = 1e-9
 
-# normal_cdf: below t = |x| / sqrt(2) = _SERIES_LIMIT the series of erf, above it the continued
-# fraction of erfc, each with _TERMS terms; erfc(t) < 2.2e-17 beyond _NEGLIGIBLE.
-_SERIES_LIMIT = 2.1
-_TERMS = 30
-_NEGLIGIBLE = 6.0
 _SQRT_HALF = math.sqrt(0.5)
-_INV_SQRT_PI = 1.0 / math.sqrt(math.pi)
 _SQRT_2PI = math.sqrt(2.0 * math.pi)
 # Below this beta the direct form of psi(beta) cancels; its polynomial bound is used instead.
 _PSI_SWITCH = -3.0
@@ -187,52 +181,9 @@ def horizon_search_margin(eta):
     return np.clip(ndtri(eta), 0.0, np.sqrt((1.0 + eta) / (1.0 - eta)))
 
 
-def normal_cdf(x):
-    """
-    Evaluate the standard normal distribution function ``Phi`` to 2e-14 absolute.
-
-    numpy has no error function. With ``t = |x| / sqrt(2)`` and ``Phi(-|x|) = erfc(t) / 2``:
-    below ``t = 2.1`` the series ``erf(t) = 2 / sqrt(pi) exp(-t^2) sum_n t (2 t^2)^n / (2n+1)!!``
-    (positive terms, no cancellation; its truncation error grows with ``t``), above it the
-    continued fraction ``erfc(t) = exp(-t^2) / sqrt(pi) / (t + (1/2) / (t + (2/2) / (t + ...)))``
-    (its truncation error shrinks with ``t``), 30 terms each: both errors are largest at the
-    split, below 2e-14 (the tests check against ``math.erfc``). ``erfc(t) < 2.2e-17`` beyond
-    ``t = 6`` is returned as 0.
-
-    Parameters
-    ----------
-    x : array_like
-        Arguments, any shape; ``+-inf`` give 1 and 0, NaN gives NaN.
-
-    Returns
-    -------
-    numpy.ndarray
-        ``Phi(x)``, float, shape of ``x``.
-
-    """
-    x = np.asarray(x, dtype=float)
-    t = np.abs(x) * _SQRT_HALF
-    # Phi(-|x|), NaN until filled: NaN inputs stay NaN.
-    tail = np.where(t >= _NEGLIGIBLE, 0.0, np.nan)
-    near = t < _SERIES_LIMIT
-    series_t = t[near]
-    growth = 2.0 * series_t * series_t
-    total = np.ones_like(series_t)
-    for term in range(_TERMS, 0, -1):
-        total *= growth / (2 * term + 1)
-        total += 1.0
-    tail[near] = 0.5 - _INV_SQRT_PI * series_t * np.exp(-series_t * series_t) * total
-    far = (t >= _SERIES_LIMIT) & (t < _NEGLIGIBLE)
-    fraction_t = t[far]
-    denominator = fraction_t.copy()
-    for term in range(_TERMS, 0, -1):
-        denominator = fraction_t + (0.5 * term) / denominator
-    tail[far] = 0.5 * _INV_SQRT_PI * np.exp(-fraction_t * fraction_t) / denominator
-    return np.where(x < 0.0, tail, 1.0 - tail)
-
-
-# The strip events' miss probabilities 2 Phi(-rho), and the discs' exp(-rho^2 / 2).
-_STRIP_MISSES = 2.0 * normal_cdf(-np.array(STRIP_SIZES))
+# The strip events' miss probabilities 2 Phi(-rho) = erfc(rho / sqrt(2)), and the discs'
+# exp(-rho^2 / 2).
+_STRIP_MISSES = np.array([math.erfc(size * _SQRT_HALF) for size in STRIP_SIZES])
 _DISC_MISSES = np.exp(-0.5 * np.square(DISC_SIZES))
 
 
@@ -452,9 +403,9 @@ def wedge_masses(mu_w, cov_ww, start, width, invertible):
     # positive B over the largest A, a negative one over the smallest.
     low_b = np.stack([b_low, -b_high])
     beta = np.where(low_b >= 0.0, low_b / np.sqrt(a_high), low_b / a_low)
-    # One call of normal_cdf for the half planes and the densities: its cost is mostly per call.
+    # One call of ndtr for the half planes and the densities: its cost is mostly per call.
     arguments = _half_plane_arguments(mu_w, cov_ww, edges)
-    cdf = normal_cdf(np.concatenate([arguments.ravel(), np.maximum(beta, _PSI_SWITCH).ravel()]))
+    cdf = ndtr(np.concatenate([arguments.ravel(), np.maximum(beta, _PSI_SWITCH).ravel()]))
     half_planes = cdf[:arguments.size].reshape(arguments.shape)
     difference = half_planes[:, :-1] - half_planes[:, 1:]
     scale = ((1.0 - _WIDENING) / (2.0 * np.pi * np.sqrt(determinant)))[:, None] * width
@@ -663,7 +614,7 @@ def folded_normal_minima(low, high, var_low, var_high, radius):
     sd_low, sd_high = np.sqrt(np.maximum(var_low, 0.0)), np.sqrt(np.maximum(var_high, 0.0))
     radius = radius[:, None, None]
     near_side = radius - closest
-    near_cdf, far_cdf = normal_cdf(np.stack([
+    near_cdf, far_cdf = ndtr(np.stack([
         _ratio(near_side, np.where(near_side >= 0.0, sd_low, sd_high), 0.0),
         _ratio(-radius - closest, sd_low, -np.inf)]))
     band = near_cdf - far_cdf
@@ -679,7 +630,7 @@ def half_normal_minima(low, high, var_low, var_high):
     """
     smallest = low - _WIDENING * _finite_size(low, high)
     sd_low, sd_high = np.sqrt(np.maximum(var_low, 0.0)), np.sqrt(np.maximum(var_high, 0.0))
-    value = normal_cdf(_ratio(smallest, np.where(smallest >= 0.0, sd_high, sd_low), np.inf))
+    value = ndtr(_ratio(smallest, np.where(smallest >= 0.0, sd_high, sd_low), np.inf))
     return np.where(low > high, 1.0, value)
 
 
@@ -812,7 +763,7 @@ def rvo_certificate(mean, cov, radius, wedges=DEFAULT_WEDGES):
                                                                     1.0)[:, None]
     offset = np.sum(mu_r * normal, axis=1)
     spread = np.sqrt(np.maximum(np.einsum('ni,nij,nj->n', normal, cov_rr, normal), 0.0))
-    folded = normal_cdf(np.stack([_ratio(offset - radius, spread, np.inf),
+    folded = ndtr(np.stack([_ratio(offset - radius, spread, np.inf),
                                   _ratio(-offset - radius, spread, np.inf)])).sum(axis=0)
     known_probability = np.where(speed > 0.0, folded - SLACK, 1.0)
     lam = (cov[:, 0, 2] + cov[:, 1, 3]) / _safe_trace(cov_ww, known | deterministic)
@@ -853,7 +804,7 @@ def receding_certificate(mean, cov, wedges=DEFAULT_WEDGES):
     # S_ww = 0: g = r . mu_w is normal (w = 0: g = 0).
     spread = np.sqrt(np.maximum(np.einsum('ni,nij,nj->n', mu_w, cov_rr, mu_w), 0.0))
     known_probability = np.where(mu_w.any(axis=1),
-                                 normal_cdf(_ratio(closing, spread, np.inf)) - SLACK, 1.0)
+                                 ndtr(_ratio(closing, spread, np.inf)) - SLACK, 1.0)
     kappa = (cov_rw[:, 0, 1] - cov_rw[:, 1, 0]) / _safe_trace(cov_ww, known | deterministic)
     wedge_probability, usable = _general_bound(mean, cov, kappa[:, None, None] * _QUARTER_TURN,
                                                wedges, False, half_normal_minima)
@@ -934,6 +885,6 @@ def horizon_certificate(mean, cov, radius, horizon):
         sd = np.sqrt(np.maximum(np.einsum('nai,nij,naj->na', directions, spread, directions),
                                 0.0))
         # An end exactly on the line with no spread still lies in the closed half-plane.
-        tails.append(normal_cdf(-_ratio(along, sd, np.inf)))
+        tails.append(ndtr(-_ratio(along, sd, np.inf)))
     bound = np.max(1.0 - tails[0] - tails[1], axis=1) - SLACK
     return np.clip(bound, 0.0, 1.0).reshape(shape)

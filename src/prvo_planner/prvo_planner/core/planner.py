@@ -507,12 +507,8 @@ def _ray_search(plans):
                    pair_horizons=pair_horizons)
 
 
-def _choose(search, margins, required=None, certify=None):
-    """Choose every robot's velocity with MARGINS (P, C) per link.
-
-    With REQUIRED, each pair's probability (P,), the robots marked in CERTIFY (R,) have their
-    choices certified against it (:func:`_certified_bounds`); the others get Cantelli's bounds.
-    """
+def _choose(search, margins):
+    """Choose every robot's velocity with MARGINS (P, C) per link; Cantelli's bounds per pair."""
     plans, directions, ray_starts = search.plans, search.directions, search.ray_starts
     first = plans[0]
     rows = replace(search.rows, margins=margins)
@@ -543,46 +539,55 @@ def _choose(search, margins, required=None, certify=None):
                     * ray_counts[pair_robot])
     achieved = _achieved(plans, search.means, search.variances, chosen_links, pair_robot,
                          chosen_t, velocities, search.pair_horizons)
-    bounds, certified = (_certified_bounds(search, velocities, achieved, required, certify)
-                         if required is not None
-                         else (eta_from_k(np.maximum(achieved, 0.0)),
-                               np.zeros(achieved.shape, dtype=bool)))
     return _Choice(velocities=velocities, candidates_feasible=candidates_feasible,
-                   achieved=achieved, bounds=bounds, certified=certified)
+                   achieved=achieved, bounds=eta_from_k(np.maximum(achieved, 0.0)),
+                   certified=np.zeros(achieved.shape, dtype=bool))
 
 
-def _certified_bounds(search, velocities, achieved, required, certify):
+def _pairs(search, robot):
+    """Return the slice of ROBOT's neighbours among the pairs of SEARCH."""
+    return slice(search.pair_starts[robot], search.pair_starts[robot] + search.pair_counts[robot])
+
+
+def _certified_bounds(search, velocities, achieved, required):
     """
-    Per neighbour, a lower bound on the probability of its accepted condition, and its kind.
+    Per neighbour, lower bounds on the probability of its accepted condition, and their kinds.
 
-    Cantelli's bound of the ACHIEVED margin is the floor. Where it falls short of the REQUIRED
-    probability, for the robots marked in CERTIFY, the certified bound on ``P(f >= 0)`` at the
-    robot's velocity is computed, and where that too falls short and the gate counts, the one on
-    ``P(g >= 0)`` and then, with a finite horizon, the one on the whole condition
+    VELOCITIES holds per robot None or the velocities (V, 2) to certify, ACHIEVED their margins
+    (V, n) against its n neighbours. Cantelli's bound of the achieved margin is the floor. Where
+    it falls short of the REQUIRED probability (per pair), the certified bound on ``P(f >= 0)``
+    is computed, and where that too falls short and the gate counts, the one on ``P(g >= 0)``
+    and then, with a finite horizon, the one on the whole condition
     (:func:`horizon_certificate`): a neighbour Cantelli already certifies costs nothing (most of
     a crowd's are far). The condition holds if any alternative does, so the largest is a bound;
-    it is certified where it is a Gaussian one. The calls are per robot:
-    numpy's vectorised transcendental functions round a value by its place in the batch, and a
-    robot's plan must not depend on its companions.
+    it is certified where it is a Gaussian one. A robot's velocities are certified in one call,
+    as a certificate's cost is mostly per call; the calls are per robot: numpy's vectorised
+    transcendental functions round a value by its place in the batch, and a robot's plan must
+    not depend on its companions.
+
+    Returns
+    -------
+    list
+        Per robot None (not certified) or the bounds (V, n) and whether each is certified.
+
     """
-    cantelli = eta_from_k(np.maximum(achieved, 0.0))
-    gaussian = np.zeros(achieved.shape)
-    for robot in np.flatnonzero(certify):
-        plan = search.plans[robot]
-        pairs = slice(search.pair_starts[robot],
-                      search.pair_starts[robot] + search.pair_counts[robot])
-        short = cantelli[pairs] < required[pairs]
-        if not short.any():
+    results = [None] * len(search.plans)
+    for robot, plan in enumerate(search.plans):
+        if velocities[robot] is None:
             continue
-        encounter = plan.encounter
-        mean = encounter.origin[short]
-        mean[:, 2:] += encounter.lead[short, None] * velocities[robot]
-        # A view: the bounds are written into GAUSSIAN.
-        gaussian[pairs][short] = _gaussian_bounds(plan, mean, plan.cov[short],
-                                                  plan.radius[short],
-                                                  plan.layout.receding_enabled[short],
-                                                  required[pairs][short])
-    return np.maximum(gaussian, cantelli), gaussian > cantelli
+        wanted = required[_pairs(search, robot)]
+        cantelli = eta_from_k(np.maximum(achieved[robot], 0.0))
+        gaussian = np.zeros(cantelli.shape)
+        short_velocity, short_pair = np.nonzero(cantelli < wanted)
+        if short_pair.size:
+            encounter = plan.encounter
+            mean = encounter.origin[short_pair]
+            mean[:, 2:] += encounter.lead[short_pair, None] * velocities[robot][short_velocity]
+            gaussian[short_velocity, short_pair] = _gaussian_bounds(
+                plan, mean, plan.cov[short_pair], plan.radius[short_pair],
+                plan.layout.receding_enabled[short_pair], wanted[short_pair])
+        results[robot] = (np.maximum(gaussian, cantelli), gaussian > cantelli)
+    return results
 
 
 def _gaussian_bounds(plan, mean, cov, radius, gated, required):
@@ -603,6 +608,108 @@ def _gaussian_bounds(plan, mean, cov, radius, gated, required):
     return bounds
 
 
+@dataclass(frozen=True)
+class _Anchors:
+    """
+    A robot's anchors, the preferred velocity and the previous command within ``max_speed``.
+
+    The anchors' bounds are filled in when they are certified (:meth:`record`).
+
+    Attributes
+    ----------
+    terms : CostTerms
+        The robot's choice cost.
+    velocities : numpy.ndarray
+        Shape (A, 2), A in 0-2 (none for a robot with limits or static obstacles).
+    costs : numpy.ndarray
+        Their choice costs, (A,).
+    achieved : numpy.ndarray
+        The margins they meet per neighbour, (A, n).
+    bounds, certified : numpy.ndarray
+        Once certified, the bound per neighbour and whether it is a Gaussian one, (A, n).
+
+    """
+
+    terms: CostTerms
+    velocities: np.ndarray
+    costs: np.ndarray
+    achieved: np.ndarray
+    bounds: np.ndarray
+    certified: np.ndarray
+
+    def eligible(self, velocity, feasible):
+        """Return the anchors cheaper than VELOCITY (all if not FEASIBLE), cheapest first."""
+        indices = np.arange(self.costs.size)
+        if feasible and indices.size:
+            indices = indices[self.costs < self.terms.costs(velocity)]
+        return indices[np.argsort(self.costs[indices], kind='stable')]
+
+    def record(self, indices, bounds, certified):
+        """Keep the BOUNDS (k, n) and their kinds CERTIFIED of the anchors INDICES (k,)."""
+        self.bounds[indices], self.certified[indices] = bounds, certified
+
+
+def _anchors(search):
+    """Per robot its :class:`_Anchors`, none certified yet."""
+    anchors = []
+    for plan in search.plans:
+        config, encounter = plan.config, plan.encounter
+        velocities = np.zeros((0, 2))
+        if plan.allowed is None and plan.walls is None:
+            velocities = np.array([_clip_speed(anchor, config.max_speed) for anchor in (
+                plan.v_pref, plan.previous) if anchor is not None])
+        shape = (velocities.shape[0], encounter.origin.shape[0])
+        achieved = np.zeros(shape)
+        if shape[0]:
+            moments = condition_moments(encounter.origin, plan.cov, plan.radius, velocities,
+                                        config.time_horizon, plan.layout.has_receding,
+                                        encounter.lead)
+            achieved = np.array([achieved_margins(*(moment[:, index] for moment in moments),
+                                                  plan.layout, plan.layout.receding_enabled)
+                                 for index in range(shape[0])])
+        terms = CostTerms.of_plan(plan.v_pref, plan.previous, config)
+        anchors.append(_Anchors(terms=terms, velocities=velocities,
+                                costs=terms.costs(velocities), achieved=achieved,
+                                bounds=np.zeros(shape),
+                                certified=np.zeros(shape, dtype=bool)))
+    return anchors
+
+
+def _certify(search, choice, required, robots, anchors=None):
+    """
+    CHOICE with the bounds of the ROBOTS marked certified (:func:`_certified_bounds`).
+
+    With ANCHORS (per robot its :class:`_Anchors`), the anchors :func:`_anchored` may take are
+    certified in the same call as the choice, and recorded: a choice that Cantelli's bound
+    certifies is final, and its anchors are those cheaper than it (all, if it has no feasible
+    velocity); a choice that needs a certificate may be searched again and cost more, and then
+    every anchor is certified, as a few more rows cost little beside the call.
+    """
+    count = len(search.plans)
+    velocities, achieved = [None] * count, [None] * count
+    extra = [np.zeros(0, dtype=int)] * count
+    for robot in np.flatnonzero(robots):
+        velocities[robot] = choice.velocities[robot][None]
+        achieved[robot] = choice.achieved[_pairs(search, robot)][None]
+        if anchors is not None:
+            own, pairs = anchors[robot], _pairs(search, robot)
+            extra[robot] = (np.arange(own.costs.size)
+                            if np.any(choice.bounds[pairs] < required[pairs])
+                            else own.eligible(choice.velocities[robot],
+                                              choice.candidates_feasible[robot]))
+            velocities[robot] = np.concatenate([velocities[robot], own.velocities[extra[robot]]])
+            achieved[robot] = np.concatenate([achieved[robot], own.achieved[extra[robot]]])
+    results = _certified_bounds(search, velocities, achieved, required)
+    bounds, certified = choice.bounds.copy(), choice.certified.copy()
+    for robot in np.flatnonzero(robots):
+        robot_bounds, robot_certified = results[robot]
+        pairs = _pairs(search, robot)
+        bounds[pairs], certified[pairs] = robot_bounds[0], robot_certified[0]
+        if anchors is not None:
+            anchors[robot].record(extra[robot], robot_bounds[1:], robot_certified[1:])
+    return replace(choice, bounds=bounds, certified=certified)
+
+
 def _certified_choice(search):
     """
     Choose velocities that meet each neighbour's probability by a stated bound (section 13).
@@ -610,7 +717,7 @@ def _certified_choice(search):
     The f and g conditions are searched with :func:`search_margin` of each neighbour's
     required probability, the horizon pair and the reach condition (where the gate counts, so
     that the horizon certificate applies) with :func:`horizon_search_margin`, and the choice
-    certified.
+    certified, with the anchors that may replace it (:func:`_anchored`).
     A robot whose choice falls short for some neighbours searches again with Cantelli's margins
     on those neighbours' links; after a second shortfall, with Cantelli's margins everywhere.
     A robot without a feasible velocity keeps its fallback: larger margins accept no more.
@@ -625,24 +732,26 @@ def _certified_choice(search):
         gated = np.concatenate([plan.layout.receding_enabled for plan in plans])[link_pair]
         # The reach condition h3 implies the horizon certificate's event, which certifies it.
         margins[gated, -3:] = horizon_search_margin(required)[link_pair[gated], None]
-    choice = _choose(search, margins, required, np.ones(len(plans), dtype=bool))
+    anchors = _anchors(search)
+    choice = _certify(search, _choose(search, margins), required,
+                      np.ones(len(plans), dtype=bool), anchors)
     retry = (choice.candidates_feasible > 0) & _any_per_robot(search, choice.bounds < required)
     if retry.any():
         short = (choice.bounds < required) & retry[pair_robot]
         margins = np.where(short[link_pair, None], cantelli, margins)
-        choice = _merged(choice, _choose(search, margins, required, retry), retry,
-                         retry[pair_robot])
+        choice = _merged(choice, _certify(search, _choose(search, margins), required, retry),
+                         retry, retry[pair_robot])
         retry &= ((choice.candidates_feasible == 0)
                   | _any_per_robot(search, choice.bounds < required))
         if retry.any():
-            choice = _merged(choice, _choose(search, cantelli, required, retry), retry,
-                             retry[pair_robot])
-    return _anchored(search, choice, required)
+            choice = _merged(choice, _certify(search, _choose(search, cantelli), required,
+                                              retry), retry, retry[pair_robot])
+    return _anchored(search, choice, required, anchors)
 
 
-def _anchored(search, choice, required):
+def _anchored(search, choice, required, anchors):
     """
-    CHOICE with each robot's anchors where they are certified and cost less.
+    CHOICE with each robot's anchors (ANCHORS, :class:`_Anchors`) where certified and cheaper.
 
     The anchors of a robot are its preferred velocity and its previous command (within
     ``max_speed``): the two points the choice cost pulls towards. The search sees each condition
@@ -656,63 +765,25 @@ def _anchored(search, choice, required):
     only if certified for every neighbour (:func:`_certified_bounds`, Cantelli's bound the
     floor) and cheaper than the search's choice (any certified anchor, if the search found
     nothing). Robots with limits or static obstacles keep the search's choice: their anchors
-    are not checked against them.
+    are not checked against them. The anchors were certified with the first choice
+    (:func:`_certify`).
     """
     plans = search.plans
     velocities, candidates_feasible = choice.velocities.copy(), choice.candidates_feasible.copy()
     achieved, bounds, certified = (choice.achieved.copy(), choice.bounds.copy(),
                                    choice.certified.copy())
-    for robot, plan in enumerate(plans):
-        if plan.allowed is not None or plan.walls is not None:
-            continue
-        config = plan.config
-        terms = CostTerms.of_plan(plan.v_pref, plan.previous, config)
-        anchors = np.array([_clip_speed(anchor, config.max_speed) for anchor in (
-            plan.v_pref, plan.previous) if anchor is not None])
-        costs = terms.costs(anchors)
-        if candidates_feasible[robot]:
-            cheaper = costs < terms.costs(velocities[robot])
-            anchors, costs = anchors[cheaper], costs[cheaper]
-        if not anchors.shape[0]:
-            continue
-        pairs = slice(search.pair_starts[robot],
-                      search.pair_starts[robot] + search.pair_counts[robot])
-        encounter = plan.encounter
-        at_anchors = condition_moments(encounter.origin, plan.cov, plan.radius, anchors,
-                                       config.time_horizon, plan.layout.has_receding,
-                                       encounter.lead)
-        for order in np.argsort(costs, kind='stable'):
-            anchor_achieved = achieved_margins(*(moment[:, order] for moment in at_anchors),
-                                               plan.layout, plan.layout.receding_enabled)
-            anchor_bounds, anchor_certified = _anchor_bounds(plan, anchors[order],
-                                                             anchor_achieved, required[pairs])
-            if np.all(anchor_bounds >= required[pairs]):
-                velocities[robot] = anchors[order]
+    for robot in range(len(plans)):
+        own = anchors[robot]
+        pairs = _pairs(search, robot)
+        for index in own.eligible(velocities[robot], candidates_feasible[robot]):
+            if np.all(own.bounds[index] >= required[pairs]):
+                velocities[robot] = own.velocities[index]
                 candidates_feasible[robot] = max(candidates_feasible[robot], 1)
                 achieved[pairs], bounds[pairs], certified[pairs] = (
-                    anchor_achieved, anchor_bounds, anchor_certified)
+                    own.achieved[index], own.bounds[index], own.certified[index])
                 break
     return _Choice(velocities=velocities, candidates_feasible=candidates_feasible,
                    achieved=achieved, bounds=bounds, certified=certified)
-
-
-def _anchor_bounds(plan, velocity, achieved, required):
-    """Per neighbour of PLAN, the bound at VELOCITY and whether it is certified.
-
-    As :func:`_certified_bounds` for one robot: Cantelli's bound of the ACHIEVED margins, raised
-    where it falls short of REQUIRED by the Gaussian bounds in turn.
-    """
-    cantelli = eta_from_k(np.maximum(achieved, 0.0))
-    short = cantelli < required
-    gaussian = np.zeros(achieved.shape)
-    if short.any():
-        encounter = plan.encounter
-        mean = encounter.origin[short]
-        mean[:, 2:] += encounter.lead[short, None] * velocity
-        gaussian[short] = _gaussian_bounds(plan, mean, plan.cov[short], plan.radius[short],
-                                           plan.layout.receding_enabled[short],
-                                           required[short])
-    return np.maximum(gaussian, cantelli), gaussian > cantelli
 
 
 def _any_per_robot(search, flags):

@@ -6,6 +6,10 @@ import numpy as np
 
 from .beliefs import as_covariance, as_finite_array
 
+# From this k on, 1 + k^2 rounds to k^2 (k^2 > 2^53), so k^2 / (1 + k^2) is exactly 1; beyond
+# 1.3e154 k^2 overflows and the quotient would be inf / inf.
+_CERTAIN_K = 1e8
+
 
 def eta_from_k(k):
     """
@@ -26,12 +30,12 @@ def eta_from_k(k):
         # Scalars without numpy: the planner converts a margin on every call.
         if not k >= 0.0:
             raise ValueError(f'k must be >= 0, got {k!r}')
-        return 1.0 if math.isinf(k) else k * k / (1.0 + k * k)
+        return 1.0 if k >= _CERTAIN_K else k * k / (1.0 + k * k)
     k = np.asarray(k, dtype=float)
     if np.any(np.isnan(k)) or np.any(k < 0.0):
         raise ValueError(f'k must be >= 0, got {k.tolist()!r}')
-    with np.errstate(invalid='ignore'):
-        eta = np.where(np.isinf(k), 1.0, k ** 2 / (1.0 + k ** 2))
+    with np.errstate(over='ignore', invalid='ignore'):
+        eta = np.where(k >= _CERTAIN_K, 1.0, k ** 2 / (1.0 + k ** 2))
     return float(eta) if eta.ndim == 0 else eta
 
 
