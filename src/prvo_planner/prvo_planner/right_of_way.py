@@ -14,11 +14,9 @@ nearest where the route leaves (none where the route ends inside). Its *distance
 of route to the passage, zero inside; inside, the length of route left to its way out. Two uses
 *conflict* when one comes in where the other goes out, or when both are inside and go out by
 different ends: they would meet head-on. Robots going the same way never conflict, so a robot
-follows another in, holding its place while its route to their way out is less than
-`FOLLOW_GAP` longer than the other's (the names decide between equal ones). A neighbour that
-publishes no route (a walker, a robot of another stack, a robot at its goal) uses nothing,
-claims nothing, and is avoided as every neighbour is; so is, after `IDLE_INSIDE`, one standing
-in a passage (`IdleWatch`: a robot broken down in a door).
+follows another in. A neighbour that publishes no route (a walker, a robot of another stack, a
+robot at its goal) uses nothing, claims nothing, and is avoided as every neighbour is; so is,
+after `IDLE_INSIDE`, one standing in a passage (`IdleWatch`: a robot broken down in a door).
 
 **The order.** A robot inside keeps the passage: one coming in where it goes out waits. Of two
 inside that conflict, the one with less of the passage left goes on and the other backs out.
@@ -63,8 +61,8 @@ REENTRY = 1.0
 AIM_ALONG = 0.6
 # Outside, for the line out of its entrance's middle this much [m] nearer the entrance.
 AIM_AHEAD = 0.5
-# A robot following another in keeps this far [m] of route behind it: two abreast at a mouth
-# one robot wide jam it, and so do two that come to it from either side.
+# A robot following another in keeps this far [m] behind it: two abreast at a mouth one robot
+# wide jam it.
 FOLLOW_GAP = 1.2
 # A neighbour inside a passage that moves less than IDLE_MOVE [m] in IDLE_INSIDE [s] claims
 # nothing (`IdleWatch`): the stall monitor's 10 s without 0.5 m.
@@ -91,11 +89,8 @@ class PassageUse:
         Outside: the length of route to the passage [m]. Inside: the length of route left to
         its way out (to its route's end inside), [m].
     position : numpy.ndarray or None
-        Shape (2,): where the robot is [m]; None: unknown (it takes the first free waiting
-        spot).
-    to_exit : float or None
-        The length of route to its way out [m] (inside, `distance`); None: unknown, or its
-        route ends inside (it follows no one and no one keeps behind it).
+        Shape (2,): where the robot is [m]; None: unknown (it follows no one and no one keeps
+        behind it).
 
     """
 
@@ -105,7 +100,6 @@ class PassageUse:
     exit: int | None
     distance: float
     position: np.ndarray | None = None
-    to_exit: float | None = None
 
     @property
     def inside(self):
@@ -162,17 +156,14 @@ def goes_first(me, others):
 
 
 def _too_close_behind(me, others):
-    """Whether ME is less than FOLLOW_GAP of its way behind one going its way before it.
-
-    Along the way, not as the crow flies: two robots coming to a mouth from either side of it
-    are far apart until they meet in it.
-    """
-    if me.to_exit is None:
+    """Whether ME, outside, is within FOLLOW_GAP of one going the same way before it."""
+    if me.inside or me.position is None:
         return False
     for other in others:
-        if (other.exit == me.exit and other.to_exit is not None
-                and (other.to_exit, other.name) < (me.to_exit, me.name)
-                and me.to_exit - other.to_exit < FOLLOW_GAP
+        same_way = (other.exit == me.exit if other.inside
+                    else other.entry == me.entry and ahead(other, me))
+        if (same_way and other.position is not None
+                and math.hypot(*(other.position - me.position)) < FOLLOW_GAP
                 and _unopposed(other, [use for use in others if use is not other] + [me])):
             return True
     return False
@@ -264,16 +255,14 @@ class PassageMap:
             last = None
         ends = self.passages[passage].ends
         exit_end = None if last is None else _nearest_end(ends, points[last])
-        to_exit = None if last is None else float(along[last])
         if first == 0:
             distance = float(along[last] if last is not None else along[-1])
-            return PassageUse(name, passage, None, exit_end, distance, position, to_exit)
+            return PassageUse(name, passage, None, exit_end, distance, position)
         entry = _nearest_end(ends, points[first])
         if entry == exit_end:
             # In and out by one end: the route only grazes the passage's cells at its mouth.
             return None
-        return PassageUse(name, passage, entry, exit_end, float(along[first]), position,
-                          to_exit)
+        return PassageUse(name, passage, entry, exit_end, float(along[first]), position)
 
     def aim(self, use, position):
         """Return the point (2,) [m] the robot of USE at POSITION (2,) heads for, None: none.
