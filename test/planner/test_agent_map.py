@@ -399,3 +399,36 @@ def test_at_a_passage_its_order_leads_and_the_robot_does_not_keep_right():
     np.testing.assert_allclose(preferences[0.3], preferences[0.0], atol=1e-12)
     # It heads up toward the middle (y = 2) of the door, not down along the wall on its right.
     assert preferences[0.3][1] > 0.0
+
+
+def test_a_robot_waiting_where_no_spot_fits_says_so_and_holds_its_place(monkeypatch):
+    # The door's west end without waiting spots (as where the room beside it is too small):
+    # the robot bound east waits for 'other', inside going west, where it is, and says so.
+    def without_west_spots(*args, **kwargs):
+        return tuple(dataclasses.replace(passage, ends=(
+            dataclasses.replace(passage.ends[0], waiting_spot=None), *passage.ends[1:]))
+            for passage in narrows.find_passages(*args, **kwargs))
+
+    monkeypatch.setattr(agent_module, 'find_passages', without_west_spots)
+    agent = PlannerAgent('self', CONFIG, dataclasses.replace(SETTINGS, radius=0.25),
+                         np.array([5.0, 2.0]))
+    agent.set_map(door_room())
+    agent.receive_route('other', np.array([[3.0, 2.0], [1.0, 2.0]]), 0.0)
+    position = np.array([1.5, 2.0])
+    for step in range(3):
+        stamp = round(0.1 * step, 9)
+        agent.receive_neighbour('other', Measurement(stamp, np.array([3.0, 2.0]), np.zeros(2),
+                                                     1e-4 * np.eye(4)), 0.0)
+        agent.receive_own(Measurement(stamp, position, np.zeros(2), 1e-4 * np.eye(4)), 0.0)
+        request = agent.plan_request()
+    decision = agent.passage_decision
+    west = agent.passage_map.passages[0].ends[0]
+    assert not decision.goes and decision.without_spot and decision.waiting_spot is None
+    np.testing.assert_array_equal(decision.entrance, west.entrance)
+    np.testing.assert_array_equal(request.problem[2], np.zeros(2))
+    agent.receive_own(Measurement(0.3, position, np.zeros(2), 1e-4 * np.eye(4)), 0.0)
+    command = agent.plan()
+    status = plan_status('self', command, 1.0, 'prvo', 0.25)
+    assert (f'self waits at passage 0, whose end at ({west.entrance[0]:.2f}, '
+            f'{west.entrance[1]:.2f}) has no waiting spot') in status.message
+    assert 'it holds its place' in status.message

@@ -149,6 +149,26 @@ def test_inside_off_the_middle_a_robot_heads_back_to_it_before_the_jambs(door):
         assert np.dot(aim - off, end.entrance - off) > 0.0
 
 
+def test_a_waiting_robot_names_the_end_it_waits_at_and_whether_a_spot_fits_there(door):
+    (passage,) = door.passages
+    inside = PassageUse('z', 0, None, 0, 0.5, np.array([3.0, 2.0]))
+    me = PassageUse('a', 0, 0, 1, 1.0, np.array([1.5, 2.0]))
+    decision = door.decision(me, [inside], me.position)
+    np.testing.assert_array_equal(decision.entrance, passage.ends[0].entrance)
+    assert not decision.without_spot
+    spotless = PassageMap.__new__(PassageMap)
+    spotless.__dict__.update(door.__dict__)
+    spotless.passages = (dataclasses.replace(passage, ends=(
+        dataclasses.replace(passage.ends[0], waiting_spot=None), passage.ends[1])),)
+    decision = spotless.decision(me, [inside], me.position)
+    assert decision.without_spot and decision.waiting_spot is None
+    # Going, or held behind one going its way, it waits at no end.
+    assert door.decision(inside, [me], inside.position).entrance is None
+    leader = PassageUse('b', 0, 0, 1, 0.4, np.array([2.0, 2.0]))
+    follower = PassageUse('c', 0, 0, 1, 0.8, np.array([1.6, 2.0]))
+    assert not door.decision(follower, [leader], follower.position).without_spot
+
+
 def test_a_robot_held_behind_a_leader_stands_without_a_spot_or_a_wall(door):
     leader = PassageUse('b', 0, 0, 1, 0.4, np.array([2.0, 2.0]))
     follower = PassageUse('c', 0, 0, 1, 0.8, np.array([1.6, 2.0]))

@@ -93,6 +93,7 @@ from prvo_planner.reports import (
     command_message,
     idle_message,
     inside_message,
+    no_spot_message,
     passage_message,
 )
 from prvo_planner.routes import RouteIntent, route_stamp
@@ -166,6 +167,8 @@ class PlannerNode(Node):
             self._twist_type, self._cmd_vel_topic, CMD_VEL_QOS,
             event_callbacks=quiet_publisher_events())
         self._reporter = PlanReporter(self, self._robot)
+        # The passage ends without a waiting spot this robot has waited at (reported once).
+        self._ends_without_spot = set()
         self._announcer = Announcer(self, self._robot)
         self._announce()
         self._commands = CommandsAfterAnnouncements(
@@ -749,6 +752,13 @@ class PlannerNode(Node):
             self._warnings.warn('inside', inside_message(command.inside_obstacle))
         for robot in command.idle_in_passage:
             self._warnings.warn(('idle', robot), idle_message(robot))
+        decision = command.right_of_way
+        if decision is not None and decision.without_spot:
+            # Once per end: the map's geometry does not change while the robot waits there.
+            end = (decision.use.passage, *np.round(decision.entrance, 3))
+            if end not in self._ends_without_spot:
+                self._ends_without_spot.add(end)
+                self.get_logger().warning(no_spot_message(self._robot, decision))
         self._reporter.report(
             time.monotonic(), self._values['status_period'], command, plan_time_ms,
             self._config, self._agent.settings.planning_radius, self._values['frame_id'])

@@ -60,7 +60,8 @@ def plan_status(robot, command, plan_time_ms, model, planning_radius):
     stall keys are `stall_values`'; a stalled robot's status is a WARN, as is that of a robot
     whose centre is inside an obstacle on its map (`inside_message`). `awaiting_map` is true
     while the robot holds for a map still being built (`AWAITING_MAP`, the message then).
-    The right of way keys are `right_of_way_values`'; a robot waiting for its turn says so.
+    The right of way keys are `right_of_way_values`'; a robot waiting for its turn says so, and
+    where no waiting spot fits at its end, that it holds its place (`no_spot_message`).
     `idle_in_passage` names the neighbours that stood in the passage on the robot's route too
     long and claim nothing (comma-separated; 'none'), and the message says so of each
     (`idle_message`).
@@ -83,6 +84,8 @@ def plan_status(robot, command, plan_time_ms, model, planning_radius):
     decision = command.right_of_way
     if decision is not None and not decision.goes:
         messages.append(f'waits for its turn at passage {decision.use.passage}')
+        if decision.without_spot:
+            messages.append(no_spot_message(robot, decision))
     messages.extend(idle_message(robot) for robot in command.idle_in_passage)
     if stalled:
         messages.append(stall_message(command.stall))
@@ -130,6 +133,13 @@ def passage_message(passage):
     return (f'the way at ({passage.point[0]:.2f}, {passage.point[1]:.2f}) is '
             f'{passage.width:.2f} m wide; certifying it needs at least {passage.needed:.2f} m '
             '(holding)')
+
+
+def no_spot_message(robot, decision):
+    """Return the line of ROBOT waiting by DECISION at a passage end where no spot fits."""
+    x, y = decision.entrance
+    return (f'{robot} waits at passage {decision.use.passage}, whose end at ({x:.2f}, {y:.2f}) '
+            'has no waiting spot (none fits beside it): it holds its place')
 
 
 def idle_message(robot):

@@ -122,6 +122,9 @@ class Decision:
         Shape (2,): where it waits [m] (it goes on: None; it waits with no spot: None).
     wall : numpy.ndarray or None
         Shape (2, 2): the virtual wall across its entrance [m], None when it goes or is inside.
+    entrance : numpy.ndarray or None
+        Shape (2,): the entrance of the end it waits at [m] (coming in, or backing out by);
+        None when it goes, or holds its place behind one going its way.
 
     """
 
@@ -129,6 +132,12 @@ class Decision:
     goes: bool
     waiting_spot: np.ndarray | None = None
     wall: np.ndarray | None = None
+    entrance: np.ndarray | None = None
+
+    @property
+    def without_spot(self):
+        """Whether the robot waits at an end where no waiting spot fits (it holds its place)."""
+        return self.entrance is not None and self.waiting_spot is None
 
 
 def conflict(first, second):
@@ -307,10 +316,10 @@ class PassageMap:
             back = [index for index in range(len(ends)) if index != me.exit] or [0]
             end = ends[min(back, key=lambda index: np.hypot(*(ends[index].entrance
                                                                - position)))]
-            return Decision(me, False, end.waiting_spot)
+            return Decision(me, False, end.waiting_spot, entrance=end.entrance)
         end = ends[me.entry]
         return Decision(me, False, end.waiting_spot,
-                        self._wall(self.passages[me.passage], end, position))
+                        self._wall(self.passages[me.passage], end, position), end.entrance)
 
     def _wall(self, passage, end, position):
         """Return the virtual wall (2, 2) across PASSAGE's END, None if the robot is at it.
