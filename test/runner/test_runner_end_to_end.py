@@ -2,6 +2,7 @@
 
 import csv
 import json
+import re
 import signal
 
 import numpy as np
@@ -90,8 +91,11 @@ def test_sigint_during_a_real_run_leaves_no_process(tmp_path, runners):
     long_run.write_text(text.replace('goal: [-4.0, 0.0]', 'goal: [-400.0, 0.0]'))
     runner = start_runner([str(long_run), '--out', str(tmp_path / 'out')], tmp_path)
     runners.append(runner)
-    # The first progress line appears with the first ground truth of every robot.
-    wait_for(lambda: 'arrived ' in runner.err_path.read_text(), 120, 'the run starting')
+    # Progress lines come once every robot's ground truth is heard; a second of simulated time
+    # later every planner has planned and reported (the first line alone came, at times, before
+    # any diagnostics reached the bag).
+    wait_for(lambda: _latest_sim_time(runner.err_path.read_text()) >= 1.0, 120,
+             'a second of the run')
     runner.send_signal(signal.SIGINT)
     assert runner.wait(timeout=60) == 128 + signal.SIGINT
     assert processes_with_token(runner.token) == []
@@ -114,3 +118,9 @@ def test_sigint_during_a_real_run_leaves_no_process(tmp_path, runners):
         assert times_ms <= set(stamps[f'/{robot}/ground_truth'])
         assert commanded_ms <= set(stamps[f'/{robot}/cmd_vel'])
     assert stamps['/clock'] and stamps['/diagnostics']
+
+
+def _latest_sim_time(progress):
+    """Return the simulated time [s] of the last progress line in PROGRESS, -1 before any."""
+    times = re.findall(r'sim +([0-9.]+)/', progress)
+    return float(times[-1]) if times else -1.0
