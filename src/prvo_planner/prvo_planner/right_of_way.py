@@ -281,8 +281,8 @@ class PassageMap:
         inside: the passage's centre line to its way out and on straight out of it, `AIM_ALONG`
         ahead of the robot's nearest point on it, until the robot is out past that entrance (a
         passage's cells reach past its mouths): then its route leads it on, which may turn at
-        once (a door onto a corridor). Through the middle the jambs
-        are farthest, and the walls' conditions leave the most room.
+        once (a door onto a corridor). Through the middle the jambs are farthest, and the
+        walls' conditions leave the most room.
         """
         passage = self.passages[use.passage]
         ends = passage.ends
