@@ -16,8 +16,10 @@ The lean is taken only where the free space is wide enough for two robots to pas
 always, among walls where the narrowest clear width across the robot's way, from its position
 to `AHEAD` in front, is at least two of the widths one robot needs to be certified through
 (`core.walls.certifiable_width`, with the robot's own noise): through a door one robot wide,
-leaning would only press the robot against a jamb. It fades out over the last `FADE` metres to
-the goal, so that a robot arrives as it would without it.
+leaning would only press the robot against a jamb. (Nor does the agent lean a robot at a
+passage whose right of way is in force, `prvo_planner.right_of_way`: the passage's order leads
+there.) It fades out over the last `FADE` metres to the goal, so that a robot arrives as it
+would without it.
 
 The trade-off of the angle: path length against flow. Held for a whole way in open space, a lean
 of angle a lengthens it by a factor 1 / cos(a) (a logarithmic spiral into the goal: 1.5 % at
