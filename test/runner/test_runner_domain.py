@@ -77,16 +77,18 @@ def test_stranger_on_an_explicit_domain_refuses_the_run(tmp_path, runners, relea
     strangers(released_domain, '-r', '__ns:=/robot_0', '-r', '__node:=old_planner')
     runner = start_fake_run(tmp_path, runners, '--domain-id', str(released_domain))
     code = runner.wait(timeout=60)
-    error = runner.err_path.read_text()
-    assert '/robot_0/old_planner' in error and '/robot_0/cmd_vel' in error, error
-    # Heard in the check before the run, it is refused and nothing is started or written. The
-    # check listens DOMAIN_CHECK_TIME of wall time: on a machine loaded enough that discovery
-    # takes longer (it did once in a fresh-clone CI), the stranger is heard once the run has
-    # started, and the run stops as interfered with, naming it. Either way no run goes on.
+    # Heard in the check before the run, it is refused (stderr) and nothing is started or
+    # written. The check listens DOMAIN_CHECK_TIME of wall time: on a machine loaded enough that
+    # discovery takes longer (it did in fresh-clone CIs), the stranger is heard once the run has
+    # started, and the run stops as interfered with, its outcome (stdout) naming it. Either way
+    # no run goes on.
     if code == 2:
+        error = runner.err_path.read_text()
         assert not (tmp_path / 'runner').exists()
     else:
-        assert code == 1 and 'processes this runner did not start publish' in error, error
+        error = runner.out_path.read_text()
+        assert code == 1 and 'FAILED: processes this runner did not start publish' in error, error
+    assert '/robot_0/old_planner' in error and '/robot_0/cmd_vel' in error, error
     assert processes_with_token(runner.token) == []
 
 
