@@ -193,17 +193,22 @@ class Probe:
     Tests subscribe through it and wait on `threading.Event`s or futures with timeouts.
     """
 
-    def __init__(self, domain_id):
+    # How long one spin waits for work: the longest `close` waits for the spin thread to see
+    # that it should stop.
+    SPIN_PERIOD = 0.05
+
+    def __init__(self, domain_id, name='prvo_test_probe', namespace=None):
         import rclpy
         from rclpy.context import Context
         from rclpy.executors import SingleThreadedExecutor
 
         self.context = Context()
         rclpy.init(context=self.context, domain_id=domain_id)
-        self.node = rclpy.create_node('prvo_test_probe', context=self.context)
+        self.node = rclpy.create_node(name, namespace=namespace, context=self.context)
         self._executor = SingleThreadedExecutor(context=self.context)
         self._executor.add_node(self.node)
         self._lock = threading.Lock()
+        self._stop = threading.Event()
         self._thread = threading.Thread(target=self._spin, daemon=True)
         self._thread.start()
 
@@ -211,7 +216,8 @@ class Probe:
         from rclpy.executors import ExternalShutdownException
 
         try:
-            self._executor.spin()
+            while not self._stop.is_set() and self.context.ok():
+                self._executor.spin_once(timeout_sec=self.SPIN_PERIOD)
         except ExternalShutdownException:
             pass
 
@@ -285,11 +291,21 @@ class Probe:
             threading.Event().wait(poll)
 
     def close(self):
-        """Stop spinning and shut the probe's context down."""
+        """Stop spinning, then destroy the node and shut the probe's context down.
+
+        The spin thread is joined first: rclpy's `Executor.shutdown` returns without waiting
+        for a spin in another thread, and a node or context destroyed while that thread still
+        waits on or runs one of its entities can crash the process (a pytest worker, once in
+        CI).
+        """
+        self._stop.set()
+        self._thread.join(timeout=30.0)
+        if self._thread.is_alive():
+            raise RuntimeError(
+                f'the spin thread of {self.node.get_name()} did not stop within 30 s')
         self._executor.shutdown()
         self.node.destroy_node()
         self.context.try_shutdown()
-        self._thread.join(timeout=5.0)
 
 
 @pytest.fixture
@@ -298,6 +314,23 @@ def probe(ros_domain):
     ros_probe = Probe(ros_domain)
     yield ros_probe
     ros_probe.close()
+
+
+@pytest.fixture
+def spinning_node(ros_domain):
+    """Return `make(name, namespace)`: a node spinning as the probe's does, closed after the test.
+
+    On the test's private ROS domain, in a context of its own: a stand-in for a robot's node.
+    """
+    made = []
+
+    def make(name, namespace=None):
+        made.append(Probe(ros_domain, name, namespace))
+        return made[-1].node
+
+    yield make
+    for spinning in made:
+        spinning.close()
 
 
 @pytest.fixture(scope='module')

@@ -3,7 +3,6 @@
 import os
 import signal
 import sys
-import threading
 import time
 
 import pytest
@@ -41,33 +40,21 @@ rclpy.spin(node)
 
 
 @pytest.fixture
-def announcing_robot(ros_domain):
-    """Yield a node in /robot_x with an Announcer and its commands, spinning in a thread."""
+def announcing_robot(spinning_node):
+    """Return a node in /robot_x with an Announcer and its commands, spinning in a thread."""
     from geometry_msgs.msg import Twist
-    import rclpy
     from rclpy.clock import Clock, ClockType
-    from rclpy.context import Context
-    from rclpy.executors import SingleThreadedExecutor
 
     from prvo_msgs_util import CMD_VEL, CMD_VEL_QOS, Announcer, CommandsAfterAnnouncements
 
-    context = Context()
-    rclpy.init(context=context, domain_id=ros_domain)
-    node = rclpy.create_node('planner', namespace='robot_x', context=context)
-    executor = SingleThreadedExecutor(context=context)
-    executor.add_node(node)
-    thread = threading.Thread(target=executor.spin, daemon=True)
+    node = spinning_node('planner', 'robot_x')
     late = []
     robot = {'node': node, 'announcer': Announcer(node, 'robot_x'), 'late': late,
              'cmd_vel': node.create_publisher(Twist, CMD_VEL, CMD_VEL_QOS),
              'clock': Clock(clock_type=ClockType.STEADY_TIME)}
     robot['commands'] = lambda timeout: CommandsAfterAnnouncements(
         node, robot['cmd_vel'], robot['clock'], late.append, timeout=timeout)
-    thread.start()
-    yield robot
-    executor.shutdown()
-    node.destroy_node()
-    rclpy.try_shutdown(context=context)
+    return robot
 
 
 def started_listener(children, probe, announcing_robot):
