@@ -14,6 +14,7 @@ line.
 """
 
 import dataclasses
+import functools
 import math
 
 import numpy as np
@@ -90,6 +91,9 @@ _AFTER_STAMP_ZERO = 1e-9
 # stamp and the later ones, of which a neighbour in lockstep has at most one or two; the bound
 # holds against a neighbour flooding changes faster than this robot plans.
 MAX_KEPT_ANNOUNCEMENTS = 16
+# Configs kept per plan horizon and control period: the horizon shrinks near the goal, so the
+# pairs are few but not bounded.
+MAX_PLANNING_CONFIGS = 32
 
 
 @dataclasses.dataclass(frozen=True)
@@ -110,6 +114,12 @@ class NeighbourAnnouncement:
         object.__setattr__(self, 'radius', radius)
         object.__setattr__(self, 'avoidance_share',
                            validated_share(self.avoidance_share, 'avoidance_share'))
+
+
+@functools.lru_cache(maxsize=256)
+def _announcement(radius, avoidance_share):
+    """Return the `NeighbourAnnouncement` of the pair: a team announces few, every plan each."""
+    return NeighbourAnnouncement(radius, avoidance_share)
 
 
 class AnnouncedValues:
@@ -607,6 +617,8 @@ class PlannerAgent:
         self._command_stamp = None
         self._drive = (0.0, 0.0)
         self._control_period = None
+        # (the config they were made of, {(horizon, control period): config}): `_problem`'s.
+        self._planning_configs = (None, {})
         # Listed neighbours are waited for from the first own measurement on, not from start-up:
         # a team's processes start at different speeds, and a run begins with all of them.
         self._first_own_at = None
@@ -784,9 +796,8 @@ class PlannerAgent:
         """
         radius, share = (None if robot not in announced else announced[robot].value_at(stamp)
                          for announced in (self._announced_radius, self._announced_share))
-        return NeighbourAnnouncement(
-            self.settings.unknown_neighbor_radius if radius is None else radius,
-            UNANNOUNCED_SHARE if share is None else share)
+        return _announcement(self.settings.unknown_neighbor_radius if radius is None else radius,
+                             UNANNOUNCED_SHARE if share is None else share)
 
     def forget_neighbours(self, now, wanted=None):
         """Drop neighbours silent longer than neighbor_timeout, or not in WANTED (if given).
@@ -1014,10 +1025,27 @@ class PlannerAgent:
                         self.settings.planning_radius),
             [track.agent_belief(stamp, announcement.radius, announcement.avoidance_share)
              for track, announcement in zip(tracks, announcements, strict=True)],
-            v_pref, dataclasses.replace(
-                self.config, time_horizon=horizon,
-                control_period=self._control_period or self.config.control_period),
+            v_pref, self._planning_config(
+                horizon, self._control_period or self.config.control_period),
             self._previous_velocity, self._limits(stamp))
+
+    def _planning_config(self, horizon, control_period):
+        """Return the config with this plan's HORIZON [s] and CONTROL_PERIOD [s].
+
+        Kept per pair for the config in force: a plan's pair repeats from step to step, and
+        making a `PlannerConfig` validates every field again.
+        """
+        if self._planning_configs[0] is not self.config:
+            self._planning_configs = (self.config, {})
+        made = self._planning_configs[1]
+        key = (horizon, control_period)
+        config = made.get(key)
+        if config is None:
+            if len(made) >= MAX_PLANNING_CONFIGS:
+                made.clear()
+            config = made[key] = dataclasses.replace(
+                self.config, time_horizon=horizon, control_period=control_period)
+        return config
 
     def _given_way(self, position, v_pref, beliefs, announcements, routes):
         """Return V_PREF, or toward the spot beside a passing neighbour's route (`give_way`).
