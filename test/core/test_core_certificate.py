@@ -16,6 +16,8 @@ from prvo_planner.core.certificate import (
     MAX_WEDGES,
     METHODS,
     SLACK,
+    condition_bound,
+    harmonic_ranges,
     horizon_certificate,
     receding_certificate,
     rvo_certificate,
@@ -416,6 +418,57 @@ def test_batches_give_each_entry_its_own_certificate():
     # One covariance and one radius for many means broadcast.
     shared = rvo_certificate(means, covs[0], 0.7)
     assert shared.probability.shape == (len(cases),)
+
+
+@pytest.mark.parametrize('horizon', [2.5, None])
+def test_the_condition_bound_is_the_three_certificates_each_where_the_others_fall_short(horizon):
+    # condition_bound computes the wedges once for f and g and each later bound only where the
+    # earlier ones leave an entry short; the oracle calls the three public certificates, each on
+    # the entries it is due for, as separate batches.
+    cases = cases_of(95, KINDS, 30)
+    means, covs, radii = stacked(cases)
+    rng = np.random.default_rng(96)
+    required = rng.uniform(0.5, 0.999, size=len(cases))
+    gated = rng.random(len(cases)) < 0.7
+    expected = rvo_certificate(means, covs, radii).probability
+    gate = gated & (expected < required)
+    expected[gate] = np.maximum(expected[gate],
+                                receding_certificate(means[gate], covs[gate]).probability)
+    later = gate & (expected < required)
+    if horizon is not None:
+        expected[later] = np.maximum(expected[later], horizon_certificate(
+            means[later], covs[later], radii[later], horizon))
+    bounds = condition_bound(means, covs, radii, required, gated, horizon)
+    assert bounds.shape == (len(cases),)
+    assert np.max(np.abs(bounds - expected)) <= 1e-12
+    # Informative: the receding bound and the horizon bound are both needed for some entries.
+    assert np.count_nonzero(gate) >= 20 and np.count_nonzero(later) >= 10
+    # Nothing short: f alone.
+    assert np.array_equal(condition_bound(means, covs, radii, np.zeros(len(cases)), gated,
+                                          horizon),
+                          rvo_certificate(means, covs, radii).probability)
+
+
+def test_harmonic_ranges_are_the_extremes_of_the_sinusoids_over_each_wedge():
+    # Dense samples of c cos(m x) + s sin(m x) over each wedge, m = 1 or 2, ends included: the
+    # ranges contain every sample and exceed them by at most the curvature between samples.
+    rng = np.random.default_rng(97)
+    count, wedges, steps = 40, 16, 4001
+    start = rng.uniform(0.0, math.pi, size=(count, wedges))
+    width = rng.uniform(0.0, math.pi, size=(count, wedges)) * (rng.random((count, wedges)) < 0.9)
+    single = [rng.normal(size=(count, 2)) for _ in range(3)]
+    double = [rng.normal(size=(count, 2)) for _ in range(2)]
+    low, high = harmonic_ranges(start, width, single, double)
+    assert low.shape == high.shape == (5, count, wedges)
+    x = start[..., None] + width[..., None] * np.linspace(0.0, 1.0, steps)
+    for index, (c, s) in enumerate(np.stack(single + double)[..., None, None].swapaxes(1, 2)):
+        multiple = 1.0 if index < len(single) else 2.0
+        values = c * np.cos(multiple * x) + s * np.sin(multiple * x)
+        slack = np.hypot(c, s)[..., 0] * (multiple * width / (steps - 1)) ** 2
+        assert np.all(low[index] <= values.min(axis=-1) + 1e-12)
+        assert np.all(high[index] >= values.max(axis=-1) - 1e-12)
+        assert np.all(low[index] >= values.min(axis=-1) - slack - 1e-12)
+        assert np.all(high[index] <= values.max(axis=-1) + slack + 1e-12)
 
 
 @pytest.mark.parametrize('wedges', [3, 2, 5, MAX_WEDGES + 2, 64.0, True])

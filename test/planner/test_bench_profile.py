@@ -15,7 +15,7 @@ def test_the_profile_reports_every_case_and_the_certificate(tmp_path, capsys):
     for row in rows:
         # Every plan goes through the planner, and the certified bound certifies some neighbour.
         assert row['functions']['planner.plan_velocity']['calls'] == 1.0
-        assert row['functions']['certificate.rvo_certificate']['calls'] >= 1.0
+        assert row['functions']['certificate.condition_bound']['calls'] >= 1.0
         assert 0 < row['numpy_calls'] < row['calls']
         assert 0.0 < row['core_self_ms'] <= row['profiled_ms']
     out = capsys.readouterr().out

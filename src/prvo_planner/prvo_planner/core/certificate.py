@@ -23,7 +23,7 @@ floating-point rounding.
    ``P(f >= 0 | w) = F(m, s) = Phi((m - R) / s) + Phi((-m - R) / s)``, a folded normal.
 4. **Cells.** The directions are cut into wedges, each with its opposite. Over a wedge and the
    lengths ``l`` of an event ``E`` of high probability, ``m`` and ``s^2`` lie in ranges bounded
-   from the exact ranges of their sinusoids (:func:`harmonic_range`), and ``F`` is at least its
+   from the exact ranges of their sinusoids (:func:`harmonic_ranges`), and ``F`` is at least its
    value at the worst end (:func:`folded_normal_minima`). Two kinds of ``E`` are tried, at
    several sizes ``rho``. The strip ``|e . (w - mu_w)| <= rho sd(e . w)``, ``e`` the mean's
    direction, bounds ``l`` on each wedge and misses with probability ``2 Phi(-rho)`` (the gain
@@ -94,6 +94,7 @@ _SQRT_2PI = math.sqrt(2.0 * math.pi)
 # Below this beta the direct form of psi(beta) cancels; its polynomial bound is used instead.
 _PSI_SWITCH = -3.0
 _QUARTER_TURN = np.array([[0.0, -1.0], [1.0, 0.0]])
+_ADJUGATE_SIGNS = np.array([[1.0, -1.0], [-1.0, 1.0]])
 # g = z' G z with G = [[0, I], [I, 0]] / 2.
 _HALF_SWAP = np.block([[np.zeros((2, 2)), 0.5 * np.eye(2)], [0.5 * np.eye(2), np.zeros((2, 2))]])
 # Even directions of the half-planes :func:`horizon_certificate` tries, besides the means'.
@@ -194,80 +195,86 @@ def _ratio(numerator, denominator, zero_by_zero):
     return np.where(np.isnan(quotient), zero_by_zero, quotient)
 
 
-def harmonic_range(cosine, sine, start, width):
+def _linear_coefficients(vector, across):
     """
-    Exact range of ``cosine cos x + sine sin x`` over ``x`` in ``[start, start + width]``.
+    ``vector . v(x)`` as ``c cos x + s sin x``: the coefficients ``(c, s)``, shape (N, 2).
 
-    The extremes are at the ends or at the interior stationary points: the peak
-    ``atan2(sine, cosine)`` and the trough half a turn from it.
+    ``v`` is the normal ``n(x)`` (``across``) or the direction ``d(x)``; ``vector`` (N, 2).
+    """
+    # vector . n(x) = vector_x sin x - vector_y cos x.
+    return vector[:, ::-1] * np.array([-1.0, 1.0]) if across else vector
+
+
+def _quadratic_coefficients(matrix, across):
+    """
+    ``v' M v`` as ``constant + c cos 2x + s sin 2x``: ``constant`` (N,) and ``(c, s)`` (N, 2).
+
+    ``d' M d = (Mxx + Myy) / 2 + (Mxx - Myy) / 2 cos 2x + Mxy sin 2x``; ``n(x) = d(x - pi / 2)``
+    (``across``) flips the sign of the sinusoid. ``M`` is symmetric, shape (N, 2, 2).
+    """
+    sign = -1.0 if across else 1.0
+    return (0.5 * (matrix[:, 0, 0] + matrix[:, 1, 1]),
+            sign * np.stack([0.5 * (matrix[:, 0, 0] - matrix[:, 1, 1]), matrix[:, 0, 1]], axis=1))
+
+
+def _gain_coefficients(gain, across):
+    """
+    ``b(x) = v' K d`` as ``constant + c cos 2x + s sin 2x``, ``v`` = ``n`` (``across``) or ``d``.
+
+    ``d' K d = (K00 + K11) / 2 + (K00 - K11) / 2 cos 2x + (K01 + K10) / 2 sin 2x`` and
+    ``n' K d = (K01 - K10) / 2 - (K01 + K10) / 2 cos 2x + (K00 - K11) / 2 sin 2x``; both are the
+    same on a wedge and its opposite. ``K`` has shape (N, 2, 2); returns (N,) and (N, 2).
+    """
+    difference_half = 0.5 * (gain[:, 0, 0] - gain[:, 1, 1])
+    sum_half = 0.5 * (gain[:, 0, 1] + gain[:, 1, 0])
+    if across:
+        return (0.5 * (gain[:, 0, 1] - gain[:, 1, 0]),
+                np.stack([-sum_half, difference_half], axis=1))
+    return 0.5 * (gain[:, 0, 0] + gain[:, 1, 1]), np.stack([difference_half, sum_half], axis=1)
+
+
+def harmonic_ranges(start, width, single, double):
+    """
+    Exact ranges of sinusoids ``c cos mx + s sin mx`` of the angle ``x`` over wedges, ``m`` 1 or 2.
+
+    With ``y = m x`` over ``[m a, m a + m w]`` (``m w <= 2 pi``), the extremes of
+    ``c cos y + s sin y`` are at the ends or at the interior stationary points: the peak
+    ``atan2(s, c)``, of value ``hypot(c, s)``, and the trough half a turn from it. A bound needs
+    several sinusoids over the same wedges: they are computed in one pass (a range costs about
+    twenty numpy calls, mostly per call), and the ends' cosines and sines once per ``m`` (they
+    cost per element).
 
     Parameters
     ----------
-    cosine, sine : numpy.ndarray
-        Coefficients, broadcastable against ``start``.
     start, width : numpy.ndarray
-        Intervals, ``0 <= width <= 2 pi``, broadcastable.
+        The wedges ``[a, a + w]``, shape (N, K), ``0 <= w <= pi``.
+    single : list of numpy.ndarray
+        S coefficients ``(c, s)`` with ``m = 1``, each (N, 2).
+    double : list of numpy.ndarray
+        D coefficients ``(c, s)`` with ``m = 2``, each (N, 2).
 
     Returns
     -------
     low, high : numpy.ndarray
-        The minimum and maximum, broadcast shape.
+        The minimum and maximum, shape (S + D, N, K): the single-angle sinusoids, then the
+        double-angle ones.
 
     """
+    coefficients = np.stack(single + double)[..., None]
+    cosine, sine = coefficients[:, :, 0], coefficients[:, :, 1]
+    multiple = np.repeat([0, 1], [len(single), len(double)])
+    begin = np.array([1.0, 2.0])[:, None, None] * start
+    span = np.array([1.0, 2.0])[:, None, None] * width
+    ends = np.stack([begin, begin + span])
+    # (2, S + D, N, K): each sinusoid's value at the wedge's first and last edge.
+    values = cosine * np.cos(ends)[:, multiple] + sine * np.sin(ends)[:, multiple]
     amplitude = np.hypot(cosine, sine)
     peak = np.arctan2(sine, cosine)
-    end = start + width
-    first = cosine * np.cos(start) + sine * np.sin(start)
-    last = cosine * np.cos(end) + sine * np.sin(end)
-    inside_peak = np.mod(peak - start, 2.0 * np.pi) <= width
-    inside_trough = np.mod(peak + np.pi - start, 2.0 * np.pi) <= width
-    low = np.where(inside_trough, -amplitude, np.minimum(first, last))
-    high = np.where(inside_peak, amplitude, np.maximum(first, last))
-    return low, high
-
-
-def _double_angle_range(constant, cosine, sine, start, width):
-    """Range of ``constant + cosine cos 2x + sine sin 2x`` over the wedges; arrays (N,), (N, K)."""
-    low, high = harmonic_range(cosine[:, None], sine[:, None], 2.0 * start, 2.0 * width)
-    return constant[:, None] + low, constant[:, None] + high
-
-
-def _quadratic_range(matrix, start, width, across):
-    """
-    Exact range of ``v' M v`` over each wedge, ``v`` the direction ``d(x)`` or its normal ``n(x)``.
-
-    ``d' M d = (Mxx + Myy) / 2 + (Mxx - Myy) / 2 cos 2x + Mxy sin 2x``; ``n(x) = d(x - pi / 2)``
-    flips the sign of the sinusoid. ``M`` is symmetric, shape (N, 2, 2); the wedges (N, K).
-    """
-    sign = -1.0 if across else 1.0
-    return _double_angle_range(0.5 * (matrix[:, 0, 0] + matrix[:, 1, 1]),
-                               sign * 0.5 * (matrix[:, 0, 0] - matrix[:, 1, 1]),
-                               sign * matrix[:, 0, 1], start, width)
-
-
-def _gain_range(gain, start, width, across):
-    """
-    Exact range of ``b(x) = v' K d`` over each wedge, ``v`` = ``n`` (``across``) or ``d``.
-
-    ``d' K d = (K00 + K11) / 2 + (K00 - K11) / 2 cos 2x + (K01 + K10) / 2 sin 2x`` and
-    ``n' K d = (K01 - K10) / 2 - (K01 + K10) / 2 cos 2x + (K00 - K11) / 2 sin 2x``; both are the
-    same on a wedge and its opposite. ``K`` has shape (N, 2, 2), the wedges (N, K).
-    """
-    trace_half = 0.5 * (gain[:, 0, 0] + gain[:, 1, 1])
-    difference_half = 0.5 * (gain[:, 0, 0] - gain[:, 1, 1])
-    sum_half = 0.5 * (gain[:, 0, 1] + gain[:, 1, 0])
-    if across:
-        return _double_angle_range(0.5 * (gain[:, 0, 1] - gain[:, 1, 0]), -sum_half,
-                                   difference_half, start, width)
-    return _double_angle_range(trace_half, difference_half, sum_half, start, width)
-
-
-def _linear_range(vector, start, width, across):
-    """Exact range of ``vector . v`` over each wedge, ``v`` = ``n`` (``across``) or ``d``."""
-    if across:
-        # vector . n(x) = vector_x sin x - vector_y cos x.
-        return harmonic_range(-vector[:, 1, None], vector[:, 0, None], start, width)
-    return harmonic_range(vector[:, 0, None], vector[:, 1, None], start, width)
+    begin, span = begin[multiple], span[multiple]
+    inside_peak = np.mod(peak - begin, 2.0 * np.pi) <= span
+    inside_trough = np.mod(peak + np.pi - begin, 2.0 * np.pi) <= span
+    return (np.where(inside_trough, -amplitude, values.min(axis=0)),
+            np.where(inside_peak, amplitude, values.max(axis=0)))
 
 
 def _wedge_edges(mu_w, cov_ww, pairs):
@@ -314,6 +321,15 @@ def _wedge_edges(mu_w, cov_ww, pairs):
     # mod can round up to pi itself.
     edges = np.minimum(edges, np.nextafter(np.pi, 0.0))
     return edges, np.diff(edges, axis=1, append=edges[:, :1] + np.pi)
+
+
+def _adjugate(matrix):
+    """
+    Return ``[[d, -b], [-b, a]]`` of each ``[[a, b], [., d]]`` (N, 2, 2), det times the inverse.
+
+    Read from the upper triangle, as a symmetric matrix's; one gather instead of four stacks.
+    """
+    return matrix.reshape(-1, 4)[:, [3, 1, 1, 0]].reshape(-1, 2, 2) * _ADJUGATE_SIGNS
 
 
 def _half_plane_arguments(mu_w, cov_ww, angle):
@@ -388,17 +404,15 @@ def wedge_masses(mu_w, cov_ww, start, width, invertible):
     # stays finite.
     density_cov = np.where(invertible[:, None, None], cov_ww, np.eye(2))
     determinant = density_cov[:, 0, 0] * density_cov[:, 1, 1] - density_cov[:, 0, 1] ** 2
-    precision = np.stack([np.stack([density_cov[:, 1, 1], -density_cov[:, 0, 1]], axis=-1),
-                          np.stack([-density_cov[:, 0, 1], density_cov[:, 0, 0]], axis=-1)],
-                         axis=-2)
-    precision /= determinant[:, None, None]
+    precision = _adjugate(density_cov) / determinant[:, None, None]
     pulled = np.einsum('nij,nj->ni', precision, mu_w)
     quadratic = np.einsum('ni,ni->n', pulled, mu_w)[:, None]
-    a_low, a_high = _quadratic_range(precision, start, width, across=False)
+    constant, coefficients = _quadratic_coefficients(precision, across=False)
+    (b_low, a_low), (b_high, a_high) = harmonic_ranges(start, width, [pulled], [coefficients])
+    a_low, a_high = constant[:, None] + a_low, constant[:, None] + a_high
     # A = d' S^-1 d >= 1 / lambda_max(S) > 0; the floor keeps rounding from reaching 0.
     a_low = np.sqrt(np.maximum(a_low, 0.5 / (density_cov[:, 0, 0] + density_cov[:, 1, 1])[
         :, None]))
-    b_low, b_high = _linear_range(pulled, start, width, across=False)
     # The smallest B / sqrt(A) over the wedge (and its opposite, where B changes sign): a
     # positive B over the largest A, a negative one over the smallest.
     low_b = np.stack([b_low, -b_high])
@@ -413,6 +427,55 @@ def wedge_masses(mu_w, cov_ww, start, width, invertible):
         beta, cdf[arguments.size:].reshape(beta.shape), quadratic) / a_high, 0.0)
     return np.concatenate([np.maximum(own, difference + opposite),
                            np.maximum(opposite, own - difference)], axis=1)
+
+
+@dataclass(frozen=True)
+class _Wedges:
+    """
+    Each entry's wedges of the directions of ``w``, and lower bounds on their masses.
+
+    They depend on the mean and covariance of ``w`` alone: the bounds on ``f`` and on ``g`` of
+    the same entries share them (:func:`condition_bound`).
+
+    Attributes
+    ----------
+    start, width : numpy.ndarray
+        The wedges of the half turn, shape (N, K) (:func:`_wedge_edges`).
+    masses : numpy.ndarray
+        Lower bounds on the masses of the wedges, then of their opposites, shape (N, 2 K)
+        (:func:`wedge_masses`).
+    invertible : numpy.ndarray
+        Whether ``S_ww`` may be inverted, shape (N,).
+
+    """
+
+    start: np.ndarray
+    width: np.ndarray
+    masses: np.ndarray
+    invertible: np.ndarray
+
+    def take(self, rows):
+        """Return the wedges of the entries ROWS (a mask or indices)."""
+        return _Wedges(start=self.start[rows], width=self.width[rows],
+                       masses=self.masses[rows], invertible=self.invertible[rows])
+
+
+def _invertible(cov_ww):
+    """Whether each ``S_ww`` (N, 2, 2) may be inverted: eigenvalue ratio >= ``CONDITION_LIMIT``."""
+    trace = cov_ww[:, 0, 0] + cov_ww[:, 1, 1]
+    determinant = cov_ww[:, 0, 0] * cov_ww[:, 1, 1] - cov_ww[:, 0, 1] ** 2
+    # From det / tr^2 = ratio / (1 + ratio)^2.
+    return determinant > CONDITION_LIMIT / (1.0 + CONDITION_LIMIT) ** 2 * trace * trace
+
+
+def _wedges(mean, cov, wedges):
+    """Return the :class:`_Wedges` of ``wedges`` wedges of ``mean`` (N, 4), ``cov`` (N, 4, 4)."""
+    mu_w, cov_ww = mean[:, 2:], cov[:, 2:, 2:]
+    invertible = _invertible(cov_ww)
+    start, width = _wedge_edges(mu_w, cov_ww, wedges // 2)
+    return _Wedges(start=start, width=width,
+                   masses=wedge_masses(mu_w, cov_ww, start, width, invertible),
+                   invertible=invertible)
 
 
 @dataclass(frozen=True)
@@ -448,21 +511,16 @@ class _Split:
     invertible: np.ndarray
 
 
-def _split(mean, cov, shift):
-    """Return the :class:`_Split` of ``r^ = r + T w``; ``mean`` (N, 4), ``cov`` and ``T``."""
+def _split(mean, cov, shift, invertible):
+    """Return the :class:`_Split` of ``r^ = r + T w``; ``mean`` (N, 4), ``cov``, ``T``, (N,)."""
     mu_r, mu_w = mean[:, :2], mean[:, 2:]
     cov_rr, cov_rw, cov_ww = cov[:, :2, :2], cov[:, :2, 2:], cov[:, 2:, 2:]
     shift_t = shift.swapaxes(1, 2)
     cross = cov_rw + shift @ cov_ww
     cov_hat = cov_rr + cov_rw @ shift_t + shift @ cov_rw.swapaxes(1, 2) + shift @ cov_ww @ shift_t
-    trace = cov_ww[:, 0, 0] + cov_ww[:, 1, 1]
     determinant = cov_ww[:, 0, 0] * cov_ww[:, 1, 1] - cov_ww[:, 0, 1] ** 2
-    # Eigenvalue ratio >= limit, from det / tr^2 = ratio / (1 + ratio)^2.
-    invertible = determinant > CONDITION_LIMIT / (1.0 + CONDITION_LIMIT) ** 2 * trace * trace
     no_cross = ~cross.any(axis=(1, 2))
-    adjugate = np.stack([np.stack([cov_ww[:, 1, 1], -cov_ww[:, 0, 1]], axis=-1),
-                         np.stack([-cov_ww[:, 0, 1], cov_ww[:, 0, 0]], axis=-1)], axis=-2)
-    inverse = adjugate / np.where(invertible, determinant, 1.0)[:, None, None]
+    inverse = _adjugate(cov_ww) / np.where(invertible, determinant, 1.0)[:, None, None]
     gain = np.where((invertible & ~no_cross)[:, None, None], cross @ inverse, 0.0)
     explained = gain @ cross.swapaxes(1, 2)
     explained = 0.5 * (explained + explained.swapaxes(1, 2))
@@ -519,14 +577,17 @@ def _strip_lengths(c_low, c_high, t_low, t_high):
     return np.where(missed, np.inf, low), np.where(missed, -np.inf, high)
 
 
-def _mean_ranges(split, mu_w, cov_ww, start, width, across):
+def _ranges(split, mu_w, cov_ww, wedges, across):
     """
-    Ranges of the conditional mean ``m`` of ``r^ . v`` on every wedge, for every event.
+    Ranges of the conditional mean ``m`` and variance ``s^2`` of ``r^ . v`` on every wedge.
 
-    ``v`` is ``n`` for ``f`` (``across``) and ``d`` for ``g``. On the disc of size ``rho``,
-    ``m`` is within ``rho ||D S_ww^-1/2||`` of ``mu^ . v``; on the strip, ``m = a + l b`` with the
-    ranges of ``a = (mu^ - K mu_w) . v``, of ``b = v' K d`` and of ``l`` (:func:`_strip_lengths`).
-    On the opposite wedge ``v`` and ``d`` change sign: ``a`` does, ``b`` does not.
+    ``v`` is ``n`` for ``f`` (``across``) and ``d`` for ``g``; ``s^2 = v' S' v``. On the disc of
+    size ``rho``, ``m`` is within ``rho ||D S_ww^-1/2||`` of ``mu^ . v``; on the strip,
+    ``m = a + l b`` with the ranges of ``a = (mu^ - K mu_w) . v``, of ``b = v' K d`` and of ``l``
+    (:func:`_strip_lengths`). On the opposite wedge ``v`` and ``d`` change sign: ``mu^ . v`` and
+    ``a`` do, ``b`` and ``s^2`` do not. The strips are tried only where some entry has a
+    cross-covariance left (``reach > 0``). Every sinusoid's range comes from one call
+    (:func:`harmonic_ranges`).
 
     Parameters
     ----------
@@ -536,51 +597,61 @@ def _mean_ranges(split, mu_w, cov_ww, start, width, across):
         Shape (N, 2).
     cov_ww : numpy.ndarray
         Shape (N, 2, 2).
-    start, width : numpy.ndarray
-        Wedges of the half turn, shape (N, K).
+    wedges : _Wedges
+        The wedges of the half turn, (N, K).
     across : bool
         ``v = n`` (else ``d``).
 
     Returns
     -------
     low, high : numpy.ndarray
-        Shape (N, 2 K, J), the wedges then their opposites, events ordered as
+        Range of ``m``, shape (N, 2 K, J), the wedges then their opposites, events ordered as
         :func:`_event_misses`; ``low > high`` where the event misses the wedge.
+    var_low, var_high : numpy.ndarray
+        Range of ``s^2``, widened by a relative ``_WIDENING`` of its scale, shape (N, 2 K, 1).
 
     """
-    def both_halves(low, high):
-        return (np.concatenate([low, -high], axis=1)[:, :, None],
-                np.concatenate([high, -low], axis=1)[:, :, None])
-
-    disc = np.array(DISC_SIZES)
-    centre_low, centre_high = both_halves(*_linear_range(split.mean, start, width, across))
-    disc_reach = split.reach[:, None, None] * disc
-    ranges = [(centre_low - disc_reach, centre_high + disc_reach)]
-    if split.reach.any():
+    strips = bool(split.reach.any())
+    var_constant, var_coefficients = _quadratic_coefficients(split.cov, across)
+    single, double = [_linear_coefficients(split.mean, across)], [var_coefficients]
+    if strips:
         speed = np.hypot(mu_w[:, 0], mu_w[:, 1])
         direction = np.where((speed > 0.0)[:, None], mu_w / np.where(speed > 0.0, speed, 1.0)[
             :, None], np.array([1.0, 0.0]))
+        gain_constant, gain_coefficients = _gain_coefficients(split.gain, across)
+        single += [direction, _linear_coefficients(
+            split.mean - np.einsum('nij,nj->ni', split.gain, mu_w), across)]
+        double.append(gain_coefficients)
+    low, high = harmonic_ranges(wedges.start, wedges.width, single, double)
+    count = len(single)
+    # (S + D, N, 2 K, 1): the linear ranges negated on the opposite wedges, the others repeated.
+    low, high = (np.concatenate([low, np.concatenate([-high[:count], low[count:]])],
+                                axis=2)[..., None],
+                 np.concatenate([high, np.concatenate([-low[:count], high[count:]])],
+                                axis=2)[..., None])
+    widening = (_WIDENING * split.scale_sq)[:, None, None]
+    var_low = var_constant[:, None, None] + low[count] - widening
+    var_high = var_constant[:, None, None] + high[count] + widening
+    disc_reach = split.reach[:, None, None] * np.array(DISC_SIZES)
+    ranges = [(low[0] - disc_reach, high[0] + disc_reach)]
+    if strips:
         spread = np.sqrt(np.maximum(np.einsum('ni,nij,nj->n', direction, cov_ww,
                                               direction), 0.0))
         extent = spread[:, None, None] * np.array(STRIP_SIZES)
-        c_low, c_high = both_halves(*_linear_range(direction, start, width, False))
-        l_low, l_high = _strip_lengths(c_low, c_high, speed[:, None, None] - extent,
+        l_low, l_high = _strip_lengths(low[1], high[1], speed[:, None, None] - extent,
                                        speed[:, None, None] + extent)
-        a_low, a_high = both_halves(*_linear_range(
-            split.mean - np.einsum('nij,nj->ni', split.gain, mu_w), start, width, across))
-        b_low, b_high = _gain_range(split.gain, start, width, across)
-        b_low = np.concatenate([b_low, b_low], axis=1)[:, :, None]
-        b_high = np.concatenate([b_high, b_high], axis=1)[:, :, None]
-        product_low, product_high = _interval_product(l_low, l_high, b_low, b_high)
+        product_low, product_high = _interval_product(
+            l_low, l_high, gain_constant[:, None, None] + low[count + 1],
+            gain_constant[:, None, None] + high[count + 1])
         missed = l_low > l_high
-        ranges.append((np.where(missed, np.inf, a_low + product_low),
-                       np.where(missed, -np.inf, a_high + product_high)))
+        ranges.append((np.where(missed, np.inf, low[2] + product_low),
+                       np.where(missed, -np.inf, high[2] + product_high)))
     return (np.concatenate([low for low, _ in ranges], axis=2),
-            np.concatenate([high for _, high in ranges], axis=2))
+            np.concatenate([high for _, high in ranges], axis=2), var_low, var_high)
 
 
 def _event_misses(strips):
-    """Probabilities that the events miss, in the order of :func:`_mean_ranges`, shape (J,)."""
+    """Probabilities that the events miss, in the order of :func:`_ranges`, shape (J,)."""
     return np.concatenate([_DISC_MISSES, _STRIP_MISSES]) if strips else _DISC_MISSES
 
 
@@ -640,19 +711,33 @@ def _finite_size(low, high):
     return np.where(np.isfinite(size), size, 0.0)
 
 
-def _wedge_bound(masses, minima, misses):
+def _wedge_bound(mean, cov, radius, wedges):
     """
-    Lower bound on the probability from masses (N, W) and minima (N, W, J) per event: (N,).
+    Return the wedge bound of ``f`` (given ``radius``, (N,)) or of ``g``, and where it applies.
 
-    The true masses are at least ``masses`` and sum to one, so the conditional probability
-    averages to at least ``sum q_k F_k + (1 - sum q_k) min F``; bounds that sum above one by
-    rounding are scaled down (they stay lower bounds). The event's miss probability is then
-    subtracted, and the best event kept.
+    ``mean`` (N, 4), ``cov`` (N, 4, 4) and their :class:`_Wedges`; results (N,). The shift is
+    ``T = -lambda I`` for ``f`` and ``kappa J`` for ``g``, the conditional probability bounded on
+    the boxes :func:`folded_normal_minima` or :func:`half_normal_minima`. The true masses are at
+    least the wedges' and sum to one, so the conditional probability averages to at least
+    ``sum q_k F_k + (1 - sum q_k) min F``; masses that sum above one by rounding are scaled down
+    (they stay lower bounds). Each event's miss probability is then subtracted, and the best
+    event kept.
     """
-    masses = masses / np.maximum(masses.sum(axis=1), 1.0)[:, None]
+    cov_ww = cov[:, 2:, 2:]
+    trace = _safe_trace(cov_ww, ~cov_ww.any(axis=(1, 2)))
+    if radius is None:
+        shift = ((cov[:, 0, 3] - cov[:, 1, 2]) / trace)[:, None, None] * _QUARTER_TURN
+    else:
+        shift = -((cov[:, 0, 2] + cov[:, 1, 3]) / trace)[:, None, None] * np.eye(2)
+    split = _split(mean, cov, shift, wedges.invertible)
+    ranges = _ranges(split, mean[:, 2:], cov_ww, wedges, radius is not None)
+    minima = (half_normal_minima(*ranges) if radius is None
+              else folded_normal_minima(*ranges, radius))
+    masses = wedges.masses / np.maximum(wedges.masses.sum(axis=1), 1.0)[:, None]
     claimed = np.einsum('nk,nkj->nj', masses, minima)
     average = claimed + (1.0 - masses.sum(axis=1))[:, None] * minima.min(axis=1)
-    return np.max(average - misses, axis=1) - SLACK
+    return (np.max(average - _event_misses(bool(split.reach.any())), axis=1) - SLACK,
+            split.usable)
 
 
 def _cantelli(expectation, variance):
@@ -679,26 +764,6 @@ def _validated(mean, cov, wedges):
     shape = np.broadcast_shapes(mean.shape[:-1], cov.shape[:-2])
     return (np.broadcast_to(mean, shape + (4,)).reshape(-1, 4),
             np.broadcast_to(cov, shape + (4, 4)).reshape(-1, 4, 4), shape)
-
-
-def _general_bound(mean, cov, shift, wedges, across, minima_of):
-    """
-    Return the wedge bound of a condition on every entry, and where it applies; shapes (N,).
-
-    ``across`` selects ``v = n`` (``f``) or ``d`` (``g``); ``minima_of(low, high, var_low,
-    var_high)`` bounds the conditional probability on the boxes.
-    """
-    mu_w, cov_ww = mean[:, 2:], cov[:, 2:, 2:]
-    split = _split(mean, cov, shift)
-    start, width = _wedge_edges(mu_w, cov_ww, wedges // 2)
-    masses = wedge_masses(mu_w, cov_ww, start, width, split.invertible)
-    low, high = _mean_ranges(split, mu_w, cov_ww, start, width, across)
-    var_low, var_high = _quadratic_range(split.cov, start, width, across)
-    widening = (_WIDENING * split.scale_sq)[:, None]
-    var_low = np.concatenate([var_low, var_low], axis=1)[:, :, None] - widening[:, :, None]
-    var_high = np.concatenate([var_high, var_high], axis=1)[:, :, None] + widening[:, :, None]
-    minima = minima_of(low, high, var_low, var_high)
-    return _wedge_bound(masses, minima, _event_misses(bool(split.reach.any()))), split.usable
 
 
 def _assemble(shape, deterministic, known, known_probability, wedge_probability, usable,
@@ -751,29 +816,45 @@ def rvo_certificate(mean, cov, radius, wedges=DEFAULT_WEDGES):
     """
     mean, cov, shape = _validated(mean, cov, wedges)
     radius = np.broadcast_to(np.asarray(radius, dtype=float), shape).reshape(-1)
+    return _rvo(mean, cov, radius, *_wedge_bound(mean, cov, radius, _wedges(mean, cov, wedges)),
+                shape)
+
+
+def _rvo(mean, cov, radius, wedge_probability, usable, shape):
+    """
+    Return :func:`rvo_certificate` given the wedge bound of each entry.
+
+    ``mean`` (N, 4), ``cov`` (N, 4, 4), ``radius``, ``wedge_probability`` and where it applies,
+    ``usable``, (N,) each.
+    """
     mu_r, mu_w = mean[:, :2], mean[:, 2:]
     cov_rr, cov_ww = cov[:, :2, :2], cov[:, 2:, 2:]
     deterministic = ~cov.any(axis=(1, 2))
     cross = mu_r[:, 0] * mu_w[:, 1] - mu_r[:, 1] * mu_w[:, 0]
     holds = cross * cross - radius * radius * np.sum(mu_w * mu_w, axis=1) >= 0.0
     known = ~deterministic & ~cov_ww.any(axis=(1, 2))
-    # S_ww = 0: w = mu_w exactly, and f >= 0 iff |r . n| >= R for mu_w's normal (w = 0: f = 0).
+    # Computed only if some entry needs it (a belief with a known velocity is rare).
+    known_probability = _known_rvo(mu_r, mu_w, cov_rr, radius) if known.any() else 0.0
+    expectation, variance = rvo_moments(mean, cov, radius)
+    return _assemble(shape, deterministic, known, known_probability, wedge_probability, usable,
+                     _cantelli(expectation, variance), holds)
+
+
+def _known_rvo(mu_r, mu_w, cov_rr, radius):
+    """
+    ``P(f >= 0)`` less ``SLACK`` where ``S_ww = 0``, shape (N,).
+
+    ``w = mu_w`` exactly, and ``f >= 0`` iff ``|r . n| >= R`` for ``mu_w``'s normal ``n``, a
+    folded normal (``w = 0``: ``f = 0``).
+    """
     speed = np.hypot(mu_w[:, 0], mu_w[:, 1])
     normal = np.stack([mu_w[:, 1], -mu_w[:, 0]], axis=1) / np.where(speed > 0.0, speed,
                                                                     1.0)[:, None]
     offset = np.sum(mu_r * normal, axis=1)
     spread = np.sqrt(np.maximum(np.einsum('ni,nij,nj->n', normal, cov_rr, normal), 0.0))
     folded = ndtr(np.stack([_ratio(offset - radius, spread, np.inf),
-                                  _ratio(-offset - radius, spread, np.inf)])).sum(axis=0)
-    known_probability = np.where(speed > 0.0, folded - SLACK, 1.0)
-    lam = (cov[:, 0, 2] + cov[:, 1, 3]) / _safe_trace(cov_ww, known | deterministic)
-    wedge_probability, usable = _general_bound(
-        mean, cov, -lam[:, None, None] * np.eye(2), wedges, True,
-        lambda low, high, var_low, var_high: folded_normal_minima(low, high, var_low, var_high,
-                                                                  radius))
-    expectation, variance = rvo_moments(mean, cov, radius)
-    return _assemble(shape, deterministic, known, known_probability, wedge_probability, usable,
-                     _cantelli(expectation, variance), holds)
+                            _ratio(-offset - radius, spread, np.inf)])).sum(axis=0)
+    return np.where(speed > 0.0, folded - SLACK, 1.0)
 
 
 def receding_certificate(mean, cov, wedges=DEFAULT_WEDGES):
@@ -796,18 +877,28 @@ def receding_certificate(mean, cov, wedges=DEFAULT_WEDGES):
 
     """
     mean, cov, shape = _validated(mean, cov, wedges)
+    return _receding(mean, cov, *_wedge_bound(mean, cov, None, _wedges(mean, cov, wedges)),
+                     shape)
+
+
+def _receding(mean, cov, wedge_probability, usable, shape):
+    """
+    Return :func:`receding_certificate` given the wedge bound of each entry.
+
+    ``mean`` (N, 4), ``cov`` (N, 4, 4), ``wedge_probability`` and where it applies, ``usable``,
+    (N,) each.
+    """
     mu_r, mu_w = mean[:, :2], mean[:, 2:]
     cov_rr, cov_rw, cov_ww = cov[:, :2, :2], cov[:, :2, 2:], cov[:, 2:, 2:]
     deterministic = ~cov.any(axis=(1, 2))
     closing = np.sum(mu_r * mu_w, axis=1)
     known = ~deterministic & ~cov_ww.any(axis=(1, 2))
-    # S_ww = 0: g = r . mu_w is normal (w = 0: g = 0).
-    spread = np.sqrt(np.maximum(np.einsum('ni,nij,nj->n', mu_w, cov_rr, mu_w), 0.0))
-    known_probability = np.where(mu_w.any(axis=1),
-                                 ndtr(_ratio(closing, spread, np.inf)) - SLACK, 1.0)
-    kappa = (cov_rw[:, 0, 1] - cov_rw[:, 1, 0]) / _safe_trace(cov_ww, known | deterministic)
-    wedge_probability, usable = _general_bound(mean, cov, kappa[:, None, None] * _QUARTER_TURN,
-                                               wedges, False, half_normal_minima)
+    known_probability = 0.0
+    if known.any():
+        # S_ww = 0: g = r . mu_w is normal (w = 0: g = 0).
+        spread = np.sqrt(np.maximum(np.einsum('ni,nij,nj->n', mu_w, cov_rr, mu_w), 0.0))
+        known_probability = np.where(mu_w.any(axis=1),
+                                     ndtr(_ratio(closing, spread, np.inf)) - SLACK, 1.0)
     # E[g] = tr S_rw + mu_r . mu_w; Var[g] = 2 tr(G S G S) + 4 mu' G S G mu, G = [[0, I], [I, 0]]
     # / 2 (docs/method.md, section 7).
     product = _HALF_SWAP @ cov
@@ -817,6 +908,62 @@ def receding_certificate(mean, cov, wedges=DEFAULT_WEDGES):
                      _cantelli(cov_rw[:, 0, 0] + cov_rw[:, 1, 1] + closing, variance),
                      closing >= 0.0)
 
+
+def condition_bound(mean, cov, radius, required, gated, horizon=None, wedges=DEFAULT_WEDGES):
+    """
+    Certified lower bound on the accepted condition's probability, computed as far as needed.
+
+    The planner's bound on ``P(f >= 0 or g >= 0 or (h1 >= 0 and h2 >= 0))`` for a neighbour: the
+    bound of :func:`rvo_certificate` on ``P(f >= 0)``; where that falls short of ``required``
+    and the gate counts (``gated``), the larger with :func:`receding_certificate`'s on
+    ``P(g >= 0)``; and where that too falls short and the horizon is finite, the larger with
+    :func:`horizon_certificate`'s on the whole condition. Each is a lower bound on the
+    condition's probability, so the largest is one. A later bound is computed only for the
+    entries the earlier ones leave short, and on exactly those (an entry's bound depends on the
+    batch it is computed in only by rounding and by which events are tried, see
+    :func:`_ranges`, so the batches are the ones the three functions would be called with).
+    The wedges and their masses depend on ``w`` alone: ``f`` and ``g`` share them.
+
+    Parameters
+    ----------
+    mean : array_like
+        Mean of ``z``, shape (N, 4).
+    cov : array_like
+        Covariance of ``z``, shape (N, 4, 4), symmetric PSD.
+    radius : array_like
+        ``R``, shape (N,).
+    required : array_like
+        The probability each entry should be certified for, shape (N,).
+    gated : array_like
+        Whether the gate counts for each entry (bool), shape (N,).
+    horizon : float or None
+        The time horizon ``tau`` [s]; None: infinite (no horizon pair).
+    wedges : int
+        As for :func:`rvo_certificate`.
+
+    Returns
+    -------
+    numpy.ndarray
+        The bound, in [0, 1], shape (N,).
+
+    """
+    mean, cov, shape = _validated(mean, cov, wedges)
+    radius = np.broadcast_to(np.asarray(radius, dtype=float), shape).reshape(-1)
+    required = np.broadcast_to(np.asarray(required, dtype=float), shape).reshape(-1)
+    gated = np.flatnonzero(np.broadcast_to(gated, shape))
+    cut = _wedges(mean, cov, wedges)
+    bounds = _rvo(mean, cov, radius, *_wedge_bound(mean, cov, radius, cut), shape).probability
+    gate = gated[bounds[gated] < required[gated]]
+    if gate.size:
+        mean_gate, cov_gate = mean[gate], cov[gate]
+        bounds[gate] = np.maximum(bounds[gate], _receding(
+            mean_gate, cov_gate, *_wedge_bound(mean_gate, cov_gate, None, cut.take(gate)),
+            gate.shape).probability)
+    horizon_rows = gate[bounds[gate] < required[gate]]
+    if horizon is not None and horizon_rows.size:
+        bounds[horizon_rows] = np.maximum(bounds[horizon_rows], horizon_certificate(
+            mean[horizon_rows], cov[horizon_rows], radius[horizon_rows], horizon))
+    return bounds
 
 
 def horizon_certificate(mean, cov, radius, horizon):

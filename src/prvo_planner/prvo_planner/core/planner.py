@@ -22,13 +22,7 @@ import math
 import numpy as np
 
 from .beliefs import AgentBelief, as_finite_array
-from .certificate import (
-    horizon_certificate,
-    horizon_search_margin,
-    receding_certificate,
-    rvo_certificate,
-    search_margin,
-)
+from .certificate import condition_bound, horizon_search_margin, search_margin
 from .choice import (
     INTERIOR,
     CostTerms,
@@ -555,15 +549,14 @@ def _certified_bounds(search, velocities, achieved, required):
 
     VELOCITIES holds per robot None or the velocities (V, 2) to certify, ACHIEVED their margins
     (V, n) against its n neighbours. Cantelli's bound of the achieved margin is the floor. Where
-    it falls short of the REQUIRED probability (per pair), the certified bound on ``P(f >= 0)``
-    is computed, and where that too falls short and the gate counts, the one on ``P(g >= 0)``
-    and then, with a finite horizon, the one on the whole condition
-    (:func:`horizon_certificate`): a neighbour Cantelli already certifies costs nothing (most of
-    a crowd's are far). The condition holds if any alternative does, so the largest is a bound;
-    it is certified where it is a Gaussian one. A robot's velocities are certified in one call,
-    as a certificate's cost is mostly per call; the calls are per robot: numpy's vectorised
-    transcendental functions round a value by its place in the batch, and a robot's plan must
-    not depend on its companions.
+    it falls short of the REQUIRED probability (per pair), the certified bound of the condition
+    (:func:`condition_bound`: ``P(f >= 0)``, where that too falls short and the gate counts
+    ``P(g >= 0)``, then with a finite horizon the whole condition): a neighbour Cantelli
+    already certifies costs nothing (most of a crowd's are far). The larger of the two bounds
+    is kept; it is certified where it is the Gaussian one. A robot's velocities are certified in
+    one call, as a certificate's cost is mostly per call; the calls are per robot: numpy's
+    vectorised transcendental functions round a value by its place in the batch, and a robot's
+    plan must not depend on its companions.
 
     Returns
     -------
@@ -583,29 +576,12 @@ def _certified_bounds(search, velocities, achieved, required):
             encounter = plan.encounter
             mean = encounter.origin[short_pair]
             mean[:, 2:] += encounter.lead[short_pair, None] * velocities[robot][short_velocity]
-            gaussian[short_velocity, short_pair] = _gaussian_bounds(
-                plan, mean, plan.cov[short_pair], plan.radius[short_pair],
-                plan.layout.receding_enabled[short_pair], wanted[short_pair])
+            gaussian[short_velocity, short_pair] = condition_bound(
+                mean, plan.cov[short_pair], plan.radius[short_pair], wanted[short_pair],
+                plan.layout.receding_enabled[short_pair],
+                plan.config.time_horizon if plan.layout.has_horizon else None)
         results[robot] = (np.maximum(gaussian, cantelli), gaussian > cantelli)
     return results
-
-
-def _gaussian_bounds(plan, mean, cov, radius, gated, required):
-    """Certified bounds of PLAN's condition for the Gaussians MEAN (N, 4), COV (N, 4, 4).
-
-    ``P(f >= 0)``; where that falls short of REQUIRED and the gate counts (GATED), the larger
-    with ``P(g >= 0)``, and where that too falls short, with the horizon bound.
-    """
-    bounds = rvo_certificate(mean, cov, radius).probability
-    gate = gated & (bounds < required)
-    if gate.any():
-        bounds[gate] = np.maximum(bounds[gate],
-                                  receding_certificate(mean[gate], cov[gate]).probability)
-    horizon = gate & (bounds < required) & plan.layout.has_horizon
-    if horizon.any():
-        bounds[horizon] = np.maximum(bounds[horizon], horizon_certificate(
-            mean[horizon], cov[horizon], radius[horizon], plan.config.time_horizon))
-    return bounds
 
 
 @dataclass(frozen=True)
@@ -664,9 +640,9 @@ def _anchors(search):
             moments = condition_moments(encounter.origin, plan.cov, plan.radius, velocities,
                                         config.time_horizon, plan.layout.has_receding,
                                         encounter.lead)
-            achieved = np.array([achieved_margins(*(moment[:, index] for moment in moments),
-                                                  plan.layout, plan.layout.receding_enabled)
-                                 for index in range(shape[0])])
+            # Every anchor against every neighbour in one call: (n, A), transposed.
+            achieved = achieved_margins(*moments, plan.layout,
+                                        plan.layout.receding_enabled[:, None]).T
         terms = CostTerms.of_plan(plan.v_pref, plan.previous, config)
         anchors.append(_Anchors(terms=terms, velocities=velocities,
                                 costs=terms.costs(velocities), achieved=achieved,
