@@ -133,7 +133,7 @@ def test_the_announced_values_are_those_an_unpruned_history_gives():
                 expected = max((entry for entry in received if entry[0] < plan_stamp),
                                key=lambda entry: entry[0])[1]
                 assert announced.value_at(plan_stamp) == expected
-                announced.prune(plan_stamp)
+                assert announced.take(plan_stamp) == expected
                 assert announced.value_at(plan_stamp) == expected
                 ahead = sum(1 for stamp, _ in received if stamp >= plan_stamp)
                 assert len(announced) <= ahead + 1

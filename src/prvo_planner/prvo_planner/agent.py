@@ -128,7 +128,7 @@ class AnnouncedValues:
     `value_at(stamp)` is what holds for the plan of STAMP: the newest value announced with a
     stamp before it, or from the start (ANNOUNCED_FROM_THE_START). An announcement replaces
     those stamped at or after its own stamp (the neighbour restated them: it restarted, or its
-    clock went back); one from the start replaces all. `prune(stamp)` drops what no plan of
+    clock went back); one from the start replaces all. `take(stamp)` also drops what no plan of
     STAMP or later can use; at most MAX_KEPT_ANNOUNCEMENTS are kept, the oldest going first.
     """
 
@@ -150,11 +150,16 @@ class AnnouncedValues:
         index = self._index_at(stamp)
         return None if index is None else self._announced[index][1]
 
-    def prune(self, stamp):
-        """Drop what no plan of STAMP or later can use: all before the value at STAMP."""
+    def take(self, stamp):
+        """Return `value_at(STAMP)`, dropping what no plan of STAMP or later can use.
+
+        That is every value announced before the one that holds at STAMP.
+        """
         index = self._index_at(stamp)
-        if index is not None:
-            del self._announced[:index]
+        if index is None:
+            return None
+        del self._announced[:index]
+        return self._announced[0][1]
 
     def _index_at(self, stamp):
         for index in range(len(self._announced) - 1, -1, -1):
@@ -794,7 +799,7 @@ class PlannerAgent:
 
         For a STAMP no earlier than the last plan's (what no later plan can use is dropped).
         """
-        radius, share = (None if robot not in announced else announced[robot].value_at(stamp)
+        radius, share = (None if robot not in announced else announced[robot].take(stamp)
                          for announced in (self._announced_radius, self._announced_share))
         return _announcement(self.settings.unknown_neighbor_radius if radius is None else radius,
                              UNANNOUNCED_SHARE if share is None else share)
@@ -840,7 +845,7 @@ class PlannerAgent:
         For a STAMP no earlier than the last plan's (what no later plan can use is dropped).
         """
         announced = self._announced_route.get(robot)
-        return None if announced is None else announced.value_at(stamp)
+        return None if announced is None else announced.take(stamp)
 
     # Preferred velocity: goal, path or upstream command --------------------------------------
 
@@ -1243,9 +1248,6 @@ class PlannerAgent:
         neighbour_beliefs = tuple(track.belief_at(stamp) for track in tracks)
         announcements = tuple(self.announcement_of(robot, stamp) for robot in names)
         routes = tuple(self.route_of(robot, stamp) for robot in names)
-        for announced in (*self._announced_radius.values(), *self._announced_share.values(),
-                          *self._announced_route.values()):
-            announced.prune(stamp)
         v_pref = self._given_way(own.mean[:2], v_pref, neighbour_beliefs, announcements, routes)
         v_pref, passage_wall = self._passage_turn(stamp, own.mean[:2], v_pref, names,
                                                   neighbour_beliefs, routes)
