@@ -21,6 +21,7 @@ import numpy as np
 
 from prvo_planner.core import AgentBelief, VelocityLimits, plan_velocity
 from prvo_planner.core.beliefs import validated_share
+from prvo_planner.core.standing import standing_decided
 from prvo_planner.escalation import (
     ROOM_RADII,
     TURN_MAX,
@@ -256,9 +257,15 @@ def nobody_comes(problem):
     PROBLEM is the argument tuple of `plan_velocity`. Standing still is judged as the
     deterministic RVO baseline judges it (means only, the neighbours' shares and sizes): under
     noise the relative velocity of two robots that both stand has no mean direction, and no
-    chance constraint can certify it, although nobody comes.
+    chance constraint can certify it, although nobody comes. That is whether the baseline's plan
+    (inertia 0) stands; its conditions at zero tell, without the plan
+    (`core.standing.standing_decided`), unless the robot prefers to move or stands on an edge.
     """
     ego, neighbours, v_pref, config = problem[:4]
+    if not (v_pref[0] or v_pref[1]):
+        decided = standing_decided(ego, neighbours, config, _STANDING_SPEED)
+        if decided is not None:
+            return decided
     result = plan_velocity(ego, neighbours, v_pref,
                            dataclasses.replace(config, model='rvo', inertia=0.0))
     # The core keeps its choice a hair inside a feasible interval: zero comes out as ~1e-9 m/s.
