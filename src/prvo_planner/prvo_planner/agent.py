@@ -1227,9 +1227,7 @@ class PlannerAgent:
         route = self._route if route_status == ROUTE_FOUND else None
         upstream, self._upstream = self._upstream, None
         arrival = self._arrival(own.mean[:2])
-        names = tuple(self._neighbour_names())
-        tracks = [self._neighbour_tracks.track(robot) for robot in names]
-        neighbour_beliefs = tuple(track.belief_at(stamp) for track in tracks)
+        names, tracks, neighbour_beliefs = self._neighbour_tracks.beliefs_at(stamp, self.name)
         announcements, routes = self._held.values(names, stamp, self._held_of)
         v_pref = self._given_way(own.mean[:2], v_pref, neighbour_beliefs, announcements, routes)
         v_pref, passage_wall = self._passage_turn(stamp, own.mean[:2], v_pref, names,
