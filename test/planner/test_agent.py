@@ -355,6 +355,34 @@ def test_agents_sharing_one_track_table_plan_as_agents_with_their_own():
             assert len(got.neighbours) == 1
 
 
+def test_a_tables_beliefs_at_a_stamp_are_its_tracks_until_one_changes():
+    # Made once per stamp for every agent sharing the table, each leaving out itself; a
+    # measurement or a dropped robot makes them anew.
+    data = {name: measurements(seed, [float(seed), 0.0], [0.5, 0.0], 4)
+            for seed, name in enumerate('abc')}
+    table = TrackTable(SETTINGS.acceleration_std, SETTINGS.neighbor_timeout)
+
+    def expected(stamp, excluded):
+        names = tuple(name for name in table.names() if name != excluded)
+        tracks = tuple(table.track(name) for name in names)
+        return names, tracks, tuple(track.belief_at(stamp) for track in tracks)
+
+    for step in range(3):
+        for name in data:
+            table.receive(name, data[name][step], 0.1 * step)
+            for excluded in (None, 'a', 'b', 'c', 'd'):
+                assert table.beliefs_at(0.1 * step + 0.05, excluded) == expected(
+                    0.1 * step + 0.05, excluded)
+    before = table.beliefs_at(0.3, 'a')[2]
+    table.receive('b', data['b'][3], 0.3)
+    after = table.beliefs_at(0.3, 'a')[2]
+    assert after[0] is not before[0] and after[1] is before[1]
+    assert after == expected(0.3, 'a')[2]
+    table.forget(0.3, wanted={'a', 'c'})
+    assert table.beliefs_at(0.3, 'a')[0] == ('c',)
+    assert table.beliefs_at(0.3)[0] == ('a', 'c')
+
+
 def unicycle_settings(**limits):
     return dataclasses.replace(SETTINGS, kinematics='unicycle', tracking_error=0.1,
                                tracking_horizon=0.5, **limits)

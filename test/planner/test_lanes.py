@@ -134,3 +134,45 @@ def test_a_narrowing_ahead_straightens_the_robot_up_before_it():
     assert lean == 0.0 and turned is v_pref
     turned, lean = keep_right(v_pref, 0.2, EGO, [coming], 5.0, corridor(needed + 0.1), CONFIG)
     assert lean == 0.2
+
+
+def met_one_by_one(position, direction, neighbours):
+    """Return `meets_oncoming` of NEIGHBOURS judged one at a time, as it was written first."""
+    unit = np.asarray(direction, dtype=float) / math.hypot(*direction)
+    for other in neighbours:
+        offset = other.position - position
+        ahead = float(offset @ unit)
+        across = abs(float(offset[0] * unit[1] - offset[1] * unit[0]))
+        if (0.0 < ahead <= RANGE and across <= ahead * math.tan(CONE)
+                and math.hypot(ahead, across) <= RANGE
+                and float(other.velocity @ unit) < -ONCOMING_SPEED):
+            return True
+    return False
+
+
+def test_neighbours_are_met_as_when_judged_one_at_a_time():
+    # Crowds of 1-12 around a robot, some on the cone's and the range's edges: the same answer
+    # as each neighbour judged alone, and so the same lean.
+    rng = np.random.default_rng(38)
+    answers = []
+    for _ in range(400):
+        count = int(rng.integers(1, 13))
+        angle = rng.uniform(-1.2 * CONE, 1.2 * CONE, count)
+        distance = rng.uniform(0.0, 1.2 * RANGE, count)
+        edge = rng.random(count) < 0.3
+        angle[edge] = rng.choice([-CONE, CONE], int(edge.sum()))
+        distance[rng.random(count) < 0.2] = RANGE
+        heading = rng.uniform(0.0, 2.0 * np.pi)
+        direction = rng.uniform(0.2, 1.0) * np.array([math.cos(heading), math.sin(heading)])
+        bearing = heading + angle
+        position = EGO.position + distance[:, None] * np.stack(
+            [np.cos(bearing), np.sin(bearing)], axis=1)
+        speed = rng.choice([-ONCOMING_SPEED, -1.0, 0.0, 0.5], count)
+        velocity = speed[:, None] * direction / np.hypot(*direction) + rng.normal(0.0, 0.05, (
+            count, 2)) * (rng.random((count, 1)) < 0.5)
+        crowd = [neighbour(position[index], velocity[index]) for index in range(count)]
+        answer = meets_oncoming(EGO.position, direction, crowd)
+        assert answer == met_one_by_one(EGO.position, direction, crowd)
+        answers.append(answer)
+    assert 0.2 < np.mean(answers) < 0.8
+    assert not meets_oncoming(EGO.position, [1.0, 0.0], [])

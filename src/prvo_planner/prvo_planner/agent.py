@@ -19,8 +19,16 @@ import math
 
 import numpy as np
 
+from prvo_planner.announced import (  # noqa: F401 (MAX_KEPT_ANNOUNCEMENTS: the agent's bound)
+    ANNOUNCED_FROM_THE_START,
+    MAX_KEPT_ANNOUNCEMENTS,
+    AnnouncedValues,
+    HeldValues,
+    held,
+)
 from prvo_planner.core import AgentBelief, VelocityLimits, plan_velocity
 from prvo_planner.core.beliefs import validated_share
+from prvo_planner.core.standing import standing_decided
 from prvo_planner.escalation import (
     ROOM_RADII,
     TURN_MAX,
@@ -81,16 +89,9 @@ _PASSING_SLACK = 1e-6
 RECIPROCAL_SHARE = 0.5
 # A neighbour that has not announced its share is assumed not to avoid.
 UNANNOUNCED_SHARE = 0.0
-# An announcement stamped s > 0 holds for the plans of stamps after s; one stamped 0, from the
-# start (a robot's announcements before its first plan, the simulator's of scripted robots).
-ANNOUNCED_FROM_THE_START = 0.0
 # The stamp of a change made by the plan of stamp 0 (the simulator's clock starts at 0): 1 ns,
 # the first stamp after 0 a message can carry, so that it does not hold from the start.
 _AFTER_STAMP_ZERO = 1e-9
-# Announcements kept per neighbour and quantity: the plans to come use the newest before their
-# stamp and the later ones, of which a neighbour in lockstep has at most one or two; the bound
-# holds against a neighbour flooding changes faster than this robot plans.
-MAX_KEPT_ANNOUNCEMENTS = 16
 # Configs kept per plan horizon and control period: the horizon shrinks near the goal, so the
 # pairs are few but not bounded.
 MAX_PLANNING_CONFIGS = 32
@@ -120,53 +121,6 @@ class NeighbourAnnouncement:
 def _announcement(radius, avoidance_share):
     """Return the `NeighbourAnnouncement` of the pair: a team announces few, every plan each."""
     return NeighbourAnnouncement(radius, avoidance_share)
-
-
-class AnnouncedValues:
-    """What one neighbour announced of one quantity (radius or share), each with its stamp.
-
-    `value_at(stamp)` is what holds for the plan of STAMP: the newest value announced with a
-    stamp before it, or from the start (ANNOUNCED_FROM_THE_START). An announcement replaces
-    those stamped at or after its own stamp (the neighbour restated them: it restarted, or its
-    clock went back); one from the start replaces all. `take(stamp)` also drops what no plan of
-    STAMP or later can use; at most MAX_KEPT_ANNOUNCEMENTS are kept, the oldest going first.
-    """
-
-    def __init__(self):
-        # (stamp, value), stamps increasing.
-        self._announced = []
-
-    def __len__(self):
-        return len(self._announced)
-
-    def add(self, stamp, value):
-        """Take VALUE, announced with STAMP [s] (finite, >= 0)."""
-        kept = [announced for announced in self._announced if announced[0] < stamp]
-        kept.append((stamp, value))
-        self._announced = kept[-MAX_KEPT_ANNOUNCEMENTS:]
-
-    def value_at(self, stamp):
-        """Return the value that holds for the plan of STAMP, None if none announced does."""
-        index = self._index_at(stamp)
-        return None if index is None else self._announced[index][1]
-
-    def take(self, stamp):
-        """Return `value_at(STAMP)`, dropping what no plan of STAMP or later can use.
-
-        That is every value announced before the one that holds at STAMP.
-        """
-        index = self._index_at(stamp)
-        if index is None:
-            return None
-        del self._announced[:index]
-        return self._announced[0][1]
-
-    def _index_at(self, stamp):
-        for index in range(len(self._announced) - 1, -1, -1):
-            announced_stamp = self._announced[index][0]
-            if announced_stamp < stamp or announced_stamp == ANNOUNCED_FROM_THE_START:
-                return index
-        return None
 
 
 def preferred_velocity(position, goal, max_speed, approach_time, goal_tolerance,
@@ -256,9 +210,15 @@ def nobody_comes(problem):
     PROBLEM is the argument tuple of `plan_velocity`. Standing still is judged as the
     deterministic RVO baseline judges it (means only, the neighbours' shares and sizes): under
     noise the relative velocity of two robots that both stand has no mean direction, and no
-    chance constraint can certify it, although nobody comes.
+    chance constraint can certify it, although nobody comes. That is whether the baseline's plan
+    (inertia 0) stands; its conditions at zero tell, without the plan
+    (`core.standing.standing_decided`), unless the robot prefers to move or stands on an edge.
     """
     ego, neighbours, v_pref, config = problem[:4]
+    if not (v_pref[0] or v_pref[1]):
+        decided = standing_decided(ego, neighbours, config, _STANDING_SPEED)
+        if decided is not None:
+            return decided
     result = plan_velocity(ego, neighbours, v_pref,
                            dataclasses.replace(config, model='rvo', inertia=0.0))
     # The core keeps its choice a hair inside a feasible interval: zero comes out as ~1e-9 m/s.
@@ -612,6 +572,8 @@ class PlannerAgent:
         self._announced_route = {}
         # How often each neighbour's route changes (`routes.RouteFlips`).
         self._route_flips = RouteFlips()
+        # Each neighbour's announcement and route that held for the last plan (`_held_of`).
+        self._held = HeldValues(2)
         self._pending_stamp = None
         self._own_yaw = 0.0
         # The last planned velocity in the world frame, for the inertia term; None after a stop.
@@ -687,6 +649,8 @@ class PlannerAgent:
         meanwhile the agent plans with the map made for the settings before.
         """
         self.config, self.settings = config, settings
+        # A neighbour that announced no size has the size of the settings in force.
+        self._held.clear()
         if rebuild_map and self.map_outdated:
             self.install_map(build_map(self._grid, self.map_key, self.route_goal()))
         if goal is None:
@@ -782,17 +746,18 @@ class PlannerAgent:
         self._take(self._announced_share, robot,
                    validated_share(avoidance_share, 'avoidance_share'), stamp)
 
-    @staticmethod
-    def _take(announced, robot, value, stamp):
+    def _take(self, announced, robot, value, stamp):
         stamp = float(stamp)
         if not (math.isfinite(stamp) and stamp >= 0.0):
             raise ValueError(f'announcement stamp must be finite and >= 0, got {stamp!r}')
         announced.setdefault(robot, AnnouncedValues()).add(stamp, value)
+        self._held.changed(robot)
 
     def forget_announcements(self, robot):
         """Drop what ROBOT announced, its route too (it left: one of that name may come back)."""
         for announced in (self._announced_radius, self._announced_share, self._announced_route):
             announced.pop(robot, None)
+        self._held.changed(robot)
 
     def announcement_of(self, robot, stamp):
         """Return the `NeighbourAnnouncement` of ROBOT for the plan of STAMP, defaults filled in.
@@ -801,8 +766,26 @@ class PlannerAgent:
         """
         radius, share = (None if robot not in announced else announced[robot].take(stamp)
                          for announced in (self._announced_radius, self._announced_share))
+        # What was dropped may still hold for the plans `_held_of` kept.
+        self._held.changed(robot)
+        return self._filled(radius, share)
+
+    def _filled(self, radius, share):
+        """Return the `NeighbourAnnouncement` of RADIUS and SHARE, None: not announced."""
         return _announcement(self.settings.unknown_neighbor_radius if radius is None else radius,
                              UNANNOUNCED_SHARE if share is None else share)
+
+    def _held_of(self, robot, stamp):
+        """Return ((`announcement_of`, `route_of`) of ROBOT, after, until) (`HeldValues`).
+
+        Both hold for the plans of the stamps in (after, until].
+        """
+        (radius, *for_radius), (share, *for_share), (route, *for_route) = (
+            held(announced.get(robot), stamp) for announced in (
+                self._announced_radius, self._announced_share, self._announced_route))
+        return ((self._filled(radius, share), route),
+                max(for_radius[0], for_share[0], for_route[0]),
+                min(for_radius[1], for_share[1], for_route[1]))
 
     def forget_neighbours(self, now, wanted=None):
         """Drop neighbours silent longer than neighbor_timeout, or not in WANTED (if given).
@@ -838,14 +821,15 @@ class PlannerAgent:
     def forget_route(self, robot):
         """Drop ROBOT's routes: from now on it has none (it claims nothing) until it sends one."""
         self._announced_route.pop(robot, None)
+        self._held.changed(robot)
 
     def route_of(self, robot, stamp):
         """Return ROBOT's `routes.NeighbourRoute` for the plan of STAMP, None if it has none.
 
         For a STAMP no earlier than the last plan's (what no later plan can use is dropped).
         """
-        announced = self._announced_route.get(robot)
-        return None if announced is None else announced.take(stamp)
+        self._held.changed(robot)
+        return held(self._announced_route.get(robot), stamp)[0]
 
     # Preferred velocity: goal, path or upstream command --------------------------------------
 
@@ -1243,11 +1227,8 @@ class PlannerAgent:
         route = self._route if route_status == ROUTE_FOUND else None
         upstream, self._upstream = self._upstream, None
         arrival = self._arrival(own.mean[:2])
-        names = tuple(self._neighbour_names())
-        tracks = [self._neighbour_tracks.track(robot) for robot in names]
-        neighbour_beliefs = tuple(track.belief_at(stamp) for track in tracks)
-        announcements = tuple(self.announcement_of(robot, stamp) for robot in names)
-        routes = tuple(self.route_of(robot, stamp) for robot in names)
+        names, tracks, neighbour_beliefs = self._neighbour_tracks.beliefs_at(stamp, self.name)
+        announcements, routes = self._held.values(names, stamp, self._held_of)
         v_pref = self._given_way(own.mean[:2], v_pref, neighbour_beliefs, announcements, routes)
         v_pref, passage_wall = self._passage_turn(stamp, own.mean[:2], v_pref, names,
                                                   neighbour_beliefs, routes)

@@ -63,16 +63,20 @@ def meets_oncoming(position, direction, neighbours):
     POSITION (2,) [m]; DIRECTION (2,) nonzero, the robot's way; NEIGHBOURS a sequence of
     `core.AgentBelief` (mean position and velocity used).
     """
+    if not neighbours:
+        return False
     unit = np.asarray(direction, dtype=float) / math.hypot(*direction)
-    for neighbour in neighbours:
-        offset = neighbour.position - position
-        ahead = float(offset @ unit)
-        across = abs(float(offset[0] * unit[1] - offset[1] * unit[0]))
-        if (0.0 < ahead <= RANGE and across <= ahead * math.tan(CONE)
-                and math.hypot(ahead, across) <= RANGE
-                and float(neighbour.velocity @ unit) < -ONCOMING_SPEED):
-            return True
-    return False
+    offset = np.array([neighbour.position for neighbour in neighbours]) - position
+    velocity = np.array([neighbour.velocity for neighbour in neighbours])
+    # Component by component, as a dot product of two 2-vectors rounds (a matrix product may
+    # fuse its multiplications and additions): a neighbour on an edge is judged as alone.
+    ahead = offset[:, 0] * unit[0] + offset[:, 1] * unit[1]
+    across = np.abs(offset[:, 0] * unit[1] - offset[:, 1] * unit[0])
+    coming = ((0.0 < ahead) & (ahead <= RANGE) & (across <= ahead * math.tan(CONE))
+              & (velocity[:, 0] * unit[0] + velocity[:, 1] * unit[1] < -ONCOMING_SPEED))
+    # math.hypot rounds otherwise than numpy's, and few neighbours are left to measure.
+    return any(math.hypot(along, side) <= RANGE for along, side in zip(
+        ahead[coming].tolist(), across[coming].tolist(), strict=True))
 
 
 def wide_enough(obstacles, ego, config, direction):

@@ -162,6 +162,9 @@ class TrackTable:
         self._tracks = {}
         # Robots dropped for silence or absence: a new track of one of them is 'resumed'.
         self._dropped = set()
+        # (stamp, names, tracks, beliefs) of every robot at the stamp last asked for, until a
+        # track changes (`beliefs_at`).
+        self._at = None
 
     def __contains__(self, robot):
         return robot in self._tracks
@@ -174,8 +177,26 @@ class TrackTable:
         """Return ROBOT's `Track` (KeyError when it is not tracked)."""
         return self._tracks[robot]
 
+    def beliefs_at(self, stamp, excluded=None):
+        """Return (names, tracks, beliefs at STAMP) of the robots tracked now but EXCLUDED.
+
+        Tuples in the table's order; the beliefs are the tracks' `belief_at(STAMP)`. Made once
+        for the whole table until a track changes: the agents that share it plan for the same
+        stamp, and each leaves out only itself.
+        """
+        if self._at is None or self._at[0] != stamp:
+            tracks = tuple(self._tracks.values())
+            self._at = (stamp, tuple(self._tracks), tracks,
+                        tuple(track.belief_at(stamp) for track in tracks))
+        _, names, tracks, beliefs = self._at
+        if excluded not in self._tracks:
+            return names, tracks, beliefs
+        index = names.index(excluded)
+        return tuple(values[:index] + values[index + 1:] for values in (names, tracks, beliefs))
+
     def receive(self, robot, measurement, now):
         """Fuse ROBOT's MEASUREMENT; return its `Fusion`."""
+        self._at = None
         track, fusion = fuse(self._tracks.get(robot), measurement, now, self.acceleration_std,
                              self.neighbor_timeout)
         self._tracks[robot] = track
@@ -191,6 +212,7 @@ class TrackTable:
         Returns [(robot, seconds silent)] of those dropped.
         """
         dropped = []
+        self._at = None
         for robot, track in list(self._tracks.items()):
             silent = now - track.last_heard
             if (wanted is not None and robot not in wanted) or silent > self.neighbor_timeout:

@@ -128,7 +128,8 @@ def time_peer(count, dt=0.1):
 
 # Where a robot-step goes (`--profile`): each phase is the cumulative time of the functions
 # (file suffix, name) it names, as the step calls them (a plan request may plan too: whether
-# anyone comes to a robot at its goal is a plan, and counts as the request's).
+# anyone comes to a robot at its goal standing on a condition's edge is a plan, and counts as
+# the request's).
 PHASES = (
     ('core_ms', (('prvo_planner/core/planner.py', 'plan_velocities'),)),
     ('requests_ms', (('prvo_planner/agent.py', 'plan_request'),)),
