@@ -190,7 +190,9 @@ _SPECS = (
     ParameterSpec('num_directions', INTEGER, 64, 'Candidate headings evaluated per plan.',
                   (1, 4096)),
     ParameterSpec('time_horizon', FLOAT, 5.0, 'Collisions later than this many seconds do not '
-                  'constrain now, > 0; .inf for none.', rule=_positive),
+                  'constrain now [s], > 0; .inf for none: longer yields earlier to distant '
+                  'robots and, under noise, keeps further from near ones (slower in crowds and '
+                  'doors); shorter reacts later and passes closer.', rule=_positive),
     ParameterSpec('obstacle_horizon', FLOAT, 2.0, 'Walls and static obstacles constrain the '
                   'path over this many seconds [s], in [0.5, 10]: longer keeps further '
                   'from walls and slows earlier, shorter passes closer.', (0.5, 10.0)),

@@ -53,7 +53,14 @@ from prvo_planner import stalls
 from prvo_planner.core.config import CERTIFICATES, RISKS
 from prvo_planner.parameters import DEFAULTS
 from prvo_sim.bench.engine import report, run_team
-from prvo_sim.bench.team import DT, GOAL_TOLERANCE, NOISE_STD, circle_document, write_scenario
+from prvo_sim.bench.team import (
+    DT,
+    GOAL_TOLERANCE,
+    NOISE_STD,
+    PEER_TIME_HORIZON,
+    circle_document,
+    write_scenario,
+)
 
 CIRCLE_RADII = {8: 4.0, 16: 4.0, 24: 6.0, 48: 7.7}
 DEFAULT_CIRCLES = tuple(CIRCLE_RADII)
@@ -71,7 +78,6 @@ SWEEP_SIZES = (6, 20)  # robots, both included
 PLANNER_DEFAULTS = {name: DEFAULTS[name] for name in ('eta', 'certificate', 'risk')}
 FALLBACK_CIRCLE = (20, 5.0)  # robots, radius [m]: noise-free, --method rvo
 APPROACH_TIME = 0.5  # s: the peers slow down near the goal as the planner does (its default)
-PEER_TIME_HORIZON = 5.0  # s: the planner's default
 PEERS = ('irsim-rvo', 'orca')
 
 

@@ -21,17 +21,17 @@ duration, goal tolerance, walls and obstacles) and run:
 value read as YAML: `--planner keep_right=0 eta=0.95 certificate=certified`), for ablations and
 to run a shipped world at the planner's defaults.
 
-The peers plan with prvo's default horizons (`time_horizon` for robots, `obstacle_horizon` for
-walls) and head for their goals at full speed, slowing over the last APPROACH_TIME as the
-planner's agent does. Every row is measured from its trajectory by the runner's own metrics:
-arrivals (a robot's first time within the goal tolerance) and the makespan, the least
-robot-robot separation (centre distance minus the radii) and robot-robot contacts, the least
-wall clearance (`StaticWorld.clearance` minus the radius) and wall contacts (clearance at most
-the contact tolerance), the planning time per robot-step [ms of wall time: prvo's agents'
-share of the team's planning, RVO2's `doStep`, navground's `World.update` with its sensing],
-and the stalls by the planner's rule (`prvo_planner.stalls`: a robot away from its goal that
-gains less than 0.5 m toward it in 10 s), the longest stall [s] and the longest time a robot
-stayed within 0.5 m of one spot away from its goal [s].
+The peers plan with `bench.team.PEER_TIME_HORIZON` against robots and prvo's default
+`obstacle_horizon` against walls, and head for their goals at full speed, slowing over the last
+APPROACH_TIME as the planner's agent does. Every row is measured from its trajectory by the
+runner's own metrics: arrivals (a robot's first time within the goal tolerance) and the makespan,
+the least robot-robot separation (centre distance minus the radii) and robot-robot contacts, the
+least wall clearance (`StaticWorld.clearance` minus the radius) and wall contacts (clearance at
+most the contact tolerance), the planning time per robot-step [ms of wall time: prvo's agents'
+share of the team's planning, RVO2's `doStep`, navground's `World.update` with its sensing], and
+the stalls by the planner's rule (`prvo_planner.stalls`: a robot away from its goal that gains less
+than 0.5 m toward it in 10 s), the longest stall [s] and the longest time a robot stayed within 0.5
+m of one spot away from its goal [s].
 
 Exit codes: 0 every prvo robot (method prvo) arrived, 1 one did not, 2 bad input, 130 when
 interrupted.
@@ -52,6 +52,7 @@ from prvo_planner.parameters import DEFAULTS, check_parameter
 from prvo_planner.stalls import SUMMARY_COLUMNS, trajectory_stalls
 from prvo_sim.bench.crowds import preferred_velocities
 from prvo_sim.bench.engine import report, run_team
+from prvo_sim.bench.team import PEER_TIME_HORIZON
 from prvo_sim.metrics import run_metrics, wall_metrics
 from prvo_sim.scenario import NoiseSpec, find_scenario, load_scenario
 
@@ -173,7 +174,7 @@ def rvo2_stepper(world):
     simulator.set_time_step(world.dt)
     for start, radius, max_speed in zip(world.starts, world.radii, world.max_speeds,
                                         strict=True):
-        simulator.add_agent(tuple(start), PEER_NEIGHBOR_DISTANCE, count, DEFAULTS['time_horizon'],
+        simulator.add_agent(tuple(start), PEER_NEIGHBOR_DISTANCE, count, PEER_TIME_HORIZON,
                             DEFAULTS['obstacle_horizon'], float(radius), float(max_speed))
     obstacles = world.polygons + [disc_polygon(centre, radius) for centre, radius in zip(
         world.disc_centres, world.disc_radii, strict=True)]
@@ -213,7 +214,7 @@ def navground_stepper(world, behavior_type):
         behavior = core.Behavior.make_type(behavior_type)
         behavior.optimal_speed = float(max_speed)
         if behavior_type == 'ORCA':
-            behavior.time_horizon = DEFAULTS['time_horizon']
+            behavior.time_horizon = PEER_TIME_HORIZON
             behavior.static_time_horizon = DEFAULTS['obstacle_horizon']
         task = sim.tasks.WaypointsTask(
             waypoints=[goal], loop=False,
