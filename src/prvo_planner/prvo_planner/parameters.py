@@ -193,6 +193,10 @@ _SPECS = (
                   'constrain now [s], > 0; .inf for none: longer yields earlier to distant '
                   'robots and, under noise, keeps further from near ones (slower in crowds and '
                   'doors); shorter reacts later and passes closer.', rule=_positive),
+    ParameterSpec('guard_time', FLOAT, 0.0, 'A neighbour that avoids too and could touch '
+                  'this robot within this time [s] is also avoided over it as if it kept its '
+                  'velocity, in [0, 10]: safety near contact not resting on its reciprocating; '
+                  'longer holds back sooner in crowds. 0 = off.', (0.0, 10.0)),
     ParameterSpec('obstacle_horizon', FLOAT, 2.0, 'Walls and static obstacles constrain the '
                   'path over this many seconds [s], in [0.5, 10]: longer keeps further '
                   'from walls and slows earlier, shorter passes closer.', (0.5, 10.0)),
@@ -522,7 +526,8 @@ def planner_config_from(values, changed=None):
             seed=None if seed < 0 else seed,
             inertia=merged['inertia'], passing_bias=merged['passing_bias'],
             progress_weight=merged['progress_weight'],
-            obstacle_horizon=merged['obstacle_horizon'])
+            obstacle_horizon=merged['obstacle_horizon'],
+            guard_time=merged['guard_time'])
     except ValueError as error:
         # The rules above cover PlannerConfig's; should they ever diverge, still one clear line.
         raise ParameterError('planner', str(error)) from error

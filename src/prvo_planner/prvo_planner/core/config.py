@@ -121,7 +121,13 @@ class PlannerConfig:
         and executed with an error of its own every ``control_period``. Longer:
         robots slow down earlier and keep further from walls; shorter: they pass closer and
         may approach a wall faster than they can stop.
-
+    guard_time : float
+        Seconds, >= 0: a neighbour that takes a share of the avoidance and could touch the
+        robot within this time (its mean gap below ``guard_time`` times ``max_speed`` plus the
+        neighbour's speed) is judged twice, as it announces and as if it kept its velocity
+        (share 0, the plain velocity obstacle) over ``guard_time``; the velocity must meet
+        both. Near contact, safety then does not rest on the reciprocal assumption, which two
+        robots that change course at once break (docs/method.md, section 11). 0: off.
     """
 
     eta: float = 0.8
@@ -144,6 +150,7 @@ class PlannerConfig:
     control_period: float = 0.1
     certificate: str = 'cantelli'
     obstacle_horizon: float = 2.0
+    guard_time: float = 0.0
 
     def __post_init__(self):
         eta = _real(self.eta, 'PlannerConfig.eta')
@@ -200,6 +207,10 @@ class PlannerConfig:
                            _positive(self.control_period, 'PlannerConfig.control_period'))
         object.__setattr__(self, 'obstacle_horizon',
                            _positive(self.obstacle_horizon, 'PlannerConfig.obstacle_horizon'))
+        guard = _real(self.guard_time, 'PlannerConfig.guard_time')
+        if guard < 0.0:
+            raise ValueError(f'PlannerConfig.guard_time must be >= 0, got {self.guard_time!r}')
+        object.__setattr__(self, 'guard_time', guard)
 
     @property
     def effective_k(self):
