@@ -110,7 +110,7 @@ def test_robots_standing_beyond_the_goal_do_not_block_it():
     covariance = np.diag([0.0016, 0.0016, 0.0016, 0.0016])
     ego = AgentBelief([-5.2, 0.0], [0.0, 0.0], covariance, 0.3)
     standing = [AgentBelief([4.0, y], [0.0, 0.0], covariance, 0.3) for y in (-1.0, 0.0, 1.0)]
-    config = planner_config_from(dict(DEFAULTS, eta=0.9, actuation_std=0.05))
+    config = planner_config_from(dict(DEFAULTS, eta=0.9, actuation_std=0.05, time_horizon=5.0))
     goal = np.array([-4.0, 0.0])
     v_pref, _ = preferred_velocity(ego.position, goal, 1.0, 0.5, 0.1)
     horizon = goal_horizon(1.2, 1.0, 0.5, config.time_horizon)

@@ -250,18 +250,19 @@ def test_the_ros_engine_finds_its_own_executables_without_the_ament_index(monkey
 
 @pytest.mark.parametrize('engine', ['inprocess', 'ros'])
 def test_a_run_reports_the_guarantee_its_plans_did_not_have(engine, tmp_path, runners):
-    # At eta 0.9999 no velocity of a head-on encounter meets the constraint: the run arrives
-    # without contact on the fallback, and must not read as if the guarantee had held.
+    # At eta 0.9999 no velocity of a head-on encounter meets the constraint while the two are
+    # within the horizon of each other (31% of the plans at 2 s): the run arrives without
+    # contact on the fallback, and must not read as if the guarantee had held.
     out = tmp_path / 'out'
     runner = start_runner([HEADON, '--engine', engine, '--eta', '0.9999', '--out', str(out),
                            '--quiet', '--no-bag', '--no-animation'], tmp_path)
     runners.append(runner)
     assert runner.wait(timeout=300) == 0, output(runner)
     recorded = json.loads((out / 'metrics.json').read_text())
-    assert recorded['infeasible_fraction'] > 0.5
+    assert recorded['infeasible_fraction'] > 0.2
     assert recorded['min_achieved_eta'] < 0.9
     for robot in recorded['robots'].values():
-        assert robot['plans'] > 20 and robot['infeasible_fraction'] > 0.5
+        assert robot['plans'] > 20 and robot['infeasible_fraction'] > 0.2
         assert recorded['min_achieved_eta'] <= robot['min_achieved_eta'] < 0.9999
     outcome = next(line for line in runner.out_path.read_text().splitlines()
                    if 'outcome:' in line)

@@ -41,8 +41,8 @@ import math
 import numpy as np
 
 # Defaults of the planner parameters (`prvo_planner.parameters`), and why.
-# 0.2 rad/s: about 11 degrees per second, the cap in about 5 s, about as long as a plan looks
-# ahead (the default time_horizon): a sidestep of about 10 s.
+# 0.2 rad/s: about 11 degrees per second, the cap in about 5 s (the time_horizon it was chosen
+# at, now 2 s): a sidestep of about 10 s.
 TURN_RATE = 0.2  # rad/s
 # 60 degrees: half the speed still toward the goal, most of it to the side.
 TURN_MAX = math.pi / 3.0  # rad

@@ -42,9 +42,9 @@ ROBOT_RADIUS = 0.3
 MAX_SPEED = 1.0
 ETA = 0.8
 CERTIFICATE = 'cantelli'
-# The peers' (RVO2's, navground's ORCA) horizon against robots [s], prvo's default, fixed so that
-# prvo runs at another `time_horizon` meet the same peers: at 2 s RVO2 jams at doorway8's door
-# (4 of 8 through, 555 contacts; docs/results.md, section 3.5).
+# The peers' (RVO2's, navground's ORCA) horizon against robots [s], prvo's default until it
+# became 2 s, fixed so that the issues' reference makespans stay the same: at 2 s RVO2 jams at
+# doorway8's door (4 of 8 through, 555 contacts; docs/results.md, section 3.5).
 PEER_TIME_HORIZON = 5.0
 CIRCLE8_RADIUS = 4.0
 # Arc between neighbours on the start circle beyond which it grows: 16 robots get 6 m.
