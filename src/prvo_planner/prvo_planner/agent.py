@@ -36,7 +36,13 @@ from prvo_planner.escalation import (
     Escalation,
     EscalationSettings,
 )
-from prvo_planner.give_way import HELD_WINDOW, give_way_spot, held_short, held_spot
+from prvo_planner.give_way import (
+    HELD_WINDOW,
+    give_way_spot,
+    held_short,
+    held_spot,
+    way_left,
+)
 from prvo_planner.lanes import KEEP_RIGHT, keep_right
 from prvo_planner.maps import (
     GridMap,
@@ -595,7 +601,7 @@ class PlannerAgent:
         self._narrow_passage = None
         self.escalation = Escalation()
         # The spot beside a neighbour's route the robot gives way at (`give_way`), None: none;
-        # held short of its goal, (where it stood, its way left then) while it gives way.
+        # held short of its goal, where it stood then, while it gives way.
         self._give_way = None
         self._held_at = None
         # Whether it stands at that spot (within the goal tolerance): it announces no share then.
@@ -1069,14 +1075,17 @@ class PlannerAgent:
             held_at = self._held_at
             gained = self.stall_monitor.gained_over(HELD_WINDOW)
             if held_at is None and held_short(stall.stalled, distance_to_goal, gained):
-                held_at = (position.copy(), distance_to_goal)
+                held_at = position.copy()
             self._give_way = None
             if held_at is not None:
+                # The way left as the neighbours see it: along the route it publishes.
+                own_route = (self._route if self._route_status == ROUTE_FOUND
+                             and self._route is not None else self.goal[np.newaxis])
                 neighbours = [(name, belief.mean[:2], announcement.radius, route)
                               for name, belief, announcement, route
                               in zip(names, beliefs, announcements, points, strict=True)]
-                self._give_way = held_spot(held_at[0], held_at[1], self.name, radius,
-                                           neighbours, room)
+                self._give_way = held_spot(held_at, way_left(own_route, position), self.name,
+                                           radius, neighbours, room)
             self._held_at = None if self._give_way is None else held_at
         if self._give_way is None:
             return v_pref

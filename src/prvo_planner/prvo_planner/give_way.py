@@ -139,17 +139,19 @@ def give_way_spot(goal, radius, neighbours, room):
 
 
 def way_left(route, position):
-    """Return the length [m] of the way from POSITION (2,) along ROUTE (K, 2), K >= 1, to its end.
+    """Return the length [m] of ROUTE (K, 2) ahead of a robot at POSITION (2,), to its end.
 
-    From the position to the route's nearest point, then along the rest (`way_ahead`).
+    Along the route from its point nearest the robot (`way_ahead`); a route of one point: the
+    straight line. Not the way from the robot to the route: a robot stepping aside to give way
+    (less than the lookahead off its route, which it keeps) has as far to go as before, to its
+    neighbours as to itself, so who yields does not turn as it steps.
     """
     route = np.asarray(route, dtype=float)
     position = np.asarray(position, dtype=float)
     if len(route) < 2:
         return math.hypot(*(route[-1] - position))
     ahead = way_ahead(route, position)
-    return (math.hypot(*(ahead[0] - position))
-            + float(np.sum(np.hypot(*np.diff(ahead, axis=0).T))))
+    return float(np.sum(np.hypot(*np.diff(ahead, axis=0).T)))
 
 
 def held_short(stalled, distance_to_goal, gained):
@@ -176,7 +178,8 @@ def held_spot(position, left, name, radius, neighbours, room):
     """
     Return the spot (2,) a held robot steps to, None when it need not (`held_short`).
 
-    The robot, NAME, of RADIUS, stands at POSITION (2,) with LEFT [m] to go. NEIGHBOURS is a
+    The robot, NAME, of RADIUS, was held at POSITION (2,) and has LEFT [m] to go (`way_left`
+    along its own route). NEIGHBOURS is a
     sequence of (name, position (2,), radius, route (K, 2) or None); ROOM as in `spot_beside`.
     Of the neighbours within RANGE whose way ahead passes by POSITION and that it yields to
     (`yields_to`, their way left along their route), the nearest decides, as in
@@ -192,7 +195,7 @@ def held_spot(position, left, name, radius, neighbours, room):
         ahead = way_ahead(np.asarray(route, dtype=float), other_position)
         if not np.any(ahead[1:] != ahead[:-1]):
             continue
-        other_left = way_left(ahead, other_position)
+        other_left = way_left(route, other_position)
         if not yields_to(left, name, other_left, other_name):
             continue
         spot = spot_beside(ahead, position, radius, other_radius, room)
