@@ -36,7 +36,13 @@ from prvo_planner.escalation import (
     Escalation,
     EscalationSettings,
 )
-from prvo_planner.give_way import give_way_spot
+from prvo_planner.give_way import (
+    HELD_WINDOW,
+    give_way_spot,
+    held_short,
+    held_spot,
+    way_left,
+)
 from prvo_planner.lanes import KEEP_RIGHT, keep_right
 from prvo_planner.maps import (
     GridMap,
@@ -594,8 +600,12 @@ class PlannerAgent:
         # The passage too narrow to certify that the stall in progress is in front of.
         self._narrow_passage = None
         self.escalation = Escalation()
-        # The spot beside a neighbour's route the robot gives way at (`give_way`), None: none.
+        # The spot beside a neighbour's route the robot gives way at (`give_way`), None: none;
+        # held short of its goal, where it stood then, while it gives way.
         self._give_way = None
+        self._held_at = None
+        # Whether it stands at that spot (within the goal tolerance): it announces no share then.
+        self._aside = False
         # The right of way at the passage on its route (`right_of_way.Decision`), None: none;
         # the neighbours standing in a passage (`right_of_way.IdleWatch`), and those of them
         # that stood too long and claim nothing (sorted names).
@@ -668,7 +678,8 @@ class PlannerAgent:
         self.arrived = False
         self._arrival_reported = False
         self._previous_velocity = None
-        self._give_way = None
+        self._give_way = self._held_at = None
+        self._aside = False
 
     # Measurements -----------------------------------------------------------------------------
 
@@ -697,10 +708,11 @@ class PlannerAgent:
     def own_announcement(self):
         """What this robot announces: its radius, and its share of the avoidance.
 
-        On its way, the reciprocal share. Without a goal it does not plan, and at its goal it
-        stands until someone comes: its neighbours must not count on it mirroring their moves,
-        as a reciprocal planner does (a robot heading away from a standing one would otherwise
-        see the standing one's half coming after it), so it announces none. A robot that waits
+        On its way, the reciprocal share. Without a goal it does not plan, and at its goal (or
+        at the spot it gives way at, `_given_way`) it stands until someone comes: its
+        neighbours must not count on it mirroring their moves, as a reciprocal planner does (a
+        robot heading away from a standing one would otherwise see the standing one's half
+        coming after it), so it announces none. A robot that waits
         for its path before its first plan (`wait_for_path`) plans its first step on it: it
         announces the share it will take from the start, so that what its neighbours' first
         plans count on does not depend on whether its path or their plans came first.
@@ -959,7 +971,8 @@ class PlannerAgent:
         if (source == PATH and self.settings.wait_for_path and self._path is None
                 and self._command_stamp is None):
             return True
-        return self.goal is not None and not self.arrived
+        # Standing aside for a passing neighbour the robot is where it should be, as at its goal.
+        return self.goal is not None and not self.arrived and not self._aside
 
     def _preference(self, own):
         """Return (v_pref (2,), arrived, distance to the goal [m]) from the robot's OWN belief.
@@ -1036,25 +1049,47 @@ class PlannerAgent:
                 self.config, time_horizon=horizon, control_period=control_period)
         return config
 
-    def _given_way(self, position, v_pref, beliefs, announcements, routes):
+    def _given_way(self, position, v_pref, stall, distance_to_goal, names, beliefs,
+                   announcements, routes):
         """Return V_PREF, or toward the spot beside a passing neighbour's route (`give_way`).
 
-        Only a robot heading for a goal, at it or giving way already, steps aside; ROUTES are
-        the neighbours' `routes.NeighbourRoute`s (None: none), in the order of BELIEFS.
+        Only a robot heading for a goal steps aside: at it or giving way from it already, or
+        held short of it (`give_way.held_short`, from STALL and DISTANCE_TO_GOAL [m]) or giving
+        way from where it was held. ROUTES are the neighbours' `routes.NeighbourRoute`s (None:
+        none), in the order of NAMES and BELIEFS.
         """
         settings = self.settings
-        if (not settings.give_way or self.goal is None or settings.preferred_source != GOAL
-                or not (self.arrived or self._give_way is not None)):
-            self._give_way = None
+        self._aside = False
+        if not settings.give_way or self.goal is None or settings.preferred_source != GOAL:
+            self._give_way = self._held_at = None
             return v_pref
-        neighbours = [(belief.mean[:2], announcement.radius,
-                       None if route is None else route.points)
-                      for belief, announcement, route in zip(beliefs, announcements, routes,
-                                                             strict=True)]
+        radius = settings.planning_radius
         room = None if self._route_map is None else self._route_map.in_sight
-        self._give_way = give_way_spot(self.goal, settings.planning_radius, neighbours, room)
+        points = [None if route is None else route.points for route in routes]
+        if self.arrived or (self._give_way is not None and self._held_at is None):
+            self._held_at = None
+            neighbours = [(belief.mean[:2], announcement.radius, route) for belief, announcement,
+                          route in zip(beliefs, announcements, points, strict=True)]
+            self._give_way = give_way_spot(self.goal, radius, neighbours, room)
+        else:
+            held_at = self._held_at
+            gained = self.stall_monitor.gained_over(HELD_WINDOW)
+            if held_at is None and held_short(stall.stalled, distance_to_goal, gained):
+                held_at = position.copy()
+            self._give_way = None
+            if held_at is not None:
+                # The way left as the neighbours see it: along the route it publishes.
+                own_route = (self._route if self._route_status == ROUTE_FOUND
+                             and self._route is not None else self.goal[np.newaxis])
+                neighbours = [(name, belief.mean[:2], announcement.radius, route)
+                              for name, belief, announcement, route
+                              in zip(names, beliefs, announcements, points, strict=True)]
+                self._give_way = held_spot(held_at, way_left(own_route, position), self.name,
+                                           radius, neighbours, room)
+            self._held_at = None if self._give_way is None else held_at
         if self._give_way is None:
             return v_pref
+        self._aside = bool(np.hypot(*(self._give_way - position)) <= settings.goal_tolerance)
         return preferred_velocity(position, self._give_way, self.config.max_speed,
                                   settings.approach_time, 0.0, settings.max_acceleration)[0]
 
@@ -1229,7 +1264,8 @@ class PlannerAgent:
         arrival = self._arrival(own.mean[:2])
         names, tracks, neighbour_beliefs = self._neighbour_tracks.beliefs_at(stamp, self.name)
         announcements, routes = self._held.values(names, stamp, self._held_of)
-        v_pref = self._given_way(own.mean[:2], v_pref, neighbour_beliefs, announcements, routes)
+        v_pref = self._given_way(own.mean[:2], v_pref, stall, distance_to_goal, names,
+                                 neighbour_beliefs, announcements, routes)
         v_pref, passage_wall = self._passage_turn(stamp, own.mean[:2], v_pref, names,
                                                   neighbour_beliefs, routes)
         if self._command_stamp is not None and 0.0 < stamp - self._command_stamp:

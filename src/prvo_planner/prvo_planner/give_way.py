@@ -18,6 +18,14 @@ keep its clearance; without a map, always), down to the two radii; with no room 
 on the other. The nearest such neighbour decides. Once no route passes by its goal (the
 neighbour went by, arrived, or went silent) it returns to its goal.
 
+A robot held short of its goal (`held_short`: stalled, or near its goal and hardly gaining on it)
+gives way likewise to a neighbour whose way ahead passes by where it stands and that has farther
+to go than it has (`yields_to`; within `TIE` the names decide), at the spot beside that way
+(`held_spot`, the robot's position in place of its goal). Two robots that hold each other up
+near the end of a corridor otherwise wait for each other: the one with less to go makes room,
+the other goes by, and the first goes on once no such way passes by the place it stepped off
+(issue 38).
+
 Only the preferred velocity changes: the chance constraints against robots and walls, and so the
 guarantee, are those of every plan.
 """
@@ -34,6 +42,15 @@ GAP = 0.1
 RANGE = 3.0
 # The offsets tried, from the full one down to the two radii, this far apart [m].
 STEP = 0.05
+# A robot this near its goal [m, the way left] is held when it came less than HELD_PROGRESS [m]
+# closer to it over the last HELD_WINDOW [s] (0.1 m/s): sooner than a stall (`stalls`, 10 s),
+# since two robots that wait for each other at a corridor's end wait for good.
+NEAR_GOAL = 2.5
+HELD_WINDOW = 3.0
+HELD_PROGRESS = 0.3
+# Ways left within this of each other [m] are a tie, which the names decide: two robots estimate
+# each other's positions to within centimetres, and must agree on who yields.
+TIE = 0.3
 
 
 def closest_on_route(route, point):
@@ -116,6 +133,72 @@ def give_way_spot(goal, radius, neighbours, room):
             # At the end of its route: it arrived, and claims no way.
             continue
         spot = spot_beside(ahead, goal, radius, other_radius, room)
+        if spot is not None:
+            spots.append((distance, spot))
+    return min(spots, key=lambda item: item[0])[1] if spots else None
+
+
+def way_left(route, position):
+    """Return the length [m] of ROUTE (K, 2) ahead of a robot at POSITION (2,), to its end.
+
+    Along the route from its point nearest the robot (`way_ahead`); a route of one point: the
+    straight line. Not the way from the robot to the route: a robot stepping aside to give way
+    (less than the lookahead off its route, which it keeps) has as far to go as before, to its
+    neighbours as to itself, so who yields does not turn as it steps.
+    """
+    route = np.asarray(route, dtype=float)
+    position = np.asarray(position, dtype=float)
+    if len(route) < 2:
+        return math.hypot(*(route[-1] - position))
+    ahead = way_ahead(route, position)
+    return float(np.sum(np.hypot(*np.diff(ahead, axis=0).T)))
+
+
+def held_short(stalled, distance_to_goal, gained):
+    """Whether a robot is held short of its goal: it yields (`held_spot`) to whoever has farther.
+
+    STALLED: its stall monitor's status; DISTANCE_TO_GOAL [m] the way left; GAINED [m] how much
+    closer it came over the last HELD_WINDOW (nan: less history, or at its goal within it).
+    """
+    return bool(stalled) or (distance_to_goal <= NEAR_GOAL and gained < HELD_PROGRESS)
+
+
+def yields_to(own_left, own_name, other_left, other_name):
+    """Whether a robot with OWN_LEFT [m] to go yields to a neighbour with OTHER_LEFT [m].
+
+    It does to one with farther to go; within TIE the one whose name sorts later yields, so that
+    of two that judge alike exactly one does.
+    """
+    if abs(other_left - own_left) > TIE:
+        return other_left > own_left
+    return other_name < own_name
+
+
+def held_spot(position, left, name, radius, neighbours, room):
+    """
+    Return the spot (2,) a held robot steps to, None when it need not (`held_short`).
+
+    The robot, NAME, of RADIUS, was held at POSITION (2,) and has LEFT [m] to go (`way_left`
+    along its own route). NEIGHBOURS is a
+    sequence of (name, position (2,), radius, route (K, 2) or None); ROOM as in `spot_beside`.
+    Of the neighbours within RANGE whose way ahead passes by POSITION and that it yields to
+    (`yields_to`, their way left along their route), the nearest decides, as in
+    `give_way_spot`.
+    """
+    position = np.asarray(position, dtype=float)
+    spots = []
+    for other_name, other_position, other_radius, route in neighbours:
+        other_position = np.asarray(other_position, dtype=float)
+        distance = math.hypot(*(other_position - position))
+        if route is None or len(route) < 2 or distance > RANGE:
+            continue
+        ahead = way_ahead(np.asarray(route, dtype=float), other_position)
+        if not np.any(ahead[1:] != ahead[:-1]):
+            continue
+        other_left = way_left(route, other_position)
+        if not yields_to(left, name, other_left, other_name):
+            continue
+        spot = spot_beside(ahead, position, radius, other_radius, room)
         if spot is not None:
             spots.append((distance, spot))
     return min(spots, key=lambda item: item[0])[1] if spots else None

@@ -301,12 +301,14 @@ _SPECS = (
                   'is wide enough for two (open space, or twice the width it needs to be '
                   'certified through), fading over the last metre to its goal; longer ways (a '
                   'factor 1 / cos) for smoother flow. In [0, 0.8]; 0 = never.', (0.0, 0.8)),
-    # Give way (`prvo_planner.give_way`): a robot at its goal steps off the route a neighbour
-    # publishes on <robot>/plan where it passes; off, it stands there (the ablation).
+    # Give way (`prvo_planner.give_way`): a robot at its goal, or held short of it, steps off
+    # the route a neighbour publishes on <robot>/plan where it passes; off, it stands (ablation).
     ParameterSpec('give_way', BOOL, True, 'A robot at its goal steps aside, off the route a '
                   'neighbour within 3 m publishes on <robot>/plan, where that route passes '
-                  'nearer than their two radii and 0.1 m, and returns once it went by. '
-                  'false = it stays at its goal.'),
+                  'nearer than their two radii and 0.1 m, and returns once it went by; so does '
+                  'a robot held short of its goal (stalled, or within 2.5 m of it and less '
+                  'than 0.3 m closer in 3 s) for a neighbour with farther to go. '
+                  'false = neither steps aside.'),
     # Right of way (`prvo_planner.right_of_way`): at a passage too narrow for two, found on the
     # map, robots take turns by one rule from what all publish; off, they meet in it (ablation).
     ParameterSpec('right_of_way', BOOL, True, 'With a map, robots take turns at passages too '

@@ -132,6 +132,23 @@ class StallMonitor:
         self._dwell(time, position, at_goal)
         return self._status(time, position, distance, gained, began)
 
+    def gained_over(self, seconds):
+        """Return how much closer [m] to its goal the robot came over the last SECONDS.
+
+        Up to the latest update, from the latest one at least SECONDS before it (SECONDS at most
+        STALL_WINDOW); nan with less history than that, or when the robot was within the
+        tolerance since.
+        """
+        if not self._history:
+            return math.nan
+        time, distance = self._history[-1]
+        if self._last_at_goal > time - seconds - _TIME_SLACK:
+            return math.nan
+        for then, before in reversed(self._history):
+            if then <= time - seconds + _TIME_SLACK:
+                return before - distance
+        return math.nan
+
     def _dwell(self, time, position, at_goal):
         """Carry the dwell on to POSITION at TIME, or begin the next (see the module)."""
         if at_goal:
