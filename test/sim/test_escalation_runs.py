@@ -7,8 +7,8 @@ from prvo_planner.stalls import STALL_WINDOW
 from prvo_sim.engine import InProcessTeam
 from prvo_sim.scenario import load_scenario
 
-# No noise, no passing bias and no keep right: nothing but escalation breaks the symmetry of the
-# encounter.
+# No noise, no passing bias, no keep right and no giving way: nothing but escalation breaks the
+# symmetry of the encounter.
 HEAD_ON = """name: head_on_symmetric
 seed: 7
 dt: 0.1
@@ -42,7 +42,7 @@ def run(tmp_path, escalate):
     path.write_text(HEAD_ON)
     scenario = load_scenario(path)
     values = [{**DEFAULTS, 'eta': 0.8, 'certificate': 'cantelli', 'passing_bias': 0.0,
-               'keep_right': 0.0, 'stall_escalation': escalate,
+               'keep_right': 0.0, 'give_way': False, 'stall_escalation': escalate,
                'goal': [float(value) for value in robot.goal],
                'radius': robot.radius, 'max_speed': robot.max_speed,
                'neighbors': [other.name for other in scenario.robots if other is not robot]}
