@@ -126,16 +126,25 @@ def give_way_spot(goal, radius, neighbours, room):
     for position, other_radius, route in neighbours:
         position = np.asarray(position, dtype=float)
         distance = math.hypot(*(position - goal))
-        if route is None or len(route) < 2 or distance > RANGE:
-            continue
-        ahead = way_ahead(np.asarray(route, dtype=float), position)
-        if not np.any(ahead[1:] != ahead[:-1]):
-            # At the end of its route: it arrived, and claims no way.
+        ahead = _claimed_way(route, position, distance)
+        if ahead is None:
             continue
         spot = spot_beside(ahead, goal, radius, other_radius, room)
         if spot is not None:
             spots.append((distance, spot))
     return min(spots, key=lambda item: item[0])[1] if spots else None
+
+
+def _claimed_way(route, position, distance):
+    """Return the way ahead (K', 2) a neighbour at POSITION (2,) claims, None for none.
+
+    None beyond RANGE (DISTANCE [m] away), without a route (ROUTE None or fewer than two
+    points), or at the end of its route: it arrived, and claims no way.
+    """
+    if route is None or len(route) < 2 or distance > RANGE:
+        return None
+    ahead = way_ahead(np.asarray(route, dtype=float), position)
+    return ahead if np.any(ahead[1:] != ahead[:-1]) else None
 
 
 def way_left(route, position):
@@ -190,10 +199,8 @@ def held_spot(position, left, name, radius, neighbours, room):
     for other_name, other_position, other_radius, route in neighbours:
         other_position = np.asarray(other_position, dtype=float)
         distance = math.hypot(*(other_position - position))
-        if route is None or len(route) < 2 or distance > RANGE:
-            continue
-        ahead = way_ahead(np.asarray(route, dtype=float), other_position)
-        if not np.any(ahead[1:] != ahead[:-1]):
+        ahead = _claimed_way(route, other_position, distance)
+        if ahead is None:
             continue
         other_left = way_left(route, other_position)
         if not yields_to(left, name, other_left, other_name):
