@@ -1,8 +1,7 @@
 """Give way (prvo_planner.give_way), alone: where a robot at its goal steps for a passing route."""
 
-import dataclasses
-
 import numpy as np
+from planner_testing import Odometry
 import pytest
 
 from prvo_planner.agent import AgentSettings, PlannerAgent
@@ -13,17 +12,6 @@ RADIUS = 0.25
 NEEDED = 2 * RADIUS + GAP
 # A route along y = 0 from x = -3 to x = 3.
 ROUTE = np.array([[-3.0, 0.0], [0.0, 0.0], [3.0, 0.0]])
-
-
-@dataclasses.dataclass(frozen=True)
-class Odometry:
-    """The fields of prvo_msgs_util.OdometryMeasurement the agent reads."""
-
-    stamp: float
-    position: np.ndarray
-    velocity: np.ndarray
-    covariance: np.ndarray
-    yaw: float = 0.0
 
 
 def distance_to_route(point, route=ROUTE):

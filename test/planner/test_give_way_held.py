@@ -1,8 +1,7 @@
 """Give way when held short of the goal (prvo_planner.give_way): who yields, and where to."""
 
-import dataclasses
-
 import numpy as np
+from planner_testing import Odometry
 import pytest
 
 from prvo_planner.agent import AgentSettings, PlannerAgent
@@ -26,17 +25,6 @@ NEEDED = 2 * RADIUS + GAP
 # A neighbour at (-1.5, 0) on its way east along y = 0, 9.5 m to go.
 OTHER = np.array([-1.5, 0.0])
 LONG_WAY = np.array([[-1.5, 0.0], [8.0, 0.0]])
-
-
-@dataclasses.dataclass(frozen=True)
-class Odometry:
-    """The fields of prvo_msgs_util.OdometryMeasurement the agent reads."""
-
-    stamp: float
-    position: np.ndarray
-    velocity: np.ndarray
-    covariance: np.ndarray
-    yaw: float = 0.0
 
 
 def test_the_way_left_runs_along_the_route_from_its_point_nearest_the_robot():
