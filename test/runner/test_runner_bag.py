@@ -24,8 +24,10 @@ from prvo_sim.runner.bag import (
     MARKER_ARRAY_TYPE,
     ODOMETRY_TYPE,
     TWIST_STAMPED_TYPE,
+    BagMessages,
     stamp_ns,
 )
+from prvo_sim.runner.recorder import odometry_behind
 
 ROBOTS = ('robot_0', 'robot_1')
 TOPIC_TYPES = {'/clock': CLOCK_TYPE, '/diagnostics': DIAGNOSTIC_ARRAY_TYPE,
@@ -166,3 +168,31 @@ def test_marker_array_stamp_is_its_first_markers():
     assert stamp_ns(serialize_message(markers), MARKER_ARRAY_TYPE) == 3_500_000_000
     assert stamp_ns(serialize_message(MarkerArray()), MARKER_ARRAY_TYPE) is None
     assert serialize_message(DiagnosticArray())[:2] == b'\x00\x01'  # little-endian CDR
+
+
+def odometry_at(step, dt=0.1):
+    """Return a serialized Odometry stamped at STEP * DT [s]."""
+    return serialize_message(Odometry(header=Header(stamp=seconds_to_stamp(step * dt))))
+
+
+def test_odometry_gaps_are_found_at_the_end_and_within():
+    # t = 1.3 s: a stamp with both seconds and nanoseconds; robot_1 lacks the last step's,
+    # robot_2 has none, robot_3 lacks one within.
+    steps = range(14)
+    received = {'robot_0': [odometry_at(step) for step in steps],
+                'robot_1': [odometry_at(step) for step in steps[:-1]],
+                'robot_2': [],
+                'robot_3': [odometry_at(step) for step in steps if step != 5]}
+    last = stamp_ns(received['robot_0'][-1], ODOMETRY_TYPE)
+    assert last == 1_300_000_000
+    # What the runner waits for before it stops the recorder: each robot's newest one.
+    assert odometry_behind(received, last) == ['robot_1', 'robot_2']
+    assert odometry_behind(received, last - 100_000_000) == ['robot_2']
+    # What the bag then lacks, which the runner reports.
+    bag = BagMessages(list(received))
+    for name, messages in received.items():
+        for data in messages:
+            bag.add(f'/{name}/odom', data)
+    stamps = [stamp_ns(data, ODOMETRY_TYPE) for data in received['robot_0']]
+    assert bag.missing_odometry(list(received), stamps) == [
+        ('robot_1', 1, 1_300_000_000), ('robot_2', 14, 0), ('robot_3', 1, 500_000_000)]

@@ -116,9 +116,20 @@ def test_both_engines_give_the_same_trajectories(scenario, engine_run):
     # Scripted robots publish no cmd_vel and no markers.
     assert len(bags['ros']) == 2 + 4 * len(robots) - 2 * len(scripted)
     step_count = len(inprocess) // len(robots)
+    ros_output = output(engine_run(scenario, 'ros')[0])
     for topic, messages in bags['inprocess'].items():
-        if topic.endswith(('/odom', '/ground_truth')):
+        if topic.endswith('/ground_truth'):
             assert messages == bags['ros'][topic], topic
+        elif topic.endswith('/odom'):
+            # Under heavy load the middleware may drop a sample of a depth-10 publisher before
+            # the recorder took it: what the ROS bag holds is the in-process odometry, and a
+            # gap is one the runner reported (the ground truth, above, has none: a run that
+            # misses one fails).
+            held = dict(bags['ros'][topic])
+            assert held.items() <= dict(messages).items(), topic
+            if len(held) < len(messages):
+                assert f'lacks {len(messages) - len(held)} odometry message(s) of ' \
+                    f'{topic.split("/")[1]}' in ros_output, topic
         elif topic.endswith('/cmd_vel'):
             # Every step's command but perhaps the last (the ROS run may end before it).
             assert len(bags['ros'][topic]) >= step_count - 1, topic

@@ -129,3 +129,4 @@ def test_a_run_ended_at_a_step_needs_that_steps_answers_and_ignores_later_steps(
     gap = run_scenario.recording_gaps(ground_truth, before_the_end, names, 0.1, True,
                                       until=0.3)
     assert 'command' in gap and 't = 0.3' in gap
+

@@ -121,6 +121,21 @@ class BagMessages:
         for topic, messages in self.messages.items():
             self.messages[topic] = [message for message in messages if message[0] <= stamp]
 
+    def missing_odometry(self, robot_names, stamps):
+        """Return (robot, missing count, first missing stamp [ns]) of each incomplete odometry.
+
+        STAMPS [ns] are the run's recorded steps; every robot of ROBOT_NAMES publishes its
+        odometry at each. Under heavy load the middleware can drop a sample a slow recorder had
+        not yet taken (a publisher keeps only its last ODOM_QOS.depth).
+        """
+        missing = []
+        for name in robot_names:
+            held = {stamp for stamp, _ in self.messages[robot_topic(name, ODOM)]}
+            lacking = sorted(set(stamps) - held)
+            if lacking:
+                missing.append((name, len(lacking), lacking[0]))
+        return missing
+
     def counts(self):
         """Return {topic: number of messages}."""
         return {topic: len(messages) for topic, messages in self.messages.items()}

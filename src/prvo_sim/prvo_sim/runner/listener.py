@@ -132,9 +132,13 @@ def listen(spec, connection):
             next_graph = now + GRAPH_PERIOD
             connection.send(('graph', graph_snapshot(node, matched)))
         if connection.poll():
-            # The only request is to stop: what arrived meanwhile goes first.
+            # The only request is to stop: everything that has arrived meanwhile goes first
+            # (the runner kills this process if it does not leave soon).
             connection.recv()
-            executor.spin_until_future_complete(never_done, timeout_sec=0.0)
+            taken = -1
+            while taken != len(pending):
+                taken = len(pending)
+                executor.spin_until_future_complete(never_done, timeout_sec=0.0)
             connection.send(('messages', list(pending)))
             _leave(0)
 

@@ -236,6 +236,11 @@ def write_run_bag(spec, recording):
     messages = recording.bag_messages
     if not spec.bag or messages is None or not any(messages.counts().values()):
         return
+    for name, count, first in messages.missing_odometry(
+            [robot.name for robot in spec.scenario.robots],
+            [round(time * 1e9) for time in recording.times]):
+        warn(f'{BAG_FOLDER}/ lacks {count} odometry message(s) of {name}, the first at '
+             f't = {first * 1e-9:g} s: dropped by the middleware before the recorder took them')
     try:
         write_bag(spec.out_dir, recording.bag_messages, file_mode())
     except (OSError, WriterError) as error:

@@ -423,14 +423,32 @@ class Recorder:
         Messages still on their way when the run ended (the last steps' commands travel from
         other processes than the ground truth) get GRACE s of wall time to arrive. UNTIL [s],
         if given, is the end of the run: later steps are not judged.
+
+        A bag's odometry gets the same GRACE to reach the last step: it travels beside the
+        ground truth, and a loaded listener may take it later. Odometry that does not come is
+        left out of the bag; the run does not fail for it.
         """
         deadline = time.monotonic() + grace
         while True:
             gaps = recording_gaps(self.ground_truth, self.commands, self.robot_names, dt,
                                   commands_expected, self.planned_names, until)
-            if gaps is None or time.monotonic() >= deadline or self.lost is not None:
+            if (time.monotonic() >= deadline or self.lost is not None
+                    or gaps is None and not self._odometry_behind(until)):
                 return gaps
             self.spin_for(0.05)
+
+    def _odometry_behind(self, until):
+        """Return the robots whose odometry in the bag ends before the last recorded step."""
+        from prvo_msgs_util import ODOM, robot_topic
+
+        if self._bag_topics is None:
+            return []
+        ground_truth = self.ground_truth
+        last = min((max((stamp for stamp in ground_truth[name]
+                         if until is None or stamp <= _seconds_ns(until)), default=0)
+                    for name in self.robot_names), default=0)
+        return odometry_behind({name: self._bag_topics[robot_topic(name, ODOM)]
+                                for name in self.robot_names}, last)
 
     def close(self):
         """Stop the listener: ask it to leave, SIGKILL it if it has not within a second.
@@ -509,6 +527,18 @@ def _describe(found):
     """Return '<node> publishes /a, subscribes /b; ...' for the first few nodes of FOUND."""
     return '; '.join(node if node not in found else f'{node} ' + ', '.join(_shortened(found[node]))
                      for node in _shortened(found))
+
+
+def odometry_behind(odometry, last_stamp):
+    """Return the robots whose serialized odometry ends before LAST_STAMP [ns], in order.
+
+    ODOMETRY: {robot: [serialized nav_msgs/Odometry, in the order received]}; a robot's
+    messages arrive in order, so its last one is its newest.
+    """
+    from prvo_sim.runner.bag import ODOMETRY_TYPE, stamp_ns
+
+    return [name for name, messages in odometry.items()
+            if not messages or stamp_ns(messages[-1], ODOMETRY_TYPE) < last_stamp]
 
 
 def recording_gaps(ground_truth, commands, robot_names, dt, commands_expected,
