@@ -203,11 +203,9 @@ _SPECS = (
                   'velocity, in [0, 10]: safety near contact not resting on its reciprocating; '
                   'longer holds back sooner in crowds. 0 = off.', (0.0, 10.0)),
     ParameterSpec('approach_limit', BOOL, False, 'Near contact, close at most this '
-                  "robot's share of the gap to a neighbour that avoids too in one control "
-                  'period: two robots that change course at once still cannot meet within '
-                  'it; binds only within about 0.2 m.'),
-    ParameterSpec('guard_distance', FLOAT, 0.0, 'Experiment: guard over the horizon within '
-                  'this gap [m].', (0.0, 10.0)),
+                  "robot's share of the gap to each neighbour (half if it announces none) in "
+                  'one control period: two robots that change course at once still cannot '
+                  'meet within it. Binds only within about 0.2 m; costs speed there.'),
     ParameterSpec('obstacle_horizon', FLOAT, 2.0, 'Walls and static obstacles constrain the '
                   'path over this many seconds [s], in [0.5, 10]: longer keeps further '
                   'from walls and slows earlier, shorter passes closer.', (0.5, 10.0)),
@@ -540,8 +538,7 @@ def planner_config_from(values, changed=None):
             inertia=merged['inertia'], passing_bias=merged['passing_bias'],
             progress_weight=merged['progress_weight'],
             obstacle_horizon=merged['obstacle_horizon'],
-            guard_time=merged['guard_time'], approach_limit=merged['approach_limit'],
-            guard_distance=merged['guard_distance'])
+            guard_time=merged['guard_time'], approach_limit=merged['approach_limit'])
     except ValueError as error:
         # The rules above cover PlannerConfig's; should they ever diverge, still one clear line.
         raise ParameterError('planner', str(error)) from error

@@ -129,13 +129,14 @@ class PlannerConfig:
         both. Near contact, safety then does not rest on the reciprocal assumption, which two
         robots that change course at once break (docs/method.md, section 11). 0: off.
     approach_limit : bool
-        Near contact, close at most the robot's share of the mean gap to a neighbour that
-        avoids too in one ``control_period``: with share ``a_j`` the velocity's component
-        towards it at most ``(1 - a_j) gap / control_period``. Two robots that both keep it
-        cannot meet within the period whatever either does, also when both change course at
-        once, where neither the reciprocal row nor the guard holds (docs/method.md,
-        section 11). It binds only within ``control_period`` times ``max_speed`` divided by
-        the robot's share (0.2 m at half and 1 m/s, 0.1 s).
+        Near contact, close at most the robot's share of the mean gap to each neighbour in one
+        ``control_period``: against a neighbour of share ``a_j`` in (0, 1) the velocity's
+        component towards it at most ``(1 - a_j) gap / control_period``, against one that
+        announces none or all of the avoidance (it may still change course) half the gap.
+        Two robots that both keep it cannot meet within the period whatever either does, also
+        when both change course at once, which neither the reciprocal row nor the guard
+        holds against (docs/method.md, section 11). It binds only within ``control_period``
+        times ``max_speed`` divided by the robot's share (0.2 m at half, 1 m/s and 0.1 s).
     """
 
     eta: float = 0.8
@@ -160,7 +161,6 @@ class PlannerConfig:
     obstacle_horizon: float = 2.0
     guard_time: float = 0.0
     approach_limit: bool = False
-    guard_distance: float = 0.0
 
     def __post_init__(self):
         eta = _real(self.eta, 'PlannerConfig.eta')

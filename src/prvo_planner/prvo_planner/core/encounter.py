@@ -90,13 +90,12 @@ def build_encounter(ego, neighbours, config):
     rows = np.flatnonzero(gap <= config.neighbor_distance)
     shares = shares[rows]
     guarded = np.zeros(0, dtype=int)
-    if config.guard_time > 0.0 or config.guard_distance > 0.0:
+    if config.guard_time > 0.0:
         # Within reach of the guard time, each going at most as fast as it may (the ego) or
         # as it goes (the neighbour).
         reach = config.guard_time * (config.max_speed + np.hypot(velocities[rows, 0],
                                                                 velocities[rows, 1]))
-        guarded = rows[((gap[rows] < reach) | (gap[rows] < config.guard_distance))
-                       & (shares > 0.0)]
+        guarded = rows[(gap[rows] < reach) & (shares > 0.0)]
         rows = np.concatenate([rows, guarded])
         shares = np.concatenate([shares, np.zeros(guarded.shape[0])])
     count = rows.shape[0]
@@ -124,13 +123,12 @@ def build_encounter(ego, neighbours, config):
         # Contact within the guard time along w is contact within the horizon along w scaled by
         # guard_time / time_horizon: every condition is of the scaled row, its probabilities
         # those of the guard's horizon (the f and g conditions do not change with the scale).
-        scale = np.where(gap[guarded] < config.guard_distance, 1.0,
-                         config.guard_time / config.time_horizon)
+        scale = config.guard_time / config.time_horizon
         tail = slice(count - guarded.shape[0], count)
-        origin[tail, 2:] *= scale[:, None]
-        cov[tail, 2:, 2:] *= (scale ** 2)[:, None, None]
-        cov[tail, :2, 2:] *= scale[:, None, None]
-        cov[tail, 2:, :2] *= scale[:, None, None]
+        origin[tail, 2:] *= scale
+        cov[tail, 2:, 2:] *= scale ** 2
+        cov[tail, :2, 2:] *= scale
+        cov[tail, 2:, :2] *= scale
         lead[tail] *= scale
     combined_radius = ego.radius + radii[rows] + config.safety_margin
     return Encounter(

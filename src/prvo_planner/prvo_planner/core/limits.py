@@ -118,12 +118,13 @@ def relaxed_intervals(limits, directions, max_speed):
 def approach_upper(ego, neighbours, directions, config):
     """Return each ray's largest ``t`` under the approach limit, (M,); None where none binds.
 
-    Against each neighbour of share ``a_j`` in (0, 1), the velocity's component along the unit
-    ``n_j`` towards its mean position is at most ``(1 - a_j) max(gap_j, 0) / T`` (``gap_j`` the
-    mean gap less ``safety_margin``, ``T`` the control period): on the ray ``t v_max e``,
-    ``t <= (1 - a_j) max(gap_j, 0) / (T v_max e.n_j)`` where ``e.n_j > 0``
-    (``PlannerConfig.approach_limit``). Two robots that each keep their share close the gap by
-    at most all of it within the period, so their mean disks do not overlap within it.
+    Against each neighbour, the velocity's component along the unit ``n_j`` towards its mean
+    position is at most ``rho_j max(gap_j, 0) / T`` (``gap_j`` the mean gap less
+    ``safety_margin``, ``T`` the control period; ``rho_j = 1 - a_j`` for a share ``a_j`` in
+    (0, 1), else 1/2): on the ray ``t v_max e``, ``t <= rho_j max(gap_j, 0) / (T v_max e.n_j)``
+    where ``e.n_j > 0`` (``PlannerConfig.approach_limit``). Two robots that each keep their
+    share close the gap by at most all of it within the period, so their mean disks do not
+    overlap within it, whatever course either takes.
 
     Parameters
     ----------
