@@ -202,7 +202,9 @@ _SPECS = (
                   'this robot within this time [s] is also avoided over it as if it kept its '
                   'velocity, in [0, 10]: safety near contact not resting on its reciprocating; '
                   'longer holds back sooner in crowds. 0 = off.', (0.0, 10.0)),
-    ParameterSpec('approach_limit', BOOL, False, 'Near contact, close at most this '
+    # The 24-robot circle from 1.83 / 1.88 / 1.58 to 1.78 / 1.73 / 1.71 times the straight
+    # line; corridor8 and doorway8 the same or faster (docs/results.md, section 3.8).
+    ParameterSpec('approach_limit', BOOL, True, 'Near contact, close at most this '
                   "robot's share of the gap to each neighbour (half if it announces none) in "
                   'one control period: two robots that change course at once still cannot '
                   'meet within it. Binds only within about 0.2 m; costs speed there.'),
