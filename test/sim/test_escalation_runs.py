@@ -67,9 +67,8 @@ def test_two_robots_exactly_facing_each_other_stay_stuck_without_escalation_and_
     assert all(command.arrived for command in commands)
     assert ended < 20.0
     # Until the first stall (the window is 10 s) both runs are the same; on meeting and in the
-    # turn they graze (the planner's own grazing of a noise-free encounter at eta 0.8: 1.7 mm
-    # on meeting, 0.9 mm in the turn at the 2 s horizon with the approach limit), and never
-    # touch.
+    # turn they graze (the planner's own grazing of a noise-free encounter at eta 0.8: 2.5 mm
+    # on meeting, 0.7 mm in the turn at the 2 s horizon), and never touch.
     before = round(STALL_WINDOW / 0.1)
     np.testing.assert_array_equal(passing[:before], stuck[:before])
     assert passing.min() > 0.0
