@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from prvo_planner.core import AgentBelief, PlannerConfig, VelocityLimits, plan_velocity
+from prvo_planner.core.limits import approach_upper
 from prvo_planner.tracking import (
     MAX_TABLE_PERIODS,
     TrackingModel,
@@ -170,3 +171,55 @@ def test_every_model_keeps_to_the_reachable_disc(model):
     result = plan_velocity(ego, others, [1.0, 0.0], config, previous=current,
                            limits=VelocityLimits(current=current, max_change=0.05))
     assert np.linalg.norm(result.velocity - current) <= 0.05 + 1e-9
+
+
+def test_the_approach_limit_caps_each_ray_at_the_robots_share_of_the_gap():
+    # Gap 0.1 m to a neighbour on +x that avoids half: at most 0.05 m closed in the 0.1 s
+    # period, 0.5 m/s towards it; rays pointing away are not cut.
+    ego = AgentBelief([0.0, 0.0], [0.0, 0.0], COV, radius=0.3)
+    neighbour = AgentBelief([0.7, 0.0], [0.0, 0.0], COV, radius=0.3)
+    config = PlannerConfig(max_speed=1.0, control_period=0.1, approach_limit=True)
+    angles = np.array([0.0, math.pi / 3.0, 0.49 * math.pi, math.pi / 2.0, math.pi])
+    directions = np.array([unit(angle) for angle in angles])
+    upper = approach_upper(ego, [neighbour], directions, config)
+    np.testing.assert_allclose(upper, [0.5, 1.0, min(1.0, 0.5 / math.cos(0.49 * math.pi)),
+                                       1.0, 1.0])
+    # Who takes a larger share of the avoidance closes a larger share of the gap; against one
+    # that announces none (it may still turn) half; out of reach, nothing binds.
+    taking_most = AgentBelief([0.7, 0.0], [0.0, 0.0], COV, radius=0.3, avoidance_share=0.2)
+    assert approach_upper(ego, [taking_most], directions, config)[0] == pytest.approx(0.8)
+    keeping = AgentBelief([0.7, 0.0], [0.0, 0.0], COV, radius=0.3, avoidance_share=0.0)
+    assert approach_upper(ego, [keeping], directions, config)[0] == pytest.approx(0.5)
+    far = AgentBelief([0.9, 0.0], [0.0, 0.0], COV, radius=0.3)
+    assert approach_upper(ego, [far], directions, config) is None
+
+
+@pytest.mark.parametrize('approach_limit', [False, True])
+def test_two_robots_that_keep_the_approach_limit_never_meet_within_a_period(approach_limit):
+    # Pairs near contact, each robot wanting to go through the other and believing it keeps a
+    # velocity it does not keep (it plans too). Ground truth: both commands executed over the
+    # period from the mean positions; the closest approach of two straight lines.
+    rng = np.random.default_rng(11)
+    period, touched = 0.1, 0
+    config = PlannerConfig(eta=0.8, time_horizon=2.0, control_period=period,
+                           approach_limit=approach_limit)
+    for _ in range(150):
+        positions = [np.zeros(2), None]
+        positions[1] = unit(rng.uniform(-math.pi, math.pi)) * (0.6 + rng.uniform(0.0, 0.25))
+        believed = [unit(rng.uniform(-math.pi, math.pi)) * rng.uniform(0.0, 1.0)
+                    for _ in range(2)]
+        share = rng.choice([0.0, 0.5])
+        commands = []
+        for me, other in ((0, 1), (1, 0)):
+            ego = AgentBelief(positions[me], believed[me], np.zeros((4, 4)), radius=0.3)
+            them = AgentBelief(positions[other], believed[other], np.zeros((4, 4)), radius=0.3,
+                               avoidance_share=share)
+            through = positions[other] - positions[me]
+            commands.append(plan_velocity(ego, [them], through / np.linalg.norm(through),
+                                          config).velocity)
+        offset, closing = positions[0] - positions[1], commands[0] - commands[1]
+        moment = np.clip(-(offset @ closing) / max(closing @ closing, 1e-12), 0.0, period)
+        if np.linalg.norm(offset + moment * closing) < 0.6 - 1e-9:
+            touched += 1
+    # Without the limit, beliefs the neighbour does not keep let some pairs meet.
+    assert (touched == 0) == approach_limit, touched

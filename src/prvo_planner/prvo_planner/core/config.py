@@ -128,6 +128,15 @@ class PlannerConfig:
         (share 0, the plain velocity obstacle) over ``guard_time``; the velocity must meet
         both. Near contact, safety then does not rest on the reciprocal assumption, which two
         robots that change course at once break (docs/method.md, section 11). 0: off.
+    approach_limit : bool
+        Near contact, close at most the robot's share of the mean gap to each neighbour in one
+        ``control_period``: against a neighbour of share ``a_j`` in (0, 1) the velocity's
+        component towards it at most ``(1 - a_j) gap / control_period``, against one that
+        announces none or all of the avoidance (it may still change course) half the gap.
+        Two robots that both keep it cannot meet within the period whatever either does, also
+        when both change course at once, which neither the reciprocal row nor the guard
+        holds against (docs/method.md, section 11). It binds only within ``control_period``
+        times ``max_speed`` divided by the robot's share (0.2 m at half, 1 m/s and 0.1 s).
     """
 
     eta: float = 0.8
@@ -151,6 +160,7 @@ class PlannerConfig:
     certificate: str = 'cantelli'
     obstacle_horizon: float = 2.0
     guard_time: float = 0.0
+    approach_limit: bool = False
 
     def __post_init__(self):
         eta = _real(self.eta, 'PlannerConfig.eta')
@@ -211,6 +221,10 @@ class PlannerConfig:
         if guard < 0.0:
             raise ValueError(f'PlannerConfig.guard_time must be >= 0, got {self.guard_time!r}')
         object.__setattr__(self, 'guard_time', guard)
+        if not isinstance(self.approach_limit, (bool, np.bool_)):
+            raise ValueError(f'PlannerConfig.approach_limit must be a bool, '
+                             f'got {self.approach_limit!r}')
+        object.__setattr__(self, 'approach_limit', bool(self.approach_limit))
 
     @property
     def effective_k(self):

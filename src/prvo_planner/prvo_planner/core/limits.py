@@ -115,6 +115,49 @@ def relaxed_intervals(limits, directions, max_speed):
                               directions, max_speed)
 
 
+def approach_upper(ego, neighbours, directions, config):
+    """Return each ray's largest ``t`` under the approach limit, (M,); None where none binds.
+
+    Against each neighbour, the velocity's component along the unit ``n_j`` towards its mean
+    position is at most ``rho_j max(gap_j, 0) / T`` (``gap_j`` the mean gap less
+    ``safety_margin``, ``T`` the control period; ``rho_j = 1 - a_j`` for a share ``a_j`` in
+    (0, 1), else 1/2): on the ray ``t v_max e``, ``t <= rho_j max(gap_j, 0) / (T v_max e.n_j)``
+    where ``e.n_j > 0`` (``PlannerConfig.approach_limit``). Two robots that each keep their
+    share close the gap by at most all of it within the period, so their mean disks do not
+    overlap within it, whatever course either takes.
+
+    Parameters
+    ----------
+    ego : AgentBelief
+        The planning robot.
+    neighbours : sequence of AgentBelief
+        Other robots.
+    directions : numpy.ndarray
+        Unit ray directions, shape (M, 2).
+    config : PlannerConfig
+        ``max_speed``, ``control_period``, ``safety_margin``.
+
+    """
+    shares = np.array([belief.avoidance_share for belief in neighbours]).reshape(-1)
+    # Against a neighbour that announces none or all of the avoidance, half: it may still
+    # change course (a robot standing aside moves; a walker turns).
+    ego_share = np.where((shares > 0.0) & (shares < 1.0), 1.0 - shares, 0.5)
+    towards = np.array([belief.position for belief in neighbours]).reshape(-1, 2) \
+        - ego.position
+    distance = np.hypot(towards[:, 0], towards[:, 1])
+    radii = np.array([belief.radius for belief in neighbours])
+    gap = distance - ego.radius - radii - config.safety_margin
+    # The most the ego may close of each gap within a period, as a fraction of max_speed.
+    allowance = ego_share * np.maximum(gap, 0.0) / (config.control_period * config.max_speed)
+    near = allowance < 1.0
+    if not near.any():
+        return None
+    closing = directions @ (towards[near] / np.maximum(distance[near], 1e-12)[:, None]).T
+    with np.errstate(divide='ignore'):
+        caps = np.where(closing > 0.0, allowance[near] / closing, np.inf)
+    return np.minimum(caps.min(axis=1), 1.0)
+
+
 def free_choice(directions, lower, upper, v_pref, config):
     """Without neighbours: the allowed velocity of the smallest plain cost, (2,)."""
     allowed = lower <= upper

@@ -45,6 +45,7 @@ from .feasibility import RayRows, achieved_margins, monte_carlo_probabilities, t
 from .limits import (
     VelocityLimits,
     allowed_speed_grid,
+    approach_upper,
     free_choice,
     relaxed_intervals,
 )
@@ -251,6 +252,8 @@ def _prepared_plan(ego, neighbours, v_pref, config, previous, limits=None, obsta
     if limits is not None:
         directions = np.concatenate([directions, limits.extra_directions()])
         allowed = relaxed_intervals(limits, directions, config.max_speed)
+    if config.approach_limit and neighbours:
+        allowed = _approach_limited(allowed, approach_upper(ego, neighbours, directions, config))
     layout = condition_layout(encounter, config) if encounter.origin.shape[0] else None
     cov, radius, deterministic = (model_moments(encounter, config)
                                   if layout is not None and config.model != 'mc'
@@ -262,6 +265,20 @@ def _prepared_plan(ego, neighbours, v_pref, config, previous, limits=None, obsta
                  layout=layout, cov=cov, radius=radius, deterministic=deterministic,
                  allowed=allowed, walls=walls,
                  wall_rejected=None if walls is None else rejected_intervals(walls, directions))
+
+
+def _approach_limited(allowed, upper):
+    """Return ALLOWED ((lower, upper) or None) cut to the approach limit's UPPER (or None).
+
+    What the robot can do comes first: where the cut would leave no ray an interval, the
+    limits stand alone.
+    """
+    if upper is None:
+        return allowed
+    if allowed is None:
+        return np.zeros(upper.shape[0]), upper
+    lower, cut = allowed[0], np.minimum(allowed[1], upper)
+    return (lower, cut) if np.any(lower <= cut) else allowed
 
 
 def _monte_carlo_plan(plan):
