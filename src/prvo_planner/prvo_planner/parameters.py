@@ -324,7 +324,7 @@ _SPECS = (
                   'break ties) goes first, those going the same way follow, and a robot '
                   'without the right of way waits at the spot beside its entrance behind a '
                   "virtual wall. Decided from the neighbours' routes on <robot>/plan. "
-                  'Off by default until it brings doorway8 through in every seed (issue 39).'),
+                  'false = robots meet in the passage (the ablation).'),
     # Escalation (`prvo_planner.escalation`): a stalled robot (`prvo_planner.stalls`) turns its
     # preferred velocity to the right; off, the preferred velocity is the goal's or the route's
     # (the benchmarks' ablation). Only the preference changes, never the chance constraints.
