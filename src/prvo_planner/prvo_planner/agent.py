@@ -66,7 +66,7 @@ from prvo_planner.preferred import (
     PathFollower,
     path_preferred_velocity,
 )
-from prvo_planner.right_of_way import IdleWatch, PassageMap, with_wall
+from prvo_planner.right_of_way import IdleWatch, PassageMap, waiting_for, with_wall
 from prvo_planner.route import RouteMap, path_length
 from prvo_planner.routes import (
     ROUTE_FOUND,
@@ -1050,13 +1050,15 @@ class PlannerAgent:
         return config
 
     def _given_way(self, position, v_pref, stall, distance_to_goal, names, beliefs,
-                   announcements, routes):
+                   announcements, routes, uses):
         """Return V_PREF, or toward the spot beside a passing neighbour's route (`give_way`).
 
         Only a robot heading for a goal steps aside: at it or giving way from it already, or
         held short of it (`give_way.held_short`, from STALL and DISTANCE_TO_GOAL [m]) or giving
         way from where it was held. ROUTES are the neighbours' `routes.NeighbourRoute`s (None:
-        none), in the order of NAMES and BELIEFS.
+        none), in the order of NAMES and BELIEFS. A held robot does not step aside for one that
+        waits for it at a passage (`right_of_way.waiting_for`, from USES, `_passage_uses`): it
+        would stand aside for one that stands behind it.
         """
         settings = self.settings
         self._aside = False
@@ -1081,9 +1083,11 @@ class PlannerAgent:
                 # The way left as the neighbours see it: along the route it publishes.
                 own_route = (self._route if self._route_status == ROUTE_FOUND
                              and self._route is not None else self.goal[np.newaxis])
+                waiting = () if uses is None else waiting_for(*uses)
                 neighbours = [(name, belief.mean[:2], announcement.radius, route)
                               for name, belief, announcement, route
-                              in zip(names, beliefs, announcements, points, strict=True)]
+                              in zip(names, beliefs, announcements, points, strict=True)
+                              if name not in waiting]
                 self._give_way = held_spot(held_at, way_left(own_route, position), self.name,
                                            radius, neighbours, room)
             self._held_at = None if self._give_way is None else held_at
@@ -1093,26 +1097,23 @@ class PlannerAgent:
         return preferred_velocity(position, self._give_way, self.config.max_speed,
                                   settings.approach_time, 0.0, settings.max_acceleration)[0]
 
-    def _passage_turn(self, stamp, position, v_pref, names, beliefs, routes):
-        """Return (V_PREF or toward a waiting spot, the virtual wall (2, 2) or None).
+    def _passage_uses(self, stamp, position, names, beliefs, routes):
+        """Return (the robot's `PassageUse`, its neighbours' that claim), None: no passage ahead.
 
-        The right of way at the passage on the robot's route (`prvo_planner.right_of_way`),
-        decided at STAMP [s] from the neighbours' beliefs and ROUTES (`routes.NeighbourRoute`
-        or None, in the order of NAMES), without those standing in a passage for longer than
-        `right_of_way.IDLE_INSIDE` (kept, sorted, in `idle_in_passage`); kept in
-        `passage_decision`.
+        Of the passage on the robot's route at POSITION (2,) [m], from the neighbours' beliefs
+        and ROUTES (`routes.NeighbourRoute` or None, in the order of NAMES) at STAMP [s],
+        without those standing in a passage for longer than `right_of_way.IDLE_INSIDE` (kept,
+        sorted, in `idle_in_passage`).
         """
         settings = self.settings
-        self.passage_decision = None
         self.idle_in_passage = ()
         if (not settings.right_of_way or self._passage_map is None or self.arrived
-                or self._give_way is not None or settings.preferred_source != GOAL
-                or self._route_status != ROUTE_FOUND):
-            return v_pref, None
+                or settings.preferred_source != GOAL or self._route_status != ROUTE_FOUND):
+            return None
         passages = self._passage_map
         me = passages.use_of(self.name, position, self._route)
         if me is None:
-            return v_pref, None
+            return None
         others = [passages.use_of(name, belief.mean[:2], route.points)
                   for name, belief, route in zip(names, beliefs, routes, strict=True)
                   if route is not None]
@@ -1120,6 +1121,20 @@ class PlannerAgent:
         claiming = self._idle_watch.claiming(uses, stamp)
         self.idle_in_passage = tuple(sorted({use.name for use in uses}
                                             - {use.name for use in claiming}))
+        return me, claiming
+
+    def _passage_turn(self, position, v_pref, uses):
+        """Return (V_PREF or toward a waiting spot, the virtual wall (2, 2) or None).
+
+        The right of way (`prvo_planner.right_of_way`) of the robot at POSITION (2,) [m] at the
+        passage on its route, from USES (`_passage_uses`); kept in `passage_decision`.
+        """
+        settings = self.settings
+        self.passage_decision = None
+        if uses is None or self._give_way is not None:
+            return v_pref, None
+        passages = self._passage_map
+        me, claiming = uses
         decision = passages.decision(me, claiming, position)
         self.passage_decision = decision
         if decision.goes:
@@ -1264,10 +1279,10 @@ class PlannerAgent:
         arrival = self._arrival(own.mean[:2])
         names, tracks, neighbour_beliefs = self._neighbour_tracks.beliefs_at(stamp, self.name)
         announcements, routes = self._held.values(names, stamp, self._held_of)
+        uses = self._passage_uses(stamp, own.mean[:2], names, neighbour_beliefs, routes)
         v_pref = self._given_way(own.mean[:2], v_pref, stall, distance_to_goal, names,
-                                 neighbour_beliefs, announcements, routes)
-        v_pref, passage_wall = self._passage_turn(stamp, own.mean[:2], v_pref, names,
-                                                  neighbour_beliefs, routes)
+                                 neighbour_beliefs, announcements, routes, uses)
+        v_pref, passage_wall = self._passage_turn(own.mean[:2], v_pref, uses)
         if self._command_stamp is not None and 0.0 < stamp - self._command_stamp:
             self._control_period = stamp - self._command_stamp
         obstacles = None if self._obstacle_index is None else self._obstacle_index.near(

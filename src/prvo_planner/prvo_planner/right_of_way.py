@@ -164,6 +164,21 @@ def goes_first(me, others):
     return _unopposed(me, others) and not _too_close_behind(me, others)
 
 
+def waiting_for(me, others):
+    """Return the names of the robots of OTHERS that wait at ME's passage for ME alone.
+
+    ME and OTHERS are `PassageUse`s; a robot waits for ME when, by the order, it would go with
+    ME absent and does not with ME there (ME is before it, or it follows ME in too closely).
+    """
+    same = [other for other in others if other.passage == me.passage]
+    waiting = []
+    for other in same:
+        rest = [use for use in same if use is not other]
+        if goes_first(other, rest) and not goes_first(other, rest + [me]):
+            waiting.append(other.name)
+    return tuple(waiting)
+
+
 def _too_close_behind(me, others):
     """Whether ME, outside, is within FOLLOW_GAP of one going the same way before it."""
     if me.inside or me.position is None:
