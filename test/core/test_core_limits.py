@@ -5,7 +5,7 @@ import math
 import numpy as np
 import pytest
 
-from prvo_planner.core import AgentBelief, PlannerConfig, VelocityLimits, plan_velocity
+from prvo_planner.core import AgentBelief, PlannerConfig, VelocityLimits, limits, plan_velocity
 from prvo_planner.core.limits import approach_upper
 from prvo_planner.tracking import (
     MAX_TABLE_PERIODS,
@@ -174,23 +174,28 @@ def test_every_model_keeps_to_the_reachable_disc(model):
 
 
 def test_the_approach_limit_caps_each_ray_at_the_robots_share_of_the_gap():
-    # Gap 0.1 m to a neighbour on +x that avoids half: at most 0.05 m closed in the 0.1 s
-    # period, 0.5 m/s towards it; rays pointing away are not cut.
-    ego = AgentBelief([0.0, 0.0], [0.0, 0.0], COV, radius=0.3)
-    neighbour = AgentBelief([0.7, 0.0], [0.0, 0.0], COV, radius=0.3)
+    # Gap 0.3 m to a neighbour on +x that avoids half, 0.1 m of it left at two stds of its
+    # position (0.1 m along x): at most 0.05 m closed in the 0.1 s period, 0.5 m/s towards it;
+    # rays pointing away are not cut.
+    ego = AgentBelief([0.0, 0.0], [0.0, 0.0], np.zeros((4, 4)), radius=0.3)
+    neighbour = AgentBelief([0.9, 0.0], [0.0, 0.0], COV, radius=0.3)
     config = PlannerConfig(max_speed=1.0, control_period=0.1, approach_limit=True)
     angles = np.array([0.0, math.pi / 3.0, 0.49 * math.pi, math.pi / 2.0, math.pi])
     directions = np.array([unit(angle) for angle in angles])
     upper = approach_upper(ego, [neighbour], directions, config)
     np.testing.assert_allclose(upper, [0.5, 1.0, min(1.0, 0.5 / math.cos(0.49 * math.pi)),
                                        1.0, 1.0])
+    # The ego's own spread adds to the neighbour's: two stds of sqrt(0.02) m.
+    noisy_ego = AgentBelief([0.0, 0.0], [0.0, 0.0], COV, radius=0.3)
+    assert approach_upper(noisy_ego, [neighbour], directions, config)[0] == pytest.approx(
+        0.5 * (0.3 - 2.0 * math.sqrt(0.02)) / 0.1)
     # Who takes a larger share of the avoidance closes a larger share of the gap; against one
     # that announces none (it may still turn) half; out of reach, nothing binds.
-    taking_most = AgentBelief([0.7, 0.0], [0.0, 0.0], COV, radius=0.3, avoidance_share=0.2)
+    taking_most = AgentBelief([0.9, 0.0], [0.0, 0.0], COV, radius=0.3, avoidance_share=0.2)
     assert approach_upper(ego, [taking_most], directions, config)[0] == pytest.approx(0.8)
-    keeping = AgentBelief([0.7, 0.0], [0.0, 0.0], COV, radius=0.3, avoidance_share=0.0)
+    keeping = AgentBelief([0.9, 0.0], [0.0, 0.0], COV, radius=0.3, avoidance_share=0.0)
     assert approach_upper(ego, [keeping], directions, config)[0] == pytest.approx(0.5)
-    far = AgentBelief([0.9, 0.0], [0.0, 0.0], COV, radius=0.3)
+    far = AgentBelief([1.1, 0.0], [0.0, 0.0], COV, radius=0.3)
     assert approach_upper(ego, [far], directions, config) is None
 
 
@@ -223,3 +228,36 @@ def test_two_robots_that_keep_the_approach_limit_never_meet_within_a_period(appr
             touched += 1
     # Without the limit, beliefs the neighbour does not keep let some pairs meet.
     assert (touched == 0) == approach_limit, touched
+
+
+@pytest.mark.parametrize('stds', [0.0, limits.APPROACH_STDS])
+def test_the_approach_limit_keeps_robots_apart_that_see_the_gap_differently(stds, monkeypatch):
+    # Pairs near contact, each robot estimating both positions with Gaussian noise of the std
+    # its beliefs state (our sampler) and believing the other moves away from it, so the chance
+    # constraint lets it come on. Ground truth: both commands executed over the period from the
+    # true positions. On the mean gap alone each robot closes its share of the gap it sees,
+    # which half the time is more than there is; at two stds below it, a robot overruns only
+    # where its estimate is off by more than two stds (2.3% one-sided, for either robot).
+    monkeypatch.setattr(limits, 'APPROACH_STDS', stds)
+    rng = np.random.default_rng(5)
+    period, std, pairs, touched = 0.1, 0.05, 200, 0
+    cov = np.diag([std ** 2, std ** 2, 0.0, 0.0])
+    config = PlannerConfig(eta=0.8, time_horizon=2.0, control_period=period,
+                           approach_limit=True)
+    for _ in range(pairs):
+        truth = [np.zeros(2), unit(rng.uniform(-math.pi, math.pi)) * rng.uniform(0.6, 0.75)]
+        commands = []
+        for me, other in ((0, 1), (1, 0)):
+            seen = [point + rng.normal(0.0, std, 2) for point in truth]
+            through = (seen[other] - seen[me]) / np.linalg.norm(seen[other] - seen[me])
+            ego = AgentBelief(seen[me], np.zeros(2), cov, radius=0.3)
+            them = AgentBelief(seen[other], through * rng.uniform(0.5, 1.0), cov, radius=0.3)
+            commands.append(plan_velocity(ego, [them], through, config).velocity)
+        offset, closing = truth[0] - truth[1], commands[0] - commands[1]
+        moment = np.clip(-(offset @ closing) / max(closing @ closing, 1e-12), 0.0, period)
+        if np.linalg.norm(offset + moment * closing) < 0.6 - 1e-9:
+            touched += 1
+    if stds:
+        assert touched <= 2 * 0.023 * pairs, touched
+    else:
+        assert touched >= 0.2 * pairs, touched

@@ -26,6 +26,10 @@ from .choice import choice_costs
 REACHABLE_DIRECTIONS = 9
 # Speeds tried on each ray's reachable interval when no velocity is feasible.
 _FALLBACK_FRACTIONS = np.linspace(0.0, 1.0, 9)
+# The approach limit takes the gap at its mean less this many stds of the relative position
+# along the line between the robots (about 98% one-sided): what each robot sees of a gap differs
+# by the noise of both estimates.
+APPROACH_STDS = 2.0
 
 
 @dataclass(frozen=True)
@@ -120,11 +124,12 @@ def approach_upper(ego, neighbours, directions, config):
 
     Against each neighbour, the velocity's component along the unit ``n_j`` towards its mean
     position is at most ``rho_j max(gap_j, 0) / T`` (``gap_j`` the mean gap less
-    ``safety_margin``, ``T`` the control period; ``rho_j = 1 - a_j`` for a share ``a_j`` in
+    ``safety_margin`` and ``APPROACH_STDS`` stds of the relative position along ``n_j``, ``T``
+    the control period; ``rho_j = 1 - a_j`` for a share ``a_j`` in
     (0, 1), else 1/2): on the ray ``t v_max e``, ``t <= rho_j max(gap_j, 0) / (T v_max e.n_j)``
     where ``e.n_j > 0`` (``PlannerConfig.approach_limit``). Two robots that each keep their
-    share close the gap by at most all of it within the period, so their mean disks do not
-    overlap within it, whatever course either takes.
+    share close the gap by at most all of it within the period, so their disks do not overlap
+    within it, whatever course either takes, unless a gap is smaller than both estimate it.
 
     Parameters
     ----------
@@ -146,13 +151,19 @@ def approach_upper(ego, neighbours, directions, config):
         - ego.position
     distance = np.hypot(towards[:, 0], towards[:, 1])
     radii = np.array([belief.radius for belief in neighbours])
-    gap = distance - ego.radius - radii - config.safety_margin
+    unit = towards / np.maximum(distance, 1e-12)[:, None]
+    # The relative position's spread along n_j: each robot's estimate of the gap is noisy,
+    # and two robots that each close their share of what they see may close more than all.
+    relative = ego.covariance[:2, :2] + np.array(
+        [belief.covariance[:2, :2] for belief in neighbours]).reshape(-1, 2, 2)
+    spread = np.sqrt(np.maximum(np.einsum('ni,nij,nj->n', unit, relative, unit), 0.0))
+    gap = distance - ego.radius - radii - config.safety_margin - APPROACH_STDS * spread
     # The most the ego may close of each gap within a period, as a fraction of max_speed.
     allowance = ego_share * np.maximum(gap, 0.0) / (config.control_period * config.max_speed)
     near = allowance < 1.0
     if not near.any():
         return None
-    closing = directions @ (towards[near] / np.maximum(distance[near], 1e-12)[:, None]).T
+    closing = directions @ unit[near].T
     with np.errstate(divide='ignore'):
         caps = np.where(closing > 0.0, allowance[near] / closing, np.inf)
     return np.minimum(caps.min(axis=1), 1.0)
