@@ -19,7 +19,7 @@ from prvo_planner.right_of_way import (
     PassageUse,
     conflict,
     goes_first,
-    waiting_for,
+    waiting_at,
     with_wall,
 )
 
@@ -120,26 +120,24 @@ def test_robots_going_the_same_way_follow_one_another_in_a_gap_apart():
     assert not goes_first(close, [inside])
 
 
-def test_a_robot_knows_who_waits_for_it_alone():
-    # The robot a held robot would step aside for may be one that stands behind it by the
-    # order (give_way): both would wait for good.
+def test_a_robot_knows_who_waits_at_its_passage():
+    # A held robot would step aside for these (give_way): for one that stands behind it by the
+    # order, or behind others, all would wait for good.
     leader = PassageUse('b', 0, 0, 1, 0.4, np.array([2.0, 2.0]))
     follower = PassageUse('c', 0, 0, 1, 0.9, np.array([1.5, 2.0]))
     opposite = PassageUse('a', 0, 1, 0, 2.0, np.array([5.0, 2.0]))
     elsewhere = PassageUse('d', 1, 1, 0, 0.1, np.array([9.0, 2.0]))
-    assert waiting_for(leader, [opposite, elsewhere]) == ('a',)
-    # Behind both, the one coming the other way waits for the follower too: not for the
-    # leader alone.
-    assert waiting_for(leader, [follower, opposite, elsewhere]) == ('c',)
-    assert waiting_for(follower, [leader, opposite, elsewhere]) == ()
-    # Behind the leader a gap back, the follower goes as soon as the leader does: it does not
-    # wait for it.
+    assert waiting_at(leader, [opposite, elsewhere]) == ('a',)
+    assert waiting_at(leader, [follower, opposite, elsewhere]) == ('c', 'a')
+    # The follower sees the leader go and the one coming the other way wait.
+    assert waiting_at(follower, [leader, opposite, elsewhere]) == ('a',)
+    # Behind the leader a gap back, the follower goes too.
     spaced = PassageUse('c', 0, 0, 1, 0.4 + FOLLOW_GAP + 0.1,
                         np.array([2.0 - FOLLOW_GAP - 0.1, 2.0]))
-    assert waiting_for(leader, [spaced]) == ()
-    # One inside coming out at the leader holds the door for both: the follower waits for it.
+    assert waiting_at(leader, [spaced]) == ()
+    # One inside coming out holds the door: it goes, the follower waits.
     inside = PassageUse('z', 0, None, 0, 0.5, np.array([3.0, 2.0]))
-    assert waiting_for(leader, [follower, inside]) == ()
+    assert waiting_at(leader, [follower, inside]) == ('c',)
 
 
 def test_inside_a_robot_follows_the_centre_line_beyond_its_way_out_until_it_is_out(door):

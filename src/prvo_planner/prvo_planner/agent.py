@@ -66,7 +66,7 @@ from prvo_planner.preferred import (
     PathFollower,
     path_preferred_velocity,
 )
-from prvo_planner.right_of_way import IdleWatch, PassageMap, waiting_for, with_wall
+from prvo_planner.right_of_way import IdleWatch, PassageMap, waiting_at, with_wall
 from prvo_planner.route import RouteMap, path_length
 from prvo_planner.routes import (
     ROUTE_FOUND,
@@ -1057,8 +1057,8 @@ class PlannerAgent:
         held short of it (`give_way.held_short`, from STALL and DISTANCE_TO_GOAL [m]) or giving
         way from where it was held. ROUTES are the neighbours' `routes.NeighbourRoute`s (None:
         none), in the order of NAMES and BELIEFS. A held robot does not step aside for one that
-        waits for it at a passage (`right_of_way.waiting_for`, from USES, `_passage_uses`): it
-        would stand aside for one that stands behind it.
+        waits at its passage (`right_of_way.waiting_at`, from USES, `_passage_uses`): it would
+        stand aside for one that stands, maybe behind it.
         """
         settings = self.settings
         self._aside = False
@@ -1083,7 +1083,7 @@ class PlannerAgent:
                 # The way left as the neighbours see it: along the route it publishes.
                 own_route = (self._route if self._route_status == ROUTE_FOUND
                              and self._route is not None else self.goal[np.newaxis])
-                waiting = () if uses is None else waiting_for(*uses)
+                waiting = () if uses is None else waiting_at(*uses)
                 neighbours = [(name, belief.mean[:2], announcement.radius, route)
                               for name, belief, announcement, route
                               in zip(names, beliefs, announcements, points, strict=True)

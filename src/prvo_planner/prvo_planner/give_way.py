@@ -24,9 +24,10 @@ to go than it has (`yields_to`; within `TIE` the names decide), at the spot besi
 (`held_spot`, the robot's position in place of its goal). Two robots that hold each other up
 near the end of a corridor otherwise wait for each other: the one with less to go makes room,
 the other goes by, and the first goes on once no such way passes by the place it stepped off
-(issue 38). It does not yield to a neighbour that waits for it at a passage by the right of way
-(`right_of_way.waiting_for`; the agent leaves such neighbours out): standing aside for one that
-holds its place behind it, both would wait for good (`pillars12`, seed 9).
+(issue 38). It does not yield to a neighbour that waits at its passage by the right of way
+(`right_of_way.waiting_at`; the agent leaves such neighbours out): standing aside for one that
+holds its place behind it, both would wait for good (`pillars12`, seed 9), and for one that
+waits behind others, all of them (a door with five robots each way).
 
 Only the preferred velocity changes: the chance constraints against robots and walls, and so the
 guarantee, are those of every plan.

@@ -164,19 +164,16 @@ def goes_first(me, others):
     return _unopposed(me, others) and not _too_close_behind(me, others)
 
 
-def waiting_for(me, others):
-    """Return the names of the robots of OTHERS that wait at ME's passage for ME alone.
+def waiting_at(me, others):
+    """Return the names of the robots of OTHERS that wait at ME's passage, ME among them.
 
-    ME and OTHERS are `PassageUse`s; a robot waits for ME when, by the order, it would go with
-    ME absent and does not with ME there (ME is before it, or it follows ME in too closely).
+    ME and OTHERS are `PassageUse`s; a robot waits when, by the order, it does not go
+    (`goes_first`): before it is one coming the other way, or one going its way too close
+    ahead (ME, or another).
     """
     same = [other for other in others if other.passage == me.passage]
-    waiting = []
-    for other in same:
-        rest = [use for use in same if use is not other]
-        if goes_first(other, rest) and not goes_first(other, rest + [me]):
-            waiting.append(other.name)
-    return tuple(waiting)
+    return tuple(other.name for other in same
+                 if not goes_first(other, [use for use in same if use is not other] + [me]))
 
 
 def _too_close_behind(me, others):
