@@ -38,6 +38,7 @@ from prvo_planner.escalation import (
 )
 from prvo_planner.give_way import (
     HELD_WINDOW,
+    PASSING_SPEED,
     give_way_spot,
     held_short,
     held_spot,
@@ -604,6 +605,8 @@ class PlannerAgent:
         # held short of its goal, where it stood then, while it gives way.
         self._give_way = None
         self._held_at = None
+        # The neighbour a held robot gives way to: it goes on yielding to it until it went by.
+        self._yielding_to = None
         # Whether it stands at that spot (within the goal tolerance): it announces no share then.
         self._aside = False
         # The right of way at the passage on its route (`right_of_way.Decision`), None: none;
@@ -678,7 +681,7 @@ class PlannerAgent:
         self.arrived = False
         self._arrival_reported = False
         self._previous_velocity = None
-        self._give_way = self._held_at = None
+        self._give_way = self._held_at = self._yielding_to = None
         self._aside = False
 
     # Measurements -----------------------------------------------------------------------------
@@ -1057,19 +1060,20 @@ class PlannerAgent:
         held short of it (`give_way.held_short`, from STALL and DISTANCE_TO_GOAL [m]) or giving
         way from where it was held. ROUTES are the neighbours' `routes.NeighbourRoute`s (None:
         none), in the order of NAMES and BELIEFS. A held robot does not step aside for one that
-        waits at its passage (`right_of_way.waiting_at`, from USES, `_passage_uses`): it would
-        stand aside for one that stands, maybe behind it.
+        waits at its passage (`right_of_way.waiting_at`, from USES, `_passage_uses`) or that
+        announces no share (in ANNOUNCEMENTS): it would stand aside for one that stands, maybe
+        behind it or aside for it.
         """
         settings = self.settings
         self._aside = False
         if not settings.give_way or self.goal is None or settings.preferred_source != GOAL:
-            self._give_way = self._held_at = None
+            self._give_way = self._held_at = self._yielding_to = None
             return v_pref
         radius = settings.planning_radius
         room = None if self._route_map is None else self._route_map.in_sight
         points = [None if route is None else route.points for route in routes]
         if self.arrived or (self._give_way is not None and self._held_at is None):
-            self._held_at = None
+            self._held_at = self._yielding_to = None
             neighbours = [(belief.mean[:2], announcement.radius, route) for belief, announcement,
                           route in zip(beliefs, announcements, points, strict=True)]
             self._give_way = give_way_spot(self.goal, radius, neighbours, room)
@@ -1078,18 +1082,27 @@ class PlannerAgent:
             gained = self.stall_monitor.gained_over(HELD_WINDOW)
             if held_at is None and held_short(stall.stalled, distance_to_goal, gained):
                 held_at = position.copy()
-            self._give_way = None
+            yielding = self._yielding_to
+            self._give_way = self._yielding_to = None
+            if yielding is not None and yielding in names:
+                velocity = beliefs[names.index(yielding)].mean[2:]
+                if math.hypot(*velocity) < PASSING_SPEED:
+                    yielding = None
             if held_at is not None:
                 # The way left as the neighbours see it: along the route it publishes.
                 own_route = (self._route if self._route_status == ROUTE_FOUND
                              and self._route is not None else self.goal[np.newaxis])
-                waiting = () if uses is None else waiting_at(*uses)
+                # Those waiting their turn at its passage, and those that announce no share
+                # (standing at their goal, or aside for another, maybe for it): both would wait.
+                waiting = {name for name, announcement in zip(names, announcements, strict=True)
+                           if announcement.avoidance_share == 0.0}
+                waiting.update(() if uses is None else waiting_at(*uses))
                 neighbours = [(name, belief.mean[:2], announcement.radius, route)
                               for name, belief, announcement, route
-                              in zip(names, beliefs, announcements, points, strict=True)
-                              if name not in waiting]
-                self._give_way = held_spot(held_at, way_left(own_route, position), self.name,
-                                           radius, neighbours, room)
+                              in zip(names, beliefs, announcements, points, strict=True)]
+                self._give_way, self._yielding_to = held_spot(
+                    held_at, way_left(own_route, position), self.name, radius, neighbours, room,
+                    waiting, yielding)
             self._held_at = None if self._give_way is None else held_at
         if self._give_way is None:
             return v_pref

@@ -10,24 +10,34 @@ behind them cannot certify that gap (issue 38). A person at their destination st
 someone who has to pass; so does a robot here, from what its neighbours publish: the route each
 follows to its goal (`<robot>/plan`).
 
-A robot at its goal, or giving way, looks at the route of every neighbour within `RANGE` of its
-goal. Where a route passes nearer its goal than the two radii and `GAP`, the robot goes to the
-point beside the route at that distance, on the side its goal lies (across the route where the
-goal is on it, to the route's right), as far as its room allows (`room`: the map's cells that
-keep its clearance; without a map, always), down to the two radii; with no room on that side,
-on the other. The nearest such neighbour decides. Once no route passes by its goal (the
-neighbour went by, arrived, or went silent) it returns to its goal.
+A robot at its goal, or giving way, looks at the way ahead of every neighbour within `RANGE` of
+its goal: its route from the point nearest the neighbour on. Where a route passes nearer its
+goal than the two radii and `GAP`, the robot goes to the point beside the route at that
+distance, on the side its goal lies (across the route where the goal is on it, to the route's
+right), as far as its room allows (`room`: the map's cells that keep its clearance; without a
+map, always), down to the two radii; with no room on that side, on the other. The nearest such
+neighbour decides. Once no route passes by its goal (the neighbour went by, arrived, or went
+silent) it returns to its goal.
 
 A robot held short of its goal (`held_short`: stalled, or near its goal and hardly gaining on it)
-gives way likewise to a neighbour whose way ahead passes by where it stands and that has farther
-to go than it has (`yields_to`; within `TIE` the names decide), at the spot beside that way
-(`held_spot`, the robot's position in place of its goal). Two robots that hold each other up
-near the end of a corridor otherwise wait for each other: the one with less to go makes room,
-the other goes by, and the first goes on once no such way passes by the place it stepped off
-(issue 38). It does not yield to a neighbour that waits at its passage by the right of way
-(`right_of_way.waiting_at`; the agent leaves such neighbours out): standing aside for one that
-holds its place behind it, both would wait for good (`pillars12`, seed 9), and for one that
-waits behind others, all of them (a door with five robots each way).
+gives way likewise to a neighbour whose way passes by where it stands, ahead of the neighbour,
+and that has farther to go than it has (`yields_to`; within `TIE` the names decide). Two robots
+that hold each other up near the end of a corridor otherwise wait for each other: the one with
+less to go makes room, the other goes by, and the first goes on once no such way passes by the
+place it stepped off (issue 38). A held robot is near the neighbour, in its way now: the way
+counts from where the neighbour is, straight to its route's next point, then along the route (a
+robot in a lane, or pushed aside, is off its route, and goes back to it), and not abreast of the
+neighbour or behind it, where it goes away. Its spot beside that way is clear of every other
+neighbour (`held_spot`, `clear_spot_beside`): where robots stand at their goals on both sides of
+the way (a pocket at a corridor's end), the spot slides along the way to where none stands. It
+goes on yielding to the one it yielded to though that one, gaining on its way, comes to have
+less to go, while it moves (`PASSING_SPEED`): it would turn back into the way of one passing it;
+one that stands passes nobody, and may be yielding to it. It does not yield to a neighbour
+that stands, announcing no share (at its goal, or aside for another, maybe for it: both would
+stand aside), nor to one that waits its turn at its passage (`right_of_way.waiting_at`); those
+only take up room. Standing aside for one that holds its place behind it, both would wait for
+good (`pillars12`, seed 9), and for one that waits behind others, all of them (a door with five
+robots each way).
 
 Only the preferred velocity changes: the chance constraints against robots and walls, and so the
 guarantee, are those of every plan.
@@ -51,6 +61,9 @@ STEP = 0.05
 NEAR_GOAL = 2.5
 HELD_WINDOW = 3.0
 HELD_PROGRESS = 0.3
+# A held robot goes on yielding to a neighbour only while it moves faster than this [m/s]: one
+# that stands no longer passes, and may be yielding to it (above the velocity estimate's noise).
+PASSING_SPEED = 0.15
 # Ways left within this of each other [m] are a tie, which the names decide: two robots estimate
 # each other's positions to within centimetres, and must agree on who yields.
 TIE = 0.3
@@ -116,6 +129,87 @@ def spot_beside(route, goal, radius, other_radius, room):
     return None
 
 
+def clear_spot_beside(route, point, radius, other_radius, room, others):
+    """
+    Return where a robot held at POINT lets a neighbour following ROUTE pass, clear of OTHERS.
+
+    As `spot_beside`, but a spot within the two radii and GAP of another neighbour (OTHERS: a
+    sequence of (position (2,), radius)) is passed over, and the spot may slide along ROUTE
+    (K, 2), by STEP, to where one is clear: the largest offset first, on the robot's own side
+    first, the spot nearest POINT (2,) at each. Beside the point of the route nearest the robot
+    is often where a robot standing at its goal is (a pocket at a corridor's end: robots at
+    their goals on both sides of the way), and a spot on it would hold both up. A spot is also
+    at least the two radii from every part of the route. With no clear spot within RANGE of
+    POINT: `spot_beside`'s.
+    """
+    nearest, direction, _ = closest_on_route(route, point)
+    offset = point - nearest
+    distance = math.hypot(*offset)
+    needed = radius + other_radius + GAP
+    if distance >= needed or _behind(route, nearest):
+        return None
+    if distance <= 1e-9 and not direction.any():
+        return None
+    # +1: the robot is on the route's left; the route's right where it is on it.
+    side = 1.0 if direction[0] * offset[1] - direction[1] * offset[0] > 1e-9 else -1.0
+    samples, normals = _along(route)
+    near = np.hypot(*(samples - point).T) <= RANGE
+    samples, normals = samples[near], normals[near]
+    least = radius + other_radius
+    offsets = needed - STEP * np.arange(int(math.floor((needed - least) / STEP + 1e-9)) + 1)
+    for way in (side, -side):
+        for amount in offsets:
+            spots = samples + (way * amount) * normals
+            clear = _route_distance(route, spots) >= least - 1e-9
+            for position, other in others:
+                clear &= np.hypot(*(spots - position).T) >= radius + other + GAP
+            spots = spots[clear]
+            for index in np.argsort(np.hypot(*(spots - point).T), kind='stable'):
+                if room is None or room(point, spots[index]):
+                    return spots[index]
+    return spot_beside(route, point, radius, other_radius, room)
+
+
+def _behind(route, nearest):
+    """Whether the point of ROUTE (K, 2) NEAREST (2,) a robot is where the route begins.
+
+    The robot is abreast of or behind the neighbour that follows the route from there: it goes
+    away from the robot, which need not make room for it.
+    """
+    return bool(np.all(nearest == route[0]))
+
+
+def _along(route):
+    """Return (points (P, 2), left unit normals (P, 2)) along ROUTE (K, 2), STEP apart.
+
+    Each segment of nonzero length from its start, and the route's end.
+    """
+    points, normals = [], []
+    for start, end in zip(route[:-1], route[1:], strict=True):
+        edge = end - start
+        length = math.hypot(*edge)
+        if length <= 0.0:
+            continue
+        along = np.arange(0.0, length, STEP)
+        points.append(start + along[:, None] * (edge / length))
+        normals.append(np.tile([-edge[1] / length, edge[0] / length], (len(along), 1)))
+    if not points:
+        return np.zeros((0, 2)), np.zeros((0, 2))
+    points.append(route[-1:])
+    normals.append(normals[-1][-1:])
+    return np.vstack(points), np.vstack(normals)
+
+
+def _route_distance(route, points):
+    """Return the distance (P,) [m] of each of POINTS (P, 2) to ROUTE (K, 2), K >= 2."""
+    starts, edges = route[:-1], np.diff(route, axis=0)
+    lengths_sq = np.maximum(np.sum(edges * edges, axis=1), 1e-300)
+    relative = points[:, None, :] - starts[None, :, :]
+    along = np.clip(np.sum(relative * edges, axis=2) / lengths_sq, 0.0, 1.0)
+    gaps = relative - along[:, :, None] * edges
+    return np.min(np.hypot(gaps[..., 0], gaps[..., 1]), axis=1)
+
+
 def give_way_spot(goal, radius, neighbours, room):
     """
     Return the spot (2,) a robot at its GOAL (2,) of RADIUS goes to, None to stay at its goal.
@@ -138,16 +232,20 @@ def give_way_spot(goal, radius, neighbours, room):
     return min(spots, key=lambda item: item[0])[1] if spots else None
 
 
-def _claimed_way(route, position, distance):
+def _claimed_way(route, position, distance, from_position=False):
     """Return the way ahead (K', 2) a neighbour at POSITION (2,) claims, None for none.
 
-    None beyond RANGE (DISTANCE [m] away), without a route (ROUTE None or fewer than two
-    points), or at the end of its route: it arrived, and claims no way.
+    From the route's point nearest POSITION on (`way_ahead`); FROM_POSITION: from POSITION, off
+    its route or not, straight to the route's next point, then along the route. None beyond
+    RANGE (DISTANCE [m] away), without a route (ROUTE None or fewer than two points), or at the
+    end of its route: it arrived, and claims no way.
     """
     if route is None or len(route) < 2 or distance > RANGE:
         return None
     ahead = way_ahead(np.asarray(route, dtype=float), position)
-    return ahead if np.any(ahead[1:] != ahead[:-1]) else None
+    if not np.any(ahead[1:] != ahead[:-1]):
+        return None
+    return np.vstack([position, ahead[1:]]) if from_position else ahead
 
 
 def way_left(route, position):
@@ -186,29 +284,41 @@ def yields_to(own_left, own_name, other_left, other_name):
     return other_name < own_name
 
 
-def held_spot(position, left, name, radius, neighbours, room):
+def held_spot(position, left, name, radius, neighbours, room, waiting=(), yielding=None):
     """
-    Return the spot (2,) a held robot steps to, None when it need not (`held_short`).
+    Return where a held robot steps to (`held_short`), and for whom.
 
     The robot, NAME, of RADIUS, was held at POSITION (2,) and has LEFT [m] to go (`way_left`
     along its own route). NEIGHBOURS is a
     sequence of (name, position (2,), radius, route (K, 2) or None); ROOM as in `spot_beside`.
     Of the neighbours within RANGE whose way ahead passes by POSITION and that it yields to
     (`yields_to`, their way left along their route), the nearest decides, as in
-    `give_way_spot`.
+    `give_way_spot`; the spot is clear of the others (`clear_spot_beside`). It yields to none
+    named in WAITING (those that wait their turn at its passage, or stand), which only take up
+    room. It goes on yielding to the one named YIELDING (the one it yielded to at its last plan
+    and that moves; None: none) though it no longer has farther to go: the one going by gains
+    on its way while the other stepped off its own, and would otherwise turn back into its way
+    as it passes.
+
+    Return (spot (2,), the deciding neighbour's name), (None, None) when it need not step.
     """
     position = np.asarray(position, dtype=float)
+    neighbours = list(neighbours)
     spots = []
-    for other_name, other_position, other_radius, route in neighbours:
+    for index, (other_name, other_position, other_radius, route) in enumerate(neighbours):
         other_position = np.asarray(other_position, dtype=float)
         distance = math.hypot(*(other_position - position))
-        ahead = _claimed_way(route, other_position, distance)
+        if other_name in waiting:
+            continue
+        ahead = _claimed_way(route, other_position, distance, from_position=True)
         if ahead is None:
             continue
         other_left = way_left(route, other_position)
-        if not yields_to(left, name, other_left, other_name):
+        if other_name != yielding and not yields_to(left, name, other_left, other_name):
             continue
-        spot = spot_beside(ahead, position, radius, other_radius, room)
+        others = [(np.asarray(where, dtype=float), size) for _, where, size, _
+                  in neighbours[:index] + neighbours[index + 1:]]
+        spot = clear_spot_beside(ahead, position, radius, other_radius, room, others)
         if spot is not None:
-            spots.append((distance, spot))
-    return min(spots, key=lambda item: item[0])[1] if spots else None
+            spots.append((distance, spot, other_name))
+    return min(spots, key=lambda item: item[0])[1:] if spots else (None, None)
