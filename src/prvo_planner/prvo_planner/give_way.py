@@ -76,16 +76,21 @@ def closest_on_route(route, point):
     `direction` is the unit direction of the segment it lies on (zero for a segment of no
     length), `index` that segment's. ROUTE (K, 2) [m], K >= 2; POINT (2,) [m].
     """
-    starts, ends = route[:-1], route[1:]
-    edges = ends - starts
-    lengths_sq = np.sum(edges * edges, axis=1)
-    along = np.clip(np.sum((point - starts) * edges, axis=1) / np.maximum(lengths_sq, 1e-300),
-                    0.0, 1.0)
-    nearest = starts + along[:, None] * edges
+    nearest = _nearest_on_segments(route, point)
     index = int(np.argmin(np.sum((nearest - point) ** 2, axis=1)))
-    length = math.sqrt(lengths_sq[index])
-    direction = edges[index] / length if length > 0.0 else np.zeros(2)
+    edge = route[index + 1] - route[index]
+    length = math.sqrt(np.sum(edge * edge))
+    direction = edge / length if length > 0.0 else np.zeros(2)
     return nearest[index], direction, index
+
+
+def _nearest_on_segments(route, points):
+    """Return the point (..., K - 1, 2) of each segment of ROUTE (K, 2) nearest POINTS (..., 2)."""
+    starts, edges = route[:-1], route[1:] - route[:-1]
+    lengths_sq = np.sum(edges * edges, axis=1)
+    along = np.clip(np.sum((points[..., np.newaxis, :] - starts) * edges, axis=-1)
+                    / np.maximum(lengths_sq, 1e-300), 0.0, 1.0)
+    return starts + along[..., np.newaxis] * edges
 
 
 def way_ahead(route, position):
@@ -202,11 +207,7 @@ def _along(route):
 
 def _route_distance(route, points):
     """Return the distance (P,) [m] of each of POINTS (P, 2) to ROUTE (K, 2), K >= 2."""
-    starts, edges = route[:-1], np.diff(route, axis=0)
-    lengths_sq = np.maximum(np.sum(edges * edges, axis=1), 1e-300)
-    relative = points[:, None, :] - starts[None, :, :]
-    along = np.clip(np.sum(relative * edges, axis=2) / lengths_sq, 0.0, 1.0)
-    gaps = relative - along[:, :, None] * edges
+    gaps = _nearest_on_segments(route, points) - points[:, np.newaxis, :]
     return np.min(np.hypot(gaps[..., 0], gaps[..., 1]), axis=1)
 
 
