@@ -15,6 +15,7 @@ from prvo_planner.lanes import (
     FADE,
     ONCOMING_SPEED,
     RANGE,
+    WALL_LEAN,
     keep_right,
     meets_oncoming,
     wide_enough,
@@ -134,6 +135,22 @@ def test_a_narrowing_ahead_straightens_the_robot_up_before_it():
     assert lean == 0.0 and turned is v_pref
     turned, lean = keep_right(v_pref, 0.2, EGO, [coming], 5.0, corridor(needed + 0.1), CONFIG)
     assert lean == 0.2
+
+
+def test_among_walls_the_lean_is_at_most_the_wall_lean_in_open_space_the_whole_angle():
+    coming = neighbour([3.0, 0.0], [-1.0, 0.0])
+    v_pref = np.array([1.0, 0.0])
+    wide = corridor(2.0 * certifiable_width(EGO, CONFIG) + 1.0)
+    angle = WALL_LEAN + 0.2
+    turned, lean = keep_right(v_pref, angle, EGO, [coming], 5.0, None, CONFIG)
+    assert lean == angle
+    assert angle_to_right(v_pref, turned) == pytest.approx(angle, abs=1e-12)
+    turned, lean = keep_right(v_pref, angle, EGO, [coming], 5.0, wide, CONFIG)
+    assert lean == WALL_LEAN
+    assert angle_to_right(v_pref, turned) == pytest.approx(WALL_LEAN, abs=1e-12)
+    # A smaller angle is taken as it is among walls too.
+    assert keep_right(v_pref, 0.5 * WALL_LEAN, EGO, [coming], 5.0, wide, CONFIG)[1] == (
+        0.5 * WALL_LEAN)
 
 
 def met_one_by_one(position, direction, neighbours):

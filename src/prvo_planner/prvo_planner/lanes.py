@@ -19,11 +19,14 @@ to `AHEAD` in front, is at least two of the widths one robot needs to be certifi
 leaning would only press the robot against a jamb. (Nor does the agent lean a robot at a
 passage whose right of way is in force, `prvo_planner.right_of_way`: the passage's order leads
 there.) It fades out over the last `FADE` metres to the goal, so that a robot arrives as it
-would without it.
+would without it. Among walls (a static obstacle within the planner's `obstacle_distance`) the
+lean is at most `WALL_LEAN`: the walls already hold the two lanes apart, and a wider lean only
+pushes robots at a corridor's end past their goals (see `WALL_LEAN`).
 
 The trade-off of the angle: path length against flow. Held for a whole way in open space, a lean
 of angle a lengthens it by a factor 1 / cos(a) (a logarithmic spiral into the goal: 1.5 % at
-0.17 rad, 4.7 % at 0.3 rad); a larger angle forms the lanes sooner and wider apart.
+0.17 rad, 4.7 % at 0.3 rad, 14 % at 0.5 rad); a larger angle forms the lanes sooner and wider
+apart, and a crowd swapping places turns into one roundabout sooner.
 
 Only the preferred velocity changes: the chance constraints against robots and walls, and so the
 guarantee, are those of every plan.
@@ -37,10 +40,17 @@ from prvo_planner.core.walls import certifiable_width
 from prvo_planner.escalation import turned_right
 from prvo_planner.passages import way_width
 
-# Default of the planner parameter `keep_right` [rad] (`prvo_planner.parameters`): about 17
-# degrees, at most 4.7 % longer ways. At 0.17 rad the lanes formed too late in a corridor: robots
-# meeting head-on were not yet a robot's width apart sideways when they met.
-KEEP_RIGHT = 0.3
+# Default of the planner parameter `keep_right` [rad] (`prvo_planner.parameters`): about 29
+# degrees, at most 14 % longer ways in open space. 24 robots swapping places on a 6 m circle
+# (noise 0.05, certified 0.95) took 1.55-1.70 times the straight-line time at 0.5, 1.58-1.88 at
+# 0.3 (docs/results.md 3.13).
+KEEP_RIGHT = 0.5
+# Among walls the lean is at most this [rad], about 17 degrees. Following a route, the lean
+# settles a robot about lookahead tan(lean) beside it; in a 2.4 m corridor at 0.3 rad robots in
+# single file were a robot's width apart sideways when they met (at 0.17 rad not yet), and at
+# 0.5 rad robots at the corridor's end were pushed past their goals and had to swap places
+# diagonally between others standing at theirs, for 40-70 s (results.md 3.10).
+WALL_LEAN = 0.3
 # A neighbour is met when it is ahead, nearer than this [m]: two robots at full speed (1 m/s)
 # meet 3 s later, time for each to move aside by about 0.9 m at the default lean.
 RANGE = 6.0
@@ -104,13 +114,16 @@ def keep_right(v_pref, angle, ego, neighbours, distance_to_goal, obstacles, conf
     Return the preferred velocity (2,) of a robot that keeps right, and the lean [rad].
 
     V_PREF (2,) [m/s] is the velocity toward the goal or along the route; ANGLE [rad] the lean
-    (`keep_right`, 0: off); EGO the robot's `AgentBelief`; NEIGHBOURS the neighbours'
-    `AgentBelief`s; DISTANCE_TO_GOAL [m] the way left; OBSTACLES the `StaticObstacles` near
-    (None: none); CONFIG the `PlannerConfig`. V_PREF comes back unchanged (lean 0) when the
-    robot stands, meets nobody, or where the way is too narrow for two.
+    (`keep_right`, 0: off; at most WALL_LEAN among OBSTACLES); EGO the robot's `AgentBelief`;
+    NEIGHBOURS the neighbours' `AgentBelief`s; DISTANCE_TO_GOAL [m] the way left; OBSTACLES the
+    `StaticObstacles` near (None: none); CONFIG the `PlannerConfig`. V_PREF comes back
+    unchanged (lean 0) when the robot stands, meets nobody, or where the way is too narrow for
+    two.
     """
     if angle <= 0.0 or not (v_pref[0] or v_pref[1]):
         return v_pref, 0.0
+    if obstacles is not None:
+        angle = min(angle, WALL_LEAN)
     lean = lean_angle(angle, distance_to_goal)
     if (lean <= 0.0 or not meets_oncoming(ego.position, v_pref, neighbours)
             or not wide_enough(obstacles, ego, config, v_pref)):
