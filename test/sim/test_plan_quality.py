@@ -52,7 +52,7 @@ def headon_team(eta, certificate='cantelli'):
 def test_the_tally_counts_every_plan_of_a_run_forced_infeasible():
     """At eta 0.9999 head-on, many plans find no velocity that meets the chance constraint.
 
-    Those made while the two are within the horizon of each other: 53 of 159 at 2 s.
+    Those made while the two are within the horizon of each other: 55 of 161 at 2 s.
     """
     team = headon_team(0.9999)
     # Counted independently, from every step's plans.
@@ -76,8 +76,9 @@ def test_the_tally_counts_every_plan_of_a_run_forced_infeasible():
     for name, tally in tallies.items():
         assert (tally.plans, tally.infeasible, tally.min_achieved_eta, tally.last_stamp) == (
             plans[name], infeasible[name], lowest[name], last[name])
-        # Forced: infeasible plans, with an achieved eta far below the one asked for.
-        assert tally.infeasible > tally.plans / 4 and tally.min_achieved_eta < 0.9
+        # Forced: infeasible plans, with an achieved eta far below the one asked for (the
+        # least about 0.94 against 0.9999: keeping right, the pair pass a little apart).
+        assert tally.infeasible > tally.plans / 4 and tally.min_achieved_eta < 0.99
     quality = plan_quality({name: (tally.plans, tally.infeasible, tally.min_achieved_eta)
                             for name, tally in tallies.items()})
     assert quality['infeasible_fraction'] == pytest.approx(
