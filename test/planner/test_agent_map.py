@@ -432,3 +432,30 @@ def test_a_robot_waiting_where_no_spot_fits_says_so_and_holds_its_place(monkeypa
     assert (f'self waits at passage 0, whose end at ({west.entrance[0]:.2f}, '
             f'{west.entrance[1]:.2f}) has no waiting spot') in status.message
     assert 'it holds its place' in status.message
+
+
+def test_a_neighbour_waiting_at_the_door_before_the_robot_came_goes_first():
+    # 'waiter' stands at the west end's waiting spot, bound east, from t = 0. 'self' stays in
+    # the east room until t = 5, then heads west, and comes nearer the door than the waiter's
+    # way to it: first come, first served, it waits (it watched the waiter come, though it
+    # used no passage then).
+    agent = PlannerAgent('self', CONFIG, dataclasses.replace(SETTINGS, radius=0.25),
+                         np.array([5.0, 3.5]))
+    agent.set_map(door_room())
+    west, east = agent.passage_map.passages[0].ends
+    spot = west.waiting_spot
+    agent.receive_route('waiter', np.array([spot, west.entrance, [5.0, 2.0]]), 0.0)
+    position = east.entrance + [1.0, 0.0]
+    decisions = []
+    for step in range(60):
+        stamp = round(0.1 * step, 9)
+        if stamp == 5.0:
+            agent.set_goal(np.array([1.0, 2.0]))
+        agent.receive_neighbour('waiter', Measurement(stamp, spot, np.zeros(2),
+                                                      1e-4 * np.eye(4)), 0.0)
+        agent.receive_own(Measurement(stamp, position, np.zeros(2), 1e-4 * np.eye(4)), 0.0)
+        agent.plan_request()
+        decisions.append(agent.passage_decision)
+    assert all(decision is None for decision in decisions[:50])
+    mine = decisions[-1]
+    assert mine.use.entry == 1 and not mine.goes

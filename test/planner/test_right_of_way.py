@@ -13,10 +13,12 @@ from prvo_planner.right_of_way import (
     FOLLOW_GAP,
     IDLE_INSIDE,
     IDLE_MOVE,
+    QUEUE_TIE,
     TIE,
     IdleWatch,
     PassageMap,
     PassageUse,
+    QueueWatch,
     conflict,
     goes_first,
     waiting_at,
@@ -238,6 +240,60 @@ def test_a_robot_without_the_right_of_way_waits_beside_its_entrance_behind_a_wal
     assert np.dot(position - wall[0], end.outward) > RADIUS
     obstacles = with_wall(None, wall)
     np.testing.assert_array_equal(obstacles.segments[-1], wall)
+
+
+def test_first_come_first_served_and_those_that_came_together_by_their_ways(door):
+    # 'a' came to the west end and waits at its spot; 'b' comes to the east end later, nearer
+    # its entrance than the spot's way to the west one. By the ways alone 'b' would go first,
+    # and so would every robot that came after it while 'a' waited.
+    (passage,) = door.passages
+    west, east = passage.ends
+    spot = west.waiting_spot
+    waiting = door.use_of('a', spot, np.array([spot, west.entrance, east.entrance + [1.5, 0.0]]))
+    b_position = east.entrance + [1.0, 0.0]
+    coming = door.use_of('b', b_position, np.array([b_position, [1.0, 2.0]]))
+    assert (waiting.entry, coming.entry) == (0, 1) and conflict(waiting, coming)
+    assert waiting.distance > coming.distance + TIE
+    assert goes_first(coming, [waiting]) and not goes_first(waiting, [coming])
+    watch = QueueWatch()
+    (waiting_seen,) = watch.ordered([waiting], 1.0)
+    for stamp, first_goes in ((1.0 + QUEUE_TIE, False), (1.0 + QUEUE_TIE + 0.1, True)):
+        waiting_seen, coming_seen = watch.ordered([waiting, coming], stamp)
+        assert (waiting_seen.came, coming_seen.came) == (1.0, stamp)
+        assert goes_first(waiting_seen, [coming_seen]) is first_goes
+        assert goes_first(coming_seen, [waiting_seen]) is not first_goes
+        watch = QueueWatch()
+        watch.ordered([waiting], 1.0)
+    # It keeps its place while it uses the passage, inside (backing out) or by another end;
+    # once it uses none, it comes anew.
+    inside = PassageUse('a', 0, None, 1, 0.5)
+    assert watch.ordered([inside], 9.0) == [inside]
+    (back,) = watch.ordered([dataclasses.replace(waiting, entry=1)], 9.5)
+    assert back.came == 1.0
+    assert watch.ordered([], 10.0) == []
+    (later,) = watch.ordered([waiting], 10.5)
+    assert later.came == 10.5
+
+
+def test_with_when_each_came_no_two_that_meet_both_go_and_someone_goes():
+    generator = np.random.default_rng(40)
+    for _ in range(300):
+        count = int(generator.integers(2, 7))
+        uses = []
+        for index in range(count):
+            inside = generator.random() < 0.25
+            entry = None if inside else int(generator.integers(0, 3))
+            exit_end = int((entry if entry is not None else 0) + generator.integers(1, 3)) % 3
+            uses.append(PassageUse(f'robot_{index}', 0, entry, exit_end,
+                                   float(generator.uniform(0.0, 4.0)),
+                                   generator.uniform(0.0, 3.0, size=2),
+                                   None if inside else float(generator.uniform(0.0, 8.0))))
+        going = [goes_first(use, [other for other in uses if other is not use])
+                 for use in uses]
+        assert any(going), uses
+        for (first, goes_a), (second, goes_b) in itertools.combinations(
+                zip(uses, going, strict=True), 2):
+            assert not (conflict(first, second) and goes_a and goes_b), (first, second)
 
 
 def test_a_robot_at_the_mouth_gets_no_wall_it_would_start_inside(door):

@@ -67,7 +67,13 @@ from prvo_planner.preferred import (
     PathFollower,
     path_preferred_velocity,
 )
-from prvo_planner.right_of_way import IdleWatch, PassageMap, waiting_at, with_wall
+from prvo_planner.right_of_way import (
+    IdleWatch,
+    PassageMap,
+    QueueWatch,
+    waiting_at,
+    with_wall,
+)
 from prvo_planner.route import RouteMap, path_length
 from prvo_planner.routes import (
     ROUTE_FOUND,
@@ -611,10 +617,12 @@ class PlannerAgent:
         self._aside = False
         # The right of way at the passage on its route (`right_of_way.Decision`), None: none;
         # the neighbours standing in a passage (`right_of_way.IdleWatch`), and those of them
-        # that stood too long and claim nothing (sorted names).
+        # that stood too long and claim nothing (sorted names); when each came to the passage
+        # it uses (`right_of_way.QueueWatch`).
         self.passage_decision = None
         self.idle_in_passage = ()
         self._idle_watch = IdleWatch()
+        self._queue_watch = QueueWatch()
         # The path followed (path mode); the upstream command waiting for its answer, when it
         # came and the last one answered (velocity mode); when the own state was last received.
         self._path = None
@@ -1125,12 +1133,16 @@ class PlannerAgent:
             return None
         passages = self._passage_map
         me = passages.use_of(self.name, position, self._route)
-        if me is None:
-            return None
         others = [passages.use_of(name, belief.mean[:2], route.points)
                   for name, belief, route in zip(names, beliefs, routes, strict=True)
                   if route is not None]
-        uses = [use for use in others if use is not None]
+        # When each came is watched whether or not the robot has a passage ahead: one waiting
+        # at a passage has waited since it came, not since the robot came near.
+        uses = self._queue_watch.ordered([use for use in [me, *others] if use is not None],
+                                         stamp)
+        if me is None:
+            return None
+        me, *uses = uses
         claiming = self._idle_watch.claiming(uses, stamp)
         self.idle_in_passage = tuple(sorted({use.name for use in uses}
                                             - {use.name for use in claiming}))

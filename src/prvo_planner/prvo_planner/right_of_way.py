@@ -23,7 +23,15 @@ inside that conflict, the one with less of the passage left goes on and the othe
 Between two outside that conflict, the one with the shorter way to the passage goes first; ways
 within `TIE` of each other are a tie, which the robots' names decide (the smaller first): noise
 on the distances, a few centimetres, flips a decision only near the edge of the tie, where the
-robot that decides wrongly waits a step or, both going, the rule inside sorts them out.
+robot that decides wrongly waits a step or, both going, the rule inside sorts them out. Before
+the ways, first come, first served: of two outside, the one that came to the passage (its route
+entered it within `LOOK_AHEAD`, or it was inside, ever since) more than `QUEUE_TIE` earlier goes
+first (`QueueWatch`). By the ways alone a robot at a waiting spot, a metre or more of route from
+its entrance, lost every turn to any robot that came nearer the other end before the passage
+emptied: while robots came one after another from one side, those on the other waited
+(`pillars12`, whose three gaps between pillars are one passage with three ends: robots waited
+their turn 17-27 s there). Robots that come together are ordered by their ways as before: a
+crowd at a door goes through one side after the other.
 
 **Waiting.** A robot without the right of way heads for the waiting spot of the end it comes in
 by (`narrows.PassageEnd.waiting_spot`, beside the entrance, off the way out), or holds its
@@ -35,7 +43,7 @@ Only the preferred velocity and the static obstacles change: the chance constrai
 guarantee, are those of every plan.
 """
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 import math
 
 import numpy as np
@@ -49,6 +57,9 @@ LOOK_AHEAD = 4.0
 # Ways to a passage that differ by less than this [m] are a tie (the names decide): several
 # position stds of the shipped noise, less than a robot's diameter.
 TIE = 0.3
+# Robots that came to a passage within this of each other [s] came together (`QueueWatch`):
+# their ways decide. Beyond it the one that came first goes first.
+QUEUE_TIE = 2.0
 # A route is followed through a passage this far at most [m] to find where it leaves.
 MAX_THROUGH = 50.0
 # A route that leaves a passage's cells for less than this [m] has not left it.
@@ -91,6 +102,9 @@ class PassageUse:
     position : numpy.ndarray or None
         Shape (2,): where the robot is [m]; None: unknown (it follows no one and no one keeps
         behind it).
+    came : float or None
+        Outside: when it came to the passage by its end [s] (`QueueWatch`); None: unknown (its
+        way alone orders it).
 
     """
 
@@ -100,6 +114,7 @@ class PassageUse:
     exit: int | None
     distance: float
     position: np.ndarray | None = None
+    came: float | None = None
 
     @property
     def inside(self):
@@ -149,7 +164,14 @@ def conflict(first, second):
 
 
 def ahead(first, second):
-    """Whether the outside `PassageUse` FIRST comes before SECOND (ways within TIE: names)."""
+    """Whether the outside `PassageUse` FIRST comes before SECOND.
+
+    The one that came more than QUEUE_TIE earlier; else the shorter way (ways within TIE: the
+    names).
+    """
+    if (first.came is not None and second.came is not None
+            and abs(first.came - second.came) > QUEUE_TIE):
+        return first.came < second.came
     return (first.distance < second.distance - TIE
             or (abs(first.distance - second.distance) <= TIE and first.name < second.name))
 
@@ -376,6 +398,34 @@ class IdleWatch:
             if stamp - stay[2] <= IDLE_INSIDE:
                 kept.append(use)
         self._stays = stays
+        return kept
+
+
+class QueueWatch:
+    """When each robot came to the passage it uses, for first come, first served (`ahead`).
+
+    Each robot watches its neighbours and itself alike, from the positions and routes all
+    publish: a robot comes to a passage when its use of it begins, and stays come while it uses
+    that passage, by any end or inside (backing out, or flickering in and out at a mouth, it
+    keeps its place in the line). One that came into sight while a neighbour waited counts that
+    neighbour from then, and for a while the two may judge apart, which the rule inside sorts
+    out (the module's docstring).
+    """
+
+    def __init__(self):
+        # robot -> (passage, when it came [s]).
+        self._came = {}
+
+    def ordered(self, uses, stamp):
+        """Return USES (`PassageUse`s) at STAMP [s], each outside with when it came."""
+        kept, came = [], {}
+        for use in uses:
+            seen = self._came.get(use.name)
+            if seen is None or seen[0] != use.passage:
+                seen = (use.passage, stamp)
+            came[use.name] = seen
+            kept.append(use if use.inside else replace(use, came=seen[1]))
+        self._came = came
         return kept
 
 
