@@ -321,8 +321,9 @@ _SPECS = (
     # map, robots take turns by one rule from what all publish; off, they meet in it (ablation).
     ParameterSpec('right_of_way', BOOL, True, 'With a map, robots take turns at passages too '
                   "narrow for two to pass (found on the map for the route's clearance and "
-                  'margin): a robot inside, then the one with the shorter way to it (names '
-                  'break ties) goes first, those going the same way follow, and a robot '
+                  'margin): a robot inside, then the one that came first, then the one with '
+                  'the shorter way to it (names break ties) goes first, those going the same '
+                  'way follow, and a robot '
                   'without the right of way waits at the spot beside its entrance behind a '
                   "virtual wall. Decided from the neighbours' routes on <robot>/plan. "
                   'false = robots meet in the passage (the ablation).'),
