@@ -199,23 +199,26 @@ def test_a_robot_held_behind_a_leader_stands_without_a_spot_or_a_wall(door):
     assert not decision.goes and decision.waiting_spot is None and decision.wall is None
 
 
-def test_every_robot_computing_the_order_finds_no_two_that_meet_both_going():
+@pytest.mark.parametrize('ends, with_came', [(2, False), (3, True)])
+def test_every_robot_computing_the_order_finds_no_two_that_meet_both_going(ends, with_came):
     # The property that makes the rule safe to decide apart: from the same uses, of any two
-    # that would meet head-on, at most one goes; and someone goes.
+    # that would meet head-on, at most one goes; and someone goes. Also with when each came
+    # (first come, first served), at a passage of three ends.
     generator = np.random.default_rng(39)
     for _ in range(300):
-        count = int(generator.integers(2, 7))
         uses = []
-        for index in range(count):
+        for index in range(int(generator.integers(2, 7))):
             inside = generator.random() < 0.25
-            entry = None if inside else int(generator.integers(0, 2))
-            exit_end = (1 - entry) if entry is not None else int(generator.integers(0, 2))
+            entry = None if inside else int(generator.integers(0, ends))
+            exit_end = (int(generator.integers(0, ends)) if inside
+                        else (entry + int(generator.integers(1, ends))) % ends)
+            came = float(generator.uniform(0.0, 8.0)) if with_came and not inside else None
             uses.append(PassageUse(f'robot_{index}', 0, entry, exit_end,
                                    float(generator.uniform(0.0, 4.0)),
-                                   generator.uniform(0.0, 3.0, size=2)))
+                                   generator.uniform(0.0, 3.0, size=2), came))
         going = [goes_first(use, [other for other in uses if other is not use])
                  for use in uses]
-        assert any(going)
+        assert any(going), uses
         for (first, goes_a), (second, goes_b) in itertools.combinations(
                 zip(uses, going, strict=True), 2):
             assert not (conflict(first, second) and goes_a and goes_b), (first, second)
@@ -273,27 +276,6 @@ def test_first_come_first_served_and_those_that_came_together_by_their_ways(door
     assert watch.ordered([], 10.0) == []
     (later,) = watch.ordered([waiting], 10.5)
     assert later.came == 10.5
-
-
-def test_with_when_each_came_no_two_that_meet_both_go_and_someone_goes():
-    generator = np.random.default_rng(40)
-    for _ in range(300):
-        count = int(generator.integers(2, 7))
-        uses = []
-        for index in range(count):
-            inside = generator.random() < 0.25
-            entry = None if inside else int(generator.integers(0, 3))
-            exit_end = int((entry if entry is not None else 0) + generator.integers(1, 3)) % 3
-            uses.append(PassageUse(f'robot_{index}', 0, entry, exit_end,
-                                   float(generator.uniform(0.0, 4.0)),
-                                   generator.uniform(0.0, 3.0, size=2),
-                                   None if inside else float(generator.uniform(0.0, 8.0))))
-        going = [goes_first(use, [other for other in uses if other is not use])
-                 for use in uses]
-        assert any(going), uses
-        for (first, goes_a), (second, goes_b) in itertools.combinations(
-                zip(uses, going, strict=True), 2):
-            assert not (conflict(first, second) and goes_a and goes_b), (first, second)
 
 
 def test_a_robot_at_the_mouth_gets_no_wall_it_would_start_inside(door):
