@@ -103,8 +103,8 @@ class PassageUse:
         Shape (2,): where the robot is [m]; None: unknown (it follows no one and no one keeps
         behind it).
     came : float or None
-        Outside: when it came to the passage by its end [s] (`QueueWatch`); None: unknown (its
-        way alone orders it).
+        Outside: when it came to the passage [s], kept while it uses it (`QueueWatch`); None:
+        unknown (its way alone orders it).
 
     """
 
