@@ -459,3 +459,45 @@ def test_a_neighbour_waiting_at_the_door_before_the_robot_came_goes_first():
     assert all(decision is None for decision in decisions[:50])
     mine = decisions[-1]
     assert mine.use.entry == 1 and not mine.goes
+
+
+def two_door_room():
+    """Two rooms 6 x 4 m, a wall 0.1 m thick at x = 3, 1.2 m doors about y = 0.9 and 3.1."""
+    cells = np.zeros((80, 120), dtype=np.int8)
+    cells[[0, -1], :] = 100
+    cells[:, [0, -1]] = 100
+    cells[:, 59:61] = 100
+    cells[6:30, 59:61] = 0
+    cells[50:74, 59:61] = 0
+    return GridMap(cells, 0.05, [0.0, 0.0])
+
+
+def test_a_robot_kept_waiting_at_one_door_goes_round_by_the_other():
+    # 'broken' stands in the lower door on its way west: the robot bound east waits for it as
+    # long as the way by the upper door adds at full speed (about 1.4 m: 1.4 s), then takes
+    # that way, long before the neighbour stops claiming the door (IDLE_INSIDE).
+    agent = PlannerAgent('self', CONFIG, dataclasses.replace(SETTINGS, radius=0.25),
+                         np.array([5.0, 0.9]))
+    agent.set_map(two_door_room())
+    lower = int(agent.passage_map.passage_at(np.array([[3.0, 0.9]]))[0])
+    agent.receive_route('broken', np.array([[3.0, 0.9], [1.0, 0.9]]), 0.0)
+    routes, decisions = [], []
+    for step in range(40):
+        stamp = round(0.1 * step, 9)
+        agent.receive_neighbour('broken', Measurement(stamp, np.array([3.0, 0.9]), np.zeros(2),
+                                                      1e-4 * np.eye(4)), 0.0)
+        command = stand(agent, [1.6, 0.9], 1, t0=stamp)
+        routes.append(command.route)
+        decisions.append(agent.passage_decision)
+    assert decisions[0].use.passage == lower and not decisions[0].goes
+    way_round = [step for step, decision in enumerate(decisions)
+                 if decision is not None and decision.use.passage != lower]
+    assert way_round and 10 <= way_round[0] <= 25
+    # From then on its route keeps out of the lower door and goes through the upper one, where
+    # nobody comes: it goes.
+    for route in routes[way_round[0]:]:
+        points = np.concatenate([np.linspace(a, b, 40)
+                                 for a, b in zip(route[:-1], route[1:], strict=True)])
+        assert (agent.passage_map.passage_at(points) != lower).all()
+        assert max(points[:, 1]) > 2.5
+    assert decisions[-1].goes

@@ -157,6 +157,31 @@ def test_routes_are_shortest_and_keep_the_clearance(seed):
 
 
 @pytest.mark.parametrize('seed', range(6))
+def test_a_map_without_some_cells_routes_round_them_and_shortest(seed):
+    rng = np.random.default_rng(100 + seed)
+    occupied = rng.random((11, 12)) < 0.15
+    route_map = RouteMap(occupied, RESOLUTION, ORIGIN, 0.05)
+    admissible = brute_admissible(occupied, 0.05)
+    closed = np.argwhere(admissible)[rng.choice(int(admissible.sum()), 12, replace=False)]
+    without = route_map.without(closed)
+    left = admissible.copy()
+    left[tuple(closed.T)] = False
+    np.testing.assert_array_equal(without.admissible, left)
+    # The map it was made from is unchanged.
+    np.testing.assert_array_equal(route_map.admissible, admissible)
+    cells = [tuple(cell) for cell in np.argwhere(left)]
+    for _ in range(6):
+        start, goal = (cells[index] for index in rng.choice(len(cells), 2, replace=False))
+        expected = brute_shortest(left, start, goal)
+        route = without.tree_to(centre(goal)).route_from(centre(start), taut=False)
+        if expected is None:
+            assert route is None
+            continue
+        assert path_length(route) == pytest.approx(expected, abs=1e-9)
+        assert all(left[cell] for cell in route_cells(route))
+
+
+@pytest.mark.parametrize('seed', range(6))
 def test_with_a_margin_the_grid_path_costs_the_least(seed):
     """The search over the grid's steps finds the least cost: as a plain Dijkstra does."""
     rng = np.random.default_rng(100 + seed)

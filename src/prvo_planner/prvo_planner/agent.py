@@ -29,6 +29,7 @@ from prvo_planner.announced import (  # noqa: F401 (MAX_KEPT_ANNOUNCEMENTS: the 
 from prvo_planner.core import AgentBelief, VelocityLimits, plan_velocity
 from prvo_planner.core.beliefs import validated_share
 from prvo_planner.core.standing import standing_decided
+from prvo_planner.detours import DetourWatch
 from prvo_planner.escalation import (
     ROOM_RADII,
     TURN_MAX,
@@ -623,6 +624,8 @@ class PlannerAgent:
         self.idle_in_passage = ()
         self._idle_watch = IdleWatch()
         self._queue_watch = QueueWatch()
+        # How long it waited at a passage, and the ways round those it avoids (`detours`).
+        self._detours = DetourWatch()
         # The path followed (path mode); the upstream command waiting for its answer, when it
         # came and the last one answered (velocity mode); when the own state was last received.
         self._path = None
@@ -691,6 +694,7 @@ class PlannerAgent:
         self._previous_velocity = None
         self._give_way = self._held_at = self._yielding_to = None
         self._aside = False
+        self._detours.reset()
 
     # Measurements -----------------------------------------------------------------------------
 
@@ -1028,7 +1032,8 @@ class PlannerAgent:
         v_pref, arrived, self._route_segment, remaining = route_preferred_velocity(
             position, self.goal, route, self._route_segment, lookahead,
             self.config.max_speed, settings.approach_time, settings.goal_tolerance,
-            settings.max_acceleration, self._route_map.in_sight, self._route_map.resolution)
+            settings.max_acceleration, self._route_tree.route_map.in_sight,
+            self._route_map.resolution)
         return v_pref, arrived, remaining
 
     def _problem(self, own, stamp, tracks, announcements, v_pref, horizon):
@@ -1178,6 +1183,22 @@ class PlannerAgent:
                                   settings.approach_time, settings.goal_tolerance,
                                   settings.max_acceleration)[0], decision.wall
 
+    def _take_way_round(self, stamp, position, remaining):
+        """Follow the way round the passage the robot waits at once waiting cost as much.
+
+        From the next plan on (`prvo_planner.detours`); REMAINING [m] is the route's length to
+        the goal from POSITION (2,) [m] at STAMP [s].
+        """
+        if self.passage_decision is None:
+            self._detours.update(stamp, None, position, remaining, self.config.max_speed,
+                                 None, None, None)
+            return
+        tree = self._detours.update(stamp, self.passage_decision, position, remaining,
+                                    self.config.max_speed, self._route_map, self._passage_map,
+                                    self.goal)
+        if tree is not None:
+            self._route_tree, self._route = tree, None
+
     def _kept_right(self, problem, distance_to_goal, obstacles):
         """Return PROBLEM with its preferred velocity leaning right (`prvo_planner.lanes`)."""
         ego, neighbours, v_pref, config = problem[:4]
@@ -1308,6 +1329,7 @@ class PlannerAgent:
         v_pref = self._given_way(own.mean[:2], v_pref, stall, distance_to_goal, names,
                                  neighbour_beliefs, announcements, routes, uses)
         v_pref, passage_wall = self._passage_turn(own.mean[:2], v_pref, uses)
+        self._take_way_round(stamp, own.mean[:2], distance_to_goal)
         if self._command_stamp is not None and 0.0 < stamp - self._command_stamp:
             self._control_period = stamp - self._command_stamp
         obstacles = None if self._obstacle_index is None else self._obstacle_index.near(
@@ -1406,6 +1428,7 @@ class PlannerAgent:
             self._obstacle_index, self._route_map = built.obstacle_index, built.route_map
             self._route_tree, self._passage_map = built.route_tree, built.passage_map
         self._route = None
+        self._detours.reset()
 
     @property
     def route_map(self):
@@ -1429,6 +1452,7 @@ class PlannerAgent:
                 or self.goal is None or not np.array_equal(tree.goal, self.goal)):
             return False
         self._route_tree, self._route = tree, None
+        self._detours.reset()
         return True
 
     def goal_blocked(self, goal):

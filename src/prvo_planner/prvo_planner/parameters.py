@@ -325,7 +325,8 @@ _SPECS = (
                   'the shorter way to it (names break ties) goes first, those going the same '
                   'way follow, and a robot '
                   'without the right of way waits at the spot beside its entrance behind a '
-                  "virtual wall. Decided from the neighbours' routes on <robot>/plan. "
+                  "virtual wall; it takes another way round once it has waited as long as "
+                  "that way adds. Decided from the neighbours' routes on <robot>/plan. "
                   'false = robots meet in the passage (the ablation).'),
     # Escalation (`prvo_planner.escalation`): a stalled robot (`prvo_planner.stalls`) turns its
     # preferred velocity to the right; off, the preferred velocity is the goal's or the route's

@@ -14,6 +14,7 @@ neighbour offsets), the distances to obstacles are kept as small integers, and a
 byte per cell, the step towards the goal.
 """
 
+import copy
 import math
 
 import numpy as np
@@ -185,6 +186,14 @@ class RouteMap:
         del quadrupled
         self._width = width
         self._padded_width = width + 2
+        self._link()
+        self._offsets = np.array([step_row * self._padded_width + step_column
+                                  for step_row, step_column in _STEPS])
+        self._lengths = self.resolution * np.hypot(*np.array(_STEPS, dtype=float).T)
+
+    def _link(self):
+        """Find the steps allowed between the admissible cells (``_allowed``)."""
+        height, width = self.admissible.shape
         self._any_admissible = bool(self.admissible.any())
         ok = np.pad(self.admissible, 1, constant_values=False)
         # Bit k: the step _STEPS[k] from this padded cell is allowed.
@@ -198,9 +207,20 @@ class RouteMap:
                 linked &= ok[1 + step_row:1 + step_row + height, 1:1 + width]
                 linked &= ok[1:1 + height, 1 + step_column:1 + step_column + width]
             inner |= linked.view(np.uint8) << bit
-        self._offsets = np.array([step_row * self._padded_width + step_column
-                                  for step_row, step_column in _STEPS])
-        self._lengths = self.resolution * np.hypot(*np.array(_STEPS, dtype=float).T)
+
+    def without(self, cells):
+        """Return a copy of this map on which CELLS (K, 2) int, (row, column), are not admissible.
+
+        Its paths go round those cells (a passage a robot will not take); the occupied cells,
+        and with them `blocked`, are this map's. The grids not changed are shared.
+        """
+        other = copy.copy(self)
+        closed = np.zeros(self.admissible.shape, dtype=bool)
+        closed[tuple(np.asarray(cells, dtype=int).reshape(-1, 2).T)] = True
+        other.admissible = self.admissible & ~closed
+        other.roomy = self.roomy & ~closed
+        other._link()
+        return other
 
     def centres(self, cells):
         """Return the world positions (K, 2) [m] of the centres of flat cell indices CELLS (K,)."""
