@@ -18,6 +18,7 @@ from prvo_planner.agent import (
     route_preferred_velocity,
 )
 from prvo_planner.core import PlannerConfig, plan_velocity
+from prvo_planner.detours import way_round
 from prvo_planner.maps import GridMap, occupied_at, way_out
 from prvo_planner.reports import plan_status
 from prvo_planner.right_of_way import IDLE_INSIDE
@@ -472,16 +473,14 @@ def two_door_room():
     return GridMap(cells, 0.05, [0.0, 0.0])
 
 
-def test_a_robot_kept_waiting_at_one_door_goes_round_by_the_other():
-    # 'broken' stands in the lower door on its way west: the robot bound east waits for it as
-    # long as the way by the upper door adds at full speed (about 1.4 m: 1.4 s), then takes
-    # that way, long before the neighbour stops claiming the door (IDLE_INSIDE).
+def _kept_waiting(search_here, install):
+    """Run the robot of the test below; return its decisions and routes (each step's)."""
     agent = PlannerAgent('self', CONFIG, dataclasses.replace(SETTINGS, radius=0.25),
                          np.array([5.0, 0.9]))
+    agent.search_ways_round = search_here
     agent.set_map(two_door_room())
-    lower = int(agent.passage_map.passage_at(np.array([[3.0, 0.9]]))[0])
     agent.receive_route('broken', np.array([[3.0, 0.9], [1.0, 0.9]]), 0.0)
-    routes, decisions = [], []
+    routes, decisions, wanted = [], [], []
     for step in range(40):
         stamp = round(0.1 * step, 9)
         agent.receive_neighbour('broken', Measurement(stamp, np.array([3.0, 0.9]), np.zeros(2),
@@ -489,7 +488,21 @@ def test_a_robot_kept_waiting_at_one_door_goes_round_by_the_other():
         command = stand(agent, [1.6, 0.9], 1, t0=stamp)
         routes.append(command.route)
         decisions.append(agent.passage_decision)
+        wanted.append(agent.way_round_wanted)
+        if install and wanted[-1] is not None:
+            # Searched elsewhere (a node's map worker) before the next plan.
+            assert agent.install_way_round(wanted[-1], way_round(*wanted[-1]))
+    return agent, decisions, routes, wanted
+
+
+def test_a_robot_kept_waiting_at_one_door_goes_round_by_the_other():
+    # 'broken' stands in the lower door on its way west: the robot bound east waits for it as
+    # long as the way by the upper door adds at full speed (about 1.4 m: 1.4 s), then takes
+    # that way, long before the neighbour stops claiming the door (IDLE_INSIDE).
+    agent, decisions, routes, wanted = _kept_waiting(True, False)
+    lower = int(agent.passage_map.passage_at(np.array([[3.0, 0.9]]))[0])
     assert decisions[0].use.passage == lower and not decisions[0].goes
+    assert not any(wanted)
     way_round = [step for step, decision in enumerate(decisions)
                  if decision is not None and decision.use.passage != lower]
     assert way_round and 10 <= way_round[0] <= 25
@@ -501,3 +514,13 @@ def test_a_robot_kept_waiting_at_one_door_goes_round_by_the_other():
         assert (agent.passage_map.passage_at(points) != lower).all()
         assert max(points[:, 1]) > 2.5
     assert decisions[-1].goes
+    # Searched elsewhere and handed over before the next plan, the same way round at the same
+    # step; never handed over, the robot waits and keeps asking for it.
+    _, elsewhere, elsewhere_routes, asked = _kept_waiting(False, True)
+    assert [str(decision) for decision in elsewhere] == [str(decision) for decision in decisions]
+    for route, other in zip(routes, elsewhere_routes, strict=True):
+        np.testing.assert_array_equal(route, other)
+    assert asked[0][0] == {lower} and not any(asked[1:])
+    _, waiting, _, asked = _kept_waiting(False, False)
+    assert all(decision.use.passage == lower and not decision.goes for decision in waiting)
+    assert all(wanted[0] == {lower} for wanted in asked)

@@ -15,8 +15,10 @@ from rclpy.serialization import serialize_message
 from prvo_msgs_util import make_occupancy_grid, make_odometry, occupancy_grid_to_parts
 from prvo_planner import planner_node as planner_node_module
 from prvo_planner.agent import build_map
+from prvo_planner.detours import way_round
 from prvo_planner.maps import GridMap
 from prvo_planner.reports import AWAITING_MAP
+from prvo_planner.right_of_way import Decision
 
 COVARIANCE = 1e-6 * np.eye(2)
 WAIT = 30.0
@@ -259,3 +261,46 @@ def test_a_new_goal_waits_for_its_ways_while_the_goal_before_holds(map_node, hel
     _own_odometry(node, 0.2)
     # The plan took the ways the worker searched: it did not search again.
     assert agent.pending_stamp is None and agent._route_tree is tree
+
+
+def test_a_way_round_a_passage_is_searched_beside_the_plans(map_node, held, monkeypatch):
+    node, agent = map_node, map_node._agent
+    held.release.set()
+    # A wall across the room leaves a gap 1 m wide at each end: two passages, one way round the
+    # other.
+    _send_map(node, 30)
+    _spin_until(node, lambda: agent.grid_map is not None)
+    assert len(agent.passage_map.passages) == 2
+    _own_odometry(node, 0.1)
+    position = np.array([3.0, 1.0])
+    use = agent.passage_map.use_of('robot_0', position, agent._route)
+    end = agent.passage_map.passages[use.passage].ends[use.entry]
+    # The robot waits at the passage its route takes (as a neighbour coming through would make
+    # it): its plan wants the way round, and does not search it.
+    agent._detours.update(0.1, Decision(use, False, end.waiting_spot, None, end.entrance),
+                          position, 4.0, 1.0, agent.route_map, agent.passage_map, agent.goal,
+                          search=agent.search_ways_round)
+    wanted = agent.way_round_wanted
+    assert wanted is not None and wanted[0] == {use.passage}
+    searching, release = threading.Event(), threading.Event()
+
+    def held_way_round(*arguments):
+        searching.set()
+        assert release.wait(WAIT), 'the test never released the search'
+        return way_round(*arguments)
+
+    monkeypatch.setattr(planner_node_module, 'way_round', held_way_round)
+    try:
+        _own_odometry(node, 0.2)
+        # The plan callback handed the search to the worker and returned while it runs.
+        assert searching.wait(WAIT)
+        assert agent.pending_stamp is None and agent.way_round_wanted is not None
+    finally:
+        release.set()
+    _spin_until(node, lambda: agent.way_round_wanted is None)
+    tree = agent._detours._trees[wanted[0]]
+    route = tree.route_from(position)
+    np.testing.assert_array_equal(route, way_round(*wanted).route_from(position))
+    points = np.concatenate([np.linspace(a, b, 40)
+                             for a, b in zip(route[:-1], route[1:], strict=True)])
+    assert (agent.passage_map.passage_at(points) != use.passage).all()

@@ -626,6 +626,8 @@ class PlannerAgent:
         self._queue_watch = QueueWatch()
         # How long it waited at a passage, and the ways round those it avoids (`detours`).
         self._detours = DetourWatch()
+        # Search a way round in the plan that needs it; False: elsewhere (`way_round_wanted`).
+        self.search_ways_round = True
         # The path followed (path mode); the upstream command waiting for its answer, when it
         # came and the last one answered (velocity mode); when the own state was last received.
         self._path = None
@@ -1189,15 +1191,35 @@ class PlannerAgent:
         From the next plan on (`prvo_planner.detours`); REMAINING [m] is the route's length to
         the goal from POSITION (2,) [m] at STAMP [s].
         """
-        if self.passage_decision is None:
-            self._detours.update(stamp, None, position, remaining, self.config.max_speed,
-                                 None, None, None)
-            return
         tree = self._detours.update(stamp, self.passage_decision, position, remaining,
                                     self.config.max_speed, self._route_map, self._passage_map,
-                                    self.goal)
+                                    self.goal, search=self.search_ways_round)
         if tree is not None:
             self._route_tree, self._route = tree, None
+
+    @property
+    def way_round_wanted(self):
+        """The way round a plan lacked (`search_ways_round` False), None: none.
+
+        The arguments of `detours.way_round` for the map and goal in force: (avoided passages,
+        route map, passage map, goal); search it, then hand it to `install_way_round`.
+        """
+        wanted = self._detours.wanted
+        if wanted is None or self._route_map is None or self.goal is None:
+            return None
+        return wanted, self._route_map, self._passage_map, self.goal
+
+    def install_way_round(self, wanted, tree):
+        """Take TREE, `detours.way_round` of WANTED (`way_round_wanted`), if it still fits.
+
+        It fits if searched on the map in force, for the goal in force; returns whether.
+        """
+        avoided, route_map, passage_map, goal = wanted
+        if (route_map is not self._route_map or passage_map is not self._passage_map
+                or self.goal is None or not np.array_equal(goal, self.goal)):
+            return False
+        self._detours.install(avoided, tree)
+        return True
 
     def _kept_right(self, problem, distance_to_goal, obstacles):
         """Return PROBLEM with its preferred velocity leaning right (`prvo_planner.lanes`)."""

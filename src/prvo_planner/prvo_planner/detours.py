@@ -28,9 +28,11 @@ class DetourWatch:
     """
     How long a robot has waited at a passage, and the ways round the passages it avoids.
 
-    The ways round are searched once per goal and set of passages avoided (a `RouteMap`
-    search, tens of milliseconds on a map of 200 x 200 cells); `reset` forgets them (a new goal
-    or map).
+    The ways round are searched once per goal and set of passages avoided (`way_round`: a
+    `RouteMap` search, tens of milliseconds on a map of 200 x 200 cells, a third of a second on
+    a 50 m office), in `update` itself or, where it must not wait for one (a node's callback),
+    elsewhere: `update(..., search=False)` then names the one it lacks in `wanted`, and
+    `install` takes it. `reset` forgets them (a new goal or map).
     """
 
     def __init__(self):
@@ -40,13 +42,21 @@ class DetourWatch:
         """Forget the waiting, the passages avoided and the ways round."""
         # (passage, when the robot began to wait at it) while it waits at an end, else None.
         self._waiting = None
-        # Indices of the passages the robot goes round, and the route tree it follows then.
+        # Indices of the passages the robot goes round.
         self.avoided = frozenset()
-        self.tree = None
         # Ways round searched: avoided set -> route tree (None: no way reaches the goal).
         self._trees = {}
+        # The avoided set whose way round an update lacked (search=False), None: none.
+        self.wanted = None
 
-    def update(self, stamp, decision, position, remaining, speed, route_map, passage_map, goal):
+    def install(self, avoided, tree):
+        """Take TREE, the way round the passages AVOIDED (`way_round`) searched elsewhere."""
+        self._trees[avoided] = tree
+        if self.wanted == avoided:
+            self.wanted = None
+
+    def update(self, stamp, decision, position, remaining, speed, route_map, passage_map, goal,
+               search=True):
         """
         Return the route tree to follow from now on round the passage it waits at, None: stay.
 
@@ -68,6 +78,9 @@ class DetourWatch:
             The map's passages, which DECISION's passage indexes.
         goal : numpy.ndarray
             Shape (2,): the goal [m].
+        search : bool
+            Search a way round not searched yet here; False: name it in `wanted` and wait
+            for it (`install`).
 
         """
         if (decision is None or decision.goes or decision.use.inside
@@ -79,7 +92,10 @@ class DetourWatch:
             self._waiting = (passage, stamp)
         avoided = self.avoided | {passage}
         if avoided not in self._trees:
-            self._trees[avoided] = self._way_round(avoided, route_map, passage_map, goal)
+            if not search:
+                self.wanted = avoided
+                return None
+            self._trees[avoided] = way_round(avoided, route_map, passage_map, goal)
         tree = self._trees[avoided]
         if tree is None:
             return None
@@ -89,14 +105,19 @@ class DetourWatch:
         extra = path_length(way) + float(np.hypot(*(way[0] - position))) - remaining
         if (stamp - self._waiting[1]) * speed < extra:
             return None
-        self.avoided, self.tree, self._waiting = avoided, tree, None
+        self.avoided, self._waiting = avoided, None
         return tree
 
-    @staticmethod
-    def _way_round(avoided, route_map, passage_map, goal):
-        """Return the route tree to GOAL round the passages AVOIDED, None where none is."""
-        if int(passage_map.passage_at(goal[None])[0]) in avoided:
-            return None
-        closed = [passage_map.passages[index].cells for index in sorted(avoided)]
-        tree = route_map.without(np.concatenate(closed)).tree_to(goal)
-        return tree if tree.goal_cell is not None else None
+
+def way_round(avoided, route_map, passage_map, goal):
+    """
+    Return the route tree to GOAL round the passages AVOIDED, None where no way reaches it.
+
+    AVOIDED: indices into PASSAGE_MAP's passages (`right_of_way.PassageMap`); ROUTE_MAP: the
+    map's `route.RouteMap`; GOAL (2,) [m]. None too where the goal lies in one of them.
+    """
+    if int(passage_map.passage_at(goal[None])[0]) in avoided:
+        return None
+    closed = [passage_map.passages[index].cells for index in sorted(avoided)]
+    tree = route_map.without(np.concatenate(closed)).tree_to(goal)
+    return tree if tree.goal_cell is not None else None

@@ -75,6 +75,7 @@ from prvo_planner.agent import (
     same_grid,
 )
 from prvo_planner.background import BackgroundWorker
+from prvo_planner.detours import way_round
 from prvo_planner.maps import GridMap, MapTooLargeError
 from prvo_planner.parameters import (
     PARAMETERS,
@@ -116,10 +117,10 @@ _PARAMETERS = {name: (spec.default, parameter_descriptor(
 
 @dataclasses.dataclass(frozen=True)
 class _MapBuild:
-    """What the worker makes: a `BuiltMap`, or the ways to a goal (a `RouteTree`).
+    """What the worker makes: a `BuiltMap`, the ways to a goal or round a passage (`RouteTree`).
 
-    `future` gives it; `grid` is what it is made of (the `GridMap`, or the goal (2,)),
-    `started` when it began [s, monotonic].
+    `future` gives it; `grid` is what it is made of (the `GridMap`, the goal (2,), or the
+    agent's `way_round_wanted`), `started` when it began [s, monotonic].
     """
 
     future: concurrent.futures.Future
@@ -144,6 +145,8 @@ class PlannerNode(Node):
             self._robot, self._config, AgentSettings.from_parameters(self._values),
             self._goal if self._values['preferred_source'] == GOAL else None,
             self._neighbours_listed)
+        # A way round a passage is searched by the map worker too, never in a plan.
+        self._agent.search_ways_round = False
         self._steady_clock = Clock(clock_type=ClockType.STEADY_TIME)
         self._neighbour_subscriptions = {}
         self._last_command = None
@@ -512,9 +515,11 @@ class PlannerNode(Node):
         self._map_data = None
         # The worker's reads of map messages (Futures of a GridMap), oldest first.
         self._map_reads = collections.deque()
-        # The newest map being built and the newest goal's ways (`_MapBuild`), None when none.
+        # The newest map being built, the newest goal's ways and the way round a passage the
+        # robot waits at (`_MapBuild`), None when none.
         self._map_build = None
         self._route_build = None
+        self._way_round_search = None
         self._map_poll = self.create_timer(MAP_POLL_PERIOD, self._on_map_poll,
                                            clock=self._steady_clock, autostart=False)
         # What the robot published of its way, to publish it once per change.
@@ -581,9 +586,35 @@ class PlannerNode(Node):
                                       time.monotonic())
         self._map_poll.reset()
 
+    def _search_way_round(self):
+        """Have the worker search the way round the agent wants, unless it searches it now."""
+        wanted = self._agent.way_round_wanted
+        search = self._way_round_search
+        if wanted is None or (search is not None and search.grid[0] == wanted[0]
+                              and search.grid[1] is wanted[1]):
+            return
+        self._way_round_search = _MapBuild(self._map_builder.submit(way_round, *wanted),
+                                           wanted, time.monotonic())
+        self._map_poll.reset()
+
+    def _take_way_round(self):
+        """Hand the agent the way round the worker searched, if done."""
+        search = self._way_round_search
+        if search is None or not search.future.done():
+            return
+        self._way_round_search = None
+        self._stop_polling_when_idle()
+        try:
+            tree = search.future.result()
+        except Exception as error:
+            self._warnings.warn('way round', f'cannot search a way round a passage: {error!r}')
+            return
+        self._agent.install_way_round(search.grid, tree)
+
     @quiet_after_shutdown
     def _on_map_poll(self):
         self._take_read_maps()
+        self._take_way_round()
         taken = self._take_built_map()
         taken = self._take_route() or taken
         if taken and self._agent.ready(time.monotonic()):
@@ -592,7 +623,8 @@ class PlannerNode(Node):
 
     def _stop_polling_when_idle(self):
         """Stop looking at the worker once it has nothing of ours to read, build or search."""
-        if not self._map_reads and self._map_build is None and self._route_build is None:
+        if (not self._map_reads and self._map_build is None and self._route_build is None
+                and self._way_round_search is None):
             self._map_poll.cancel()
 
     def _take_route(self):
@@ -711,6 +743,7 @@ class PlannerNode(Node):
         self._sync_timer.cancel()
         self._take_built_map()
         self._take_route()
+        self._take_way_round()
         unheard = self._agent.unheard_listed() if self._last_command_stamp is None else []
         if unheard:
             self.get_logger().warning(
@@ -720,6 +753,7 @@ class PlannerNode(Node):
         started = time.perf_counter()
         command = self._agent.plan()
         plan_time_ms = (time.perf_counter() - started) * 1e3
+        self._search_way_round()
         if command.arrival:
             self.get_logger().info(f'arrived at {self._agent.goal.tolist()}')
         if command.awaiting_map and not self._told_awaiting_map:
