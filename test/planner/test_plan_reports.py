@@ -116,3 +116,12 @@ def test_a_stalled_robot_warns_with_its_position_and_the_conditions_that_bind():
     result = commands[-1].result
     assert float(values['stall.binding.0.bound']) == round(float(result.neighbour_bounds[0]), 4)
     assert values['stall.binding.0.kind'] in ('cantelli', 'certified')
+
+
+def test_a_node_s_cpu_times_are_reported_and_none_without():
+    agent = PlannerAgent('self', PlannerConfig(), AgentSettings(), goal=[3.0, 0.0])
+    command = head_on(agent, np.random.default_rng(3), 1)[-1]
+    values = diagnostic_values(plan_status('self', command, 1.0, 'prvo', 0.3, (0.75, 2.5)))
+    assert (float(values['plan_cpu_ms']), float(values['node_cpu_ms'])) == (0.75, 2.5)
+    values = diagnostic_values(plan_status('self', command, 1.0, 'prvo', 0.3))
+    assert (values['plan_cpu_ms'], values['node_cpu_ms']) == ('none', 'none')

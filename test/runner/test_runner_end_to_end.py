@@ -14,7 +14,7 @@ SCHEMA_KEYS = {'scenario', 'method', 'eta', 'seed', 'mode', 'engine', 'ending', 
                'scripted_robots', 'success_rate',
                'collisions', 'min_separation', 'wall_contacts', 'min_wall_clearance',
                'makespan', 'mean_time_to_goal',
-               'infeasible_fraction', 'min_achieved_eta', 'planner_ms',
+               'infeasible_fraction', 'min_achieved_eta', 'planner_ms', 'planner_cpu',
                'deadline_misses', 'sim_time', 'wall_time'}
 
 
@@ -46,6 +46,9 @@ def test_headon2_both_arrive_without_contact(headon2_run):
         assert robot['path_length'] >= 7.8 - 1e-6
         assert 7.8 / 1.0 <= robot['time_to_goal'] <= recorded['makespan']
     assert recorded['planner_ms']['median'] > 0.0
+    # The planner nodes' CPU per plan, and the plans' own share of it.
+    assert recorded['planner_cpu']['node_ms']['median'] > 0.0
+    assert 0.0 < recorded['planner_cpu']['planning_share'] <= 1.0
 
     with open(out / 'trajectories.csv') as csv_file:
         rows = list(csv.DictReader(csv_file))

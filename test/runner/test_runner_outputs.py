@@ -4,10 +4,11 @@ import dataclasses
 import json
 import math
 
+import pytest
 from runner_testing import FAKE_CHILD, HEADON, runner_domain, start_runner
 
 from prvo_sim import run_scenario
-from prvo_sim.runner.outputs import Ending, Recording
+from prvo_sim.runner.outputs import Ending, Recording, planner_cpu
 from prvo_sim.scenario import load_scenario
 
 FAKE_TEAM = ['--sim-command', f'{FAKE_CHILD} run', '--planner-command', f'{FAKE_CHILD} planner']
@@ -64,6 +65,8 @@ def test_metrics_json_is_strict_json(tmp_path):
 
     recorded = json.loads((tmp_path / 'metrics.json').read_text(), parse_constant=refuse)
     assert recorded['planner_ms']['max'] is None
+    assert recorded['planner_cpu'] == {'node_ms': {'median': None, 'p95': None, 'max': None},
+                                       'planning_share': None}
     assert recorded['wall_time'] is None
     assert recorded['failure'] == 'a failure' and recorded['ending'] == 'failed'
 
@@ -130,3 +133,8 @@ def test_a_run_ended_at_a_step_needs_that_steps_answers_and_ignores_later_steps(
                                       until=0.3)
     assert 'command' in gap and 't = 0.3' in gap
 
+
+def test_the_planner_nodes_cpu_is_summarised_with_the_share_of_planning():
+    summary = planner_cpu([(2.0, 10.0), (4.0, 10.0), (3.0, 40.0)])
+    assert summary['node_ms'] == {'median': 10.0, 'p95': pytest.approx(37.0), 'max': 40.0}
+    assert summary['planning_share'] == pytest.approx(9.0 / 60.0)

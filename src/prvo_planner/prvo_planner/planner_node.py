@@ -170,6 +170,9 @@ class PlannerNode(Node):
             self._twist_type, self._cmd_vel_topic, CMD_VEL_QOS,
             event_callbacks=quiet_publisher_events())
         self._reporter = PlanReporter(self, self._robot)
+        # The process's CPU time [s] at the plan before (`PlanReporter`'s node CPU), None before
+        # the first.
+        self._process_cpu = None
         # The passage ends without a waiting spot this robot has waited at (reported once).
         self._ends_without_spot = set()
         self._announcer = Announcer(self, self._robot)
@@ -750,9 +753,15 @@ class PlannerNode(Node):
                 f"first plan without {', '.join(unheard)}: not heard in full (odometry, "
                 f"footprint, share) within neighbor_timeout "
                 f"{self._values['neighbor_timeout']:g} s")
-        started = time.perf_counter()
+        started, plan_cpu = time.perf_counter(), time.thread_time()
         command = self._agent.plan()
         plan_time_ms = (time.perf_counter() - started) * 1e3
+        # CPU of the plan itself and of the whole process since the plan before: every
+        # callback, DDS's threads and the map worker (a step's worth in lockstep).
+        process_cpu = time.process_time()
+        cpu_ms = None if self._process_cpu is None else (
+            (time.thread_time() - plan_cpu) * 1e3, (process_cpu - self._process_cpu) * 1e3)
+        self._process_cpu = process_cpu
         self._search_way_round()
         if command.arrival:
             self.get_logger().info(f'arrived at {self._agent.goal.tolist()}')
@@ -795,7 +804,8 @@ class PlannerNode(Node):
                 self.get_logger().warning(no_spot_message(self._robot, decision))
         self._reporter.report(
             time.monotonic(), self._values['status_period'], command, plan_time_ms,
-            self._config, self._agent.settings.planning_radius, self._values['frame_id'])
+            self._config, self._agent.settings.planning_radius, self._values['frame_id'],
+            cpu_ms)
 
 
     def _command_message(self, command):

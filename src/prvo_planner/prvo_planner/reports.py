@@ -45,7 +45,7 @@ def command_message(robot, command, stamped):
     return make_twist(velocity, turn_rate)
 
 
-def plan_status(robot, command, plan_time_ms, model, planning_radius):
+def plan_status(robot, command, plan_time_ms, model, planning_radius, cpu_ms=None):
     """Return the `prvo_planner/<ROBOT>` DiagnosticStatus of COMMAND (an agent `Command`).
 
     PLANNING_RADIUS [m] is the ego radius the plan used (grown by a unicycle's tracking error):
@@ -64,7 +64,10 @@ def plan_status(robot, command, plan_time_ms, model, planning_radius):
     where no waiting spot fits at its end, that it holds its place (`no_spot_message`).
     `idle_in_passage` names the neighbours that stood in the passage on the robot's route too
     long and claim nothing (comma-separated; 'none'), and the message says so of each
-    (`idle_message`).
+    (`idle_message`). CPU_MS, a planner node's (plan, node) CPU times [ms], gives `plan_cpu_ms`,
+    the plan's own, and `node_cpu_ms`, the whole process's since the plan before (every
+    callback, the middleware's threads, the map worker); 'none' without (the in-process engine,
+    a node's first plan).
     """
     result = command.result
     feasible = True if result is None else bool(result.feasible)
@@ -106,7 +109,9 @@ def plan_status(robot, command, plan_time_ms, model, planning_radius):
          'tally_stamp': _or_none(tally.last_stamp), **stall_values(command),
          **command.announcement_values(), **command.route_values(),
          **right_of_way_values(decision),
-         'idle_in_passage': ','.join(command.idle_in_passage) or 'none'},
+         'idle_in_passage': ','.join(command.idle_in_passage) or 'none',
+         'plan_cpu_ms': 'none' if cpu_ms is None else cpu_ms[0],
+         'node_cpu_ms': 'none' if cpu_ms is None else cpu_ms[1]},
         level=(DiagnosticStatus.OK if feasible and not stalled and inside is None
                else DiagnosticStatus.WARN),
         hardware_id=robot)
@@ -246,15 +251,18 @@ class PlanReporter:
             MarkerArray, MARKERS, MARKER_QOS, event_callbacks=quiet_publisher_events())
         self._reported_at = -math.inf
 
-    def report(self, now, period, command, plan_time_ms, config, planning_radius, frame_id):
+    def report(self, now, period, command, plan_time_ms, config, planning_radius, frame_id,
+               cpu_ms=None):
         """Publish COMMAND's status and markers unless the last report is under PERIOD old.
 
-        NOW and PERIOD are in seconds of one clock; CONFIG is the planner's PlannerConfig.
+        NOW and PERIOD are in seconds of one clock; CONFIG is the planner's PlannerConfig;
+        CPU_MS as for `plan_status`.
         """
         if now - self._reported_at < period:
             return
         self._reported_at = now
-        status = plan_status(self._robot, command, plan_time_ms, config.model, planning_radius)
+        status = plan_status(self._robot, command, plan_time_ms, config.model, planning_radius,
+                             cpu_ms)
         self.diagnostics_publisher.publish(make_diagnostic_array(command.stamp, [status]))
         if self.marker_publisher.get_subscription_count() == 0:
             # Markers take about 0.6 ms to build: only for a listener.

@@ -32,11 +32,24 @@ RUN_RESULTS = ('trajectories.csv', 'trajectories.png', 'trajectories.gif', 'metr
 AGGREGATED_KEYS = ('success_rate', 'collisions', 'min_separation', 'wall_contacts',
                    'min_wall_clearance', 'makespan',
                    'mean_time_to_goal', 'infeasible_fraction', 'min_achieved_eta',
-                   'planner_ms.median', 'planner_ms.p95', 'planner_ms.max', 'deadline_misses',
+                   'planner_ms.median', 'planner_ms.p95', 'planner_ms.max',
+                   'planner_cpu.node_ms.median', 'planner_cpu.planning_share', 'deadline_misses',
                    'sim_time', 'wall_time')
 # The right of way's states as trajectories.csv names them.
 TURN_NAMES = {NONE: 'none', GOES: 'goes', WAITS: 'waits'}
 
+
+
+def planner_cpu(pairs):
+    """Return metrics.json's `planner_cpu` of the (plan, node) CPU times [ms] PAIRS.
+
+    `node_ms`: the planner nodes' process CPU per plan (median, p95, max); `planning_share`:
+    the plans' own share of it, None without pairs (the in-process engine).
+    """
+    pairs = np.asarray(pairs, dtype=float).reshape(-1, 2)
+    total = float(pairs[:, 1].sum())
+    return {'node_ms': metrics.distribution_summary(pairs[:, 1]),
+            'planning_share': float(pairs[:, 0].sum()) / total if total > 0.0 else None}
 
 class OutputError(Exception):
     """A result (metrics.json, trajectories.csv) could not be written; one line says why."""
@@ -67,7 +80,8 @@ class Recording:
     bag (`runner.bag.BagMessages`), None when not recorded; `plan_tallies` {robot: (plans,
     infeasible plans, lowest achieved eta)} of the planned robots that planned, None where
     unknown; `turns` who held each passage and who waited at each step (`prvo_sim.turns.Turns`),
-    None where unknown (a ROS run).
+    None where unknown (a ROS run); `planner_cpu_ms` the (plan, node) CPU times [ms] the
+    planner nodes reported (`reports.plan_status`), none on the in-process engine.
     """
 
     times: np.ndarray
@@ -79,6 +93,7 @@ class Recording:
     bag_messages: object = None
     plan_tallies: dict = None
     turns: object = None
+    planner_cpu_ms: tuple = ()
 
     @classmethod
     def empty(cls, robot_count):
@@ -146,6 +161,7 @@ def write_outputs(spec, recording, ending, failure, wall_time):
         'makespan': measured['makespan'],
         'mean_time_to_goal': measured['mean_time_to_goal'],
         'planner_ms': metrics.distribution_summary(list(recording.plan_times_ms)),
+        'planner_cpu': planner_cpu(recording.planner_cpu_ms),
         'deadline_misses': recording.deadline_misses,
         'sim_time': measured['sim_time'],
         'wall_time': round(wall_time, 3),
@@ -410,6 +426,12 @@ def print_summary(run_metrics, out_dir):
           f"{_format(planner_ms['p95'])}/{_format(planner_ms['max'])}; deadline misses "
           f"{run_metrics['deadline_misses']}; sim {_format(run_metrics['sim_time'], '', 1)} s "
           f"in {_format(run_metrics['wall_time'], '', 1)} s wall")
+    cpu = run_metrics['planner_cpu']
+    if cpu['planning_share'] is not None:
+        node_ms = cpu['node_ms']
+        print(f"  planner node CPU ms per plan median/p95/max {_format(node_ms['median'])}/"
+              f"{_format(node_ms['p95'])}/{_format(node_ms['max'])}, "
+              f"{100.0 * cpu['planning_share']:.0f}% of it planning")
     written = [name for name in RUN_RESULTS if (out_dir / name).exists()]
     if (out_dir / BAG_FOLDER).is_dir():
         written.append(f'{BAG_FOLDER}/')

@@ -96,6 +96,8 @@ class Recorder:
                                 dict.fromkeys(self.robot_names, 0))
                          for kind in ('ground_truth', 'commands')}
         self.plan_times_ms = []
+        # The planner nodes' (plan, node) CPU times [ms] (`reports.plan_status`).
+        self.planner_cpu_ms = []
         # The simulator's latest prvo_sim status (world_messages.SimStatus), None before.
         self.sim_status = None
         # Called with every DiagnosticArray received (the team benchmark times steps so).
@@ -323,6 +325,9 @@ class Recorder:
                 if value is not None:
                     with contextlib.suppress(ValueError):
                         self.plan_times_ms.append(float(value))
+                with contextlib.suppress(KeyError, ValueError):
+                    self.planner_cpu_ms.append((float(values['plan_cpu_ms']),
+                                                float(values['node_cpu_ms'])))
                 self._take_tally(status.name.removeprefix('prvo_planner/'), values)
         for listener in self.diagnostics_listeners:
             listener(message)
@@ -512,7 +517,8 @@ class Recorder:
                          tuple(self.plan_times_ms),
                          None if status is None else status.deadline_misses,
                          yaws=states[..., 4], bag_messages=bag_messages,
-                         plan_tallies=self.plan_tallies(until))
+                         plan_tallies=self.plan_tallies(until),
+                         planner_cpu_ms=tuple(self.planner_cpu_ms))
 
 
 def _shortened(items):
