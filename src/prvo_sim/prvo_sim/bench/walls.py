@@ -61,7 +61,8 @@ METHODS = ('prvo', 'rvo', 'inflate')
 PEERS = ('rvo2-orca', 'navground-orca', 'navground-hl')
 PEER_PACKAGES = {'rvo2-orca': 'pyrvo', 'navground-orca': 'navground',
                  'navground-hl': 'navground'}
-NAVGROUND_BEHAVIORS = {'navground-orca': 'ORCA', 'navground-hl': 'HL'}
+# navground-hrvo is not among PEERS: the engine benchmark runs it (`bench.engine`).
+NAVGROUND_BEHAVIORS = {'navground-orca': 'ORCA', 'navground-hrvo': 'HRVO', 'navground-hl': 'HL'}
 # A wall of no thickness is given to RVO2 as a polygon this wide [m]: an RVO2 obstacle of two
 # vertices is a segment only one side of which is tested.
 THIN_WALL_WIDTH = 0.002
@@ -151,14 +152,17 @@ def peer_world(scenario):
         disc_radii=world.disc_radii)
 
 
-def importable_peers(peers, notes):
-    """Return those of PEERS whose package imports here; note (and print) each that does not."""
+def importable_peers(peers, notes, packages=PEER_PACKAGES):
+    """Return those of PEERS whose package imports here; note (and print) each that does not.
+
+    PACKAGES maps a peer to the package it needs.
+    """
     found = []
     for peer in peers:
         try:
-            importlib.import_module(PEER_PACKAGES[peer])
+            importlib.import_module(packages[peer])
         except ImportError:
-            notes.append(f'{peer}: {PEER_PACKAGES[peer]} is not importable here, skipped')
+            notes.append(f'{peer}: {packages[peer]} is not importable here, skipped')
             print(f'note: {notes[-1]}', flush=True)
             continue
         found.append(peer)
