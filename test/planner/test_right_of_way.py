@@ -199,6 +199,26 @@ def test_a_robot_held_behind_a_leader_stands_without_a_spot_or_a_wall(door):
     assert not decision.goes and decision.waiting_spot is None and decision.wall is None
 
 
+def test_at_two_ends_robots_conflict_when_head_on_at_more_when_their_ways_out_differ():
+    # Two ends: head-on is one coming in by the end the other leaves by, or both inside and
+    # leaving by different ends; every pair of uses.
+    uses = ([PassageUse('out', 0, entry, exit_end, 1.0)
+             for entry in (0, 1) for exit_end in (1 - entry, None)]
+            + [PassageUse('in', 0, None, exit_end, 1.0) for exit_end in (0, 1, None)])
+    for first, second in itertools.product(uses, repeat=2):
+        head_on = (first.exit != second.exit if first.inside and second.inside else
+                   (first.entry is not None and first.entry == second.exit)
+                   or (second.entry is not None and second.entry == first.exit))
+        assert conflict(first, second) == head_on, (first, second)
+    # Three ends (pillars12's gaps): ways out by different ends cross once both are in, also
+    # for two that come in by the same end or one outside and one inside; the same way out
+    # never conflicts. Else a robot let in by one rule is sent back out by the other.
+    assert conflict(PassageUse('a', 0, 0, 1, 1.0), PassageUse('b', 0, 0, 2, 1.5))
+    assert conflict(PassageUse('a', 0, 1, 2, 1.0), PassageUse('b', 0, None, 0, 2.0))
+    assert not conflict(PassageUse('a', 0, 0, 2, 1.0), PassageUse('b', 0, 1, 2, 1.0))
+    assert not conflict(PassageUse('a', 0, 1, 2, 1.0), PassageUse('b', 0, None, 2, 2.0))
+
+
 @pytest.mark.parametrize('ends, with_came', [(2, False), (3, True)])
 def test_every_robot_computing_the_order_finds_no_two_that_meet_both_going(ends, with_came):
     # The property that makes the rule safe to decide apart: from the same uses, of any two
