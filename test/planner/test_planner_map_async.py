@@ -304,3 +304,29 @@ def test_a_way_round_a_passage_is_searched_beside_the_plans(map_node, held, monk
     points = np.concatenate([np.linspace(a, b, 40)
                              for a, b in zip(route[:-1], route[1:], strict=True)])
     assert (agent.passage_map.passage_at(points) != use.passage).all()
+
+
+def test_a_way_round_that_cannot_be_searched_is_none_and_asked_for_no_more(map_node, held,
+                                                                           monkeypatch):
+    node, agent = map_node, map_node._agent
+    held.release.set()
+    _send_map(node, 30)
+    _spin_until(node, lambda: agent.grid_map is not None)
+    _own_odometry(node, 0.1)
+    position = np.array([3.0, 1.0])
+    use = agent.passage_map.use_of('robot_0', position, agent._route)
+    end = agent.passage_map.passages[use.passage].ends[use.entry]
+    agent._detours.update(0.1, Decision(use, False, end.waiting_spot, None, end.entrance),
+                          position, 4.0, 1.0, agent.route_map, agent.passage_map, agent.goal,
+                          search=agent.search_ways_round)
+    warnings = []
+    monkeypatch.setattr(node.get_logger(), 'warning', warnings.append)
+
+    def failing(*arguments):
+        raise MemoryError('no room for the search')
+
+    monkeypatch.setattr(planner_node_module, 'way_round', failing)
+    _own_odometry(node, 0.2)
+    _spin_until(node, lambda: agent.way_round_wanted is None)
+    assert agent._detours._trees[frozenset({use.passage})] is None
+    assert any('cannot search a way round a passage' in warning for warning in warnings)

@@ -610,8 +610,9 @@ class PlannerNode(Node):
         try:
             tree = search.future.result()
         except Exception as error:
+            # Counted as no way round: the robot waits its turn, and asks no more.
             self._warnings.warn('way round', f'cannot search a way round a passage: {error!r}')
-            return
+            tree = None
         self._agent.install_way_round(search.grid, tree)
 
     @quiet_after_shutdown
