@@ -263,8 +263,12 @@ def test_a_new_goal_waits_for_its_ways_while_the_goal_before_holds(map_node, hel
     assert agent.pending_stamp is None and agent._route_tree is tree
 
 
-def test_a_way_round_a_passage_is_searched_beside_the_plans(map_node, held, monkeypatch):
-    node, agent = map_node, map_node._agent
+def _waiting_at_a_passage(node, held, position):
+    """Give NODE its map and make its robot at POSITION (2,) wait at the passage on its route.
+
+    Return the robot's `PassageUse`. Its plan then wants the way round, and does not search it.
+    """
+    agent = node._agent
     held.release.set()
     # A wall across the room leaves a gap 1 m wide at each end: two passages, one way round the
     # other.
@@ -272,14 +276,19 @@ def test_a_way_round_a_passage_is_searched_beside_the_plans(map_node, held, monk
     _spin_until(node, lambda: agent.grid_map is not None)
     assert len(agent.passage_map.passages) == 2
     _own_odometry(node, 0.1)
-    position = np.array([3.0, 1.0])
     use = agent.passage_map.use_of('robot_0', position, agent._route)
     end = agent.passage_map.passages[use.passage].ends[use.entry]
-    # The robot waits at the passage its route takes (as a neighbour coming through would make
-    # it): its plan wants the way round, and does not search it.
+    # As a neighbour coming through would make it.
     agent._detours.update(0.1, Decision(use, False, end.waiting_spot, None, end.entrance),
                           position, 4.0, 1.0, agent.route_map, agent.passage_map, agent.goal,
                           search=agent.search_ways_round)
+    return use
+
+
+def test_a_way_round_a_passage_is_searched_beside_the_plans(map_node, held, monkeypatch):
+    node, agent = map_node, map_node._agent
+    position = np.array([3.0, 1.0])
+    use = _waiting_at_a_passage(node, held, position)
     wanted = agent.way_round_wanted
     assert wanted is not None and wanted[0] == {use.passage}
     searching, release = threading.Event(), threading.Event()
@@ -309,16 +318,7 @@ def test_a_way_round_a_passage_is_searched_beside_the_plans(map_node, held, monk
 def test_a_way_round_that_cannot_be_searched_is_none_and_asked_for_no_more(map_node, held,
                                                                            monkeypatch):
     node, agent = map_node, map_node._agent
-    held.release.set()
-    _send_map(node, 30)
-    _spin_until(node, lambda: agent.grid_map is not None)
-    _own_odometry(node, 0.1)
-    position = np.array([3.0, 1.0])
-    use = agent.passage_map.use_of('robot_0', position, agent._route)
-    end = agent.passage_map.passages[use.passage].ends[use.entry]
-    agent._detours.update(0.1, Decision(use, False, end.waiting_spot, None, end.entrance),
-                          position, 4.0, 1.0, agent.route_map, agent.passage_map, agent.goal,
-                          search=agent.search_ways_round)
+    use = _waiting_at_a_passage(node, held, np.array([3.0, 1.0]))
     warnings = []
     monkeypatch.setattr(node.get_logger(), 'warning', warnings.append)
 
