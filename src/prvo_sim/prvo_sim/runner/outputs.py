@@ -39,7 +39,6 @@ AGGREGATED_KEYS = ('success_rate', 'collisions', 'min_separation', 'wall_contact
 TURN_NAMES = {NONE: 'none', GOES: 'goes', WAITS: 'waits'}
 
 
-
 def planner_cpu(pairs):
     """Return metrics.json's `planner_cpu` of the (plan, node) CPU times [ms] PAIRS.
 
@@ -50,6 +49,7 @@ def planner_cpu(pairs):
     total = float(pairs[:, 1].sum())
     return {'node_ms': metrics.distribution_summary(pairs[:, 1]),
             'planning_share': float(pairs[:, 0].sum()) / total if total > 0.0 else None}
+
 
 class OutputError(Exception):
     """A result (metrics.json, trajectories.csv) could not be written; one line says why."""
