@@ -39,6 +39,7 @@ import numpy as np
 from prvo_planner.core import AgentBelief, PlannerConfig, plan_velocities, plan_velocity
 from prvo_planner.core.obstacles import StaticObstacles
 from prvo_planner.encounters import EncounterDistribution, random_encounter
+from prvo_planner.heap import keep_freed_heap
 from prvo_planner.parameters import planner_config_from
 
 NEIGHBOURS = (1, 5, 10, 20, 50)
@@ -408,6 +409,7 @@ def main(argv=None):
     parser.add_argument('--top', type=int, default=PROFILE_TOP,
                         help='functions of each --profile row listed per table')
     arguments = parser.parse_args(argv)
+    keep_freed_heap()
     clock = time.perf_counter if arguments.clock == 'wall' else time.process_time
     if arguments.profile:
         rows = run_profile(arguments.repeats, clock)

@@ -76,6 +76,7 @@ from prvo_planner.agent import (
 )
 from prvo_planner.background import BackgroundWorker
 from prvo_planner.detours import way_round
+from prvo_planner.heap import keep_freed_heap
 from prvo_planner.maps import GridMap, MapTooLargeError
 from prvo_planner.parameters import (
     PARAMETERS,
@@ -837,6 +838,7 @@ def _type_name(msg_type):
 
 def main(args=None):
     """Run one planner until Ctrl-C; exit 2 with a clear message on an invalid parameter."""
+    keep_freed_heap()
     # PlannerNode logs an invalid parameter under its own name.
     return run_node(warmed_up_planner, 'planner', (
         ParameterError, InvalidParameterTypeException, InvalidParameterValueException), args,

@@ -44,6 +44,7 @@ from prvo_planner.agent import (
     PlannerAgent,
 )
 from prvo_planner.core import plan_velocities
+from prvo_planner.heap import keep_freed_heap
 from prvo_planner.maps import GridMap
 from prvo_planner.parameters import planner_config_from
 from prvo_planner.preferred import GOAL, UpstreamCommand
@@ -136,6 +137,7 @@ class InProcessTeam:
         if len(planner_values) != len(scenario.robots):
             raise ValueError(f'planner_values has {len(planner_values)} entries for '
                              f'{len(scenario.robots)} robots')
+        keep_freed_heap()
         self.world = TeamWorld(scenario, seed)
         for robot, values in zip(scenario.robots, planner_values, strict=True):
             if (values is None) != (robot.scripted is not None):
