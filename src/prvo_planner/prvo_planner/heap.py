@@ -9,8 +9,9 @@ M_MMAP_THRESHOLD = -3
 # Free memory at the top of the heap that glibc keeps rather than returns to the kernel, and the
 # size from which a block is mapped on its own instead of taken from the heap. A plan at 50
 # neighbours allocates arrays of 130 KB to a few MB and frees them before the next: with glibc's
-# defaults (128 KiB each, raised only by what the process freed before) the next plan faults
-# those pages in again, about 300 minor faults and 1 ms per ray search (docs/results.md, 5.8).
+# defaults (128 KiB each, raised only by what the process freed before) the next plan may fault
+# those pages in again: about 1,000 minor faults and 1-3.5 ms per plan (docs/results.md, 5.8).
+# 32 MiB is the largest mmap limit glibc's own adjustment reaches.
 TRIM_THRESHOLD = 64 * 1024 * 1024
 MMAP_THRESHOLD = 32 * 1024 * 1024
 
