@@ -10,9 +10,14 @@ from prvo_planner.core.config import PlannerConfig
 from prvo_planner.core.obstacles import StaticObstacles
 from prvo_planner.core.walls import certifiable_width
 from prvo_planner.lanes import (
+    ABREAST_AHEAD,
     AHEAD,
     CONE,
     FADE,
+    FALL_BACK,
+    LANE_LENGTH,
+    LANE_SLACK,
+    LANES,
     ONCOMING_SPEED,
     RANGE,
     WALL_LEAN,
@@ -140,7 +145,8 @@ def test_a_narrowing_ahead_straightens_the_robot_up_before_it():
 def test_among_walls_the_lean_is_at_most_the_wall_lean_in_open_space_the_whole_angle():
     coming = neighbour([3.0, 0.0], [-1.0, 0.0])
     v_pref = np.array([1.0, 0.0])
-    wide = corridor(2.0 * certifiable_width(EGO, CONFIG) + 1.0)
+    # A hall: wider than a corridor of two lanes.
+    wide = corridor(LANES * certifiable_width(EGO, CONFIG) + 1.0)
     angle = WALL_LEAN + 0.2
     turned, lean = keep_right(v_pref, angle, EGO, [coming], 5.0, None, CONFIG)
     assert lean == angle
@@ -151,6 +157,79 @@ def test_among_walls_the_lean_is_at_most_the_wall_lean_in_open_space_the_whole_a
     # A smaller angle is taken as it is among walls too.
     assert keep_right(v_pref, 0.5 * WALL_LEAN, EGO, [coming], 5.0, wide, CONFIG)[1] == (
         0.5 * WALL_LEAN)
+
+
+def lane_lean(width, across, angle):
+    """Return the lean [rad] toward its lane of a robot ACROSS [m] left of a corridor's middle.
+
+    The corridor along x is WIDTH [m] clear; the robot (EGO's radius) heads along +x. Its
+    centre can be within the radius of either wall; its lane's middle is halfway between the
+    corridor's middle and the farthest right its centre can be.
+    """
+    lane_middle = 0.5 * (-(0.5 * width - EGO.radius))
+    return min(angle, math.atan2(max(across - lane_middle, 0.0), AHEAD))
+
+
+@pytest.mark.parametrize('across', [0.6, 0.0, -0.3, -0.5])
+def test_in_a_corridor_of_two_lanes_the_robot_leans_toward_the_middle_of_its_lane(across):
+    width = 3.0 * certifiable_width(EGO, CONFIG)
+    ego = AgentBelief([0.0, across], [1.0, 0.0], NOISE, 0.25)
+    coming = neighbour([3.0, 0.0], [-1.0, 0.0])
+    v_pref = np.array([1.0, 0.0])
+    turned, lean = keep_right(v_pref, 0.5, ego, [coming], 5.0, corridor(width), CONFIG)
+    assert lean == pytest.approx(lane_lean(width, across, 0.5), abs=1e-12)
+    assert angle_to_right(v_pref, turned) == pytest.approx(lean, abs=1e-12)
+    assert np.hypot(*turned) == pytest.approx(1.0)
+    # Farther from its lane than the angle reaches, the whole angle; in it or right of it, none.
+    assert (lean == 0.5) is (across == 0.6)
+    assert (lean == 0.0) is (across == -0.5)
+    # Meeting nobody, as it is.
+    turned, lean = keep_right(v_pref, 0.5, ego, [], 5.0, corridor(width), CONFIG)
+    assert lean == 0.0 and turned is v_pref
+
+
+@pytest.mark.parametrize('position, velocity, across, falls_back', [
+    ([0.1, -0.3], [1.0, 0.0], 0.3, True),  # abreast on its right, going its way
+    ([-0.45, -0.3], [1.0, 0.0], 0.3, True),  # just behind, abreast still
+    ([0.5 + ABREAST_AHEAD + 0.05, -0.3], [1.0, 0.0], 0.3, False),  # ahead: it follows
+    ([-0.55, -0.3], [1.0, 0.0], 0.3, False),  # behind: it goes first
+    ([0.1, -0.3], [-1.0, 0.0], 0.3, False),  # abreast, coming the other way
+    ([0.1, -0.3], [0.5 * ONCOMING_SPEED, 0.0], 0.3, False),  # abreast, standing
+    ([0.1, 0.8], [1.0, 0.0], 0.3, False),  # abreast on its left
+    ([0.1, -0.3], [1.0, 0.0], -0.3, False),  # within the slack of its lane itself
+])
+def test_out_of_its_lane_beside_one_going_its_way_the_robot_falls_in_behind(
+        position, velocity, across, falls_back):
+    width = 3.0 * certifiable_width(EGO, CONFIG)
+    ego = AgentBelief([0.0, across], [1.0, 0.0], NOISE, 0.25)
+    beside = neighbour(np.array(position) + [0.0, across], velocity)
+    coming = neighbour([3.0, 0.0], [-1.0, 0.0])
+    v_pref = np.array([1.0, 0.0])
+    turned, lean = keep_right(v_pref, 0.5, ego, [coming, beside], 5.0, corridor(width), CONFIG)
+    assert lean == pytest.approx(lane_lean(width, across, 0.5), abs=1e-12)
+    # Out of its lane by more than the slack where it falls back.
+    assert (across - 0.5 * (-(0.5 * width - EGO.radius)) > LANE_SLACK) is (across == 0.3)
+    assert np.hypot(*turned) == pytest.approx(FALL_BACK if falls_back else 1.0)
+
+
+def test_a_corridor_of_two_lanes_is_from_two_to_lanes_widths():
+    needed = certifiable_width(EGO, CONFIG)
+    ego = AgentBelief([0.0, 0.3], [1.0, 0.0], NOISE, 0.25)
+    coming = neighbour([3.0, 0.0], [-1.0, 0.0])
+    v_pref = np.array([1.0, 0.0])
+    for width, lean in ((2.0 * needed + 0.05, lane_lean(2.0 * needed + 0.05, 0.3, 0.5)),
+                        (LANES * needed - 0.05, lane_lean(LANES * needed - 0.05, 0.3, 0.5)),
+                        (LANES * needed + 0.05, WALL_LEAN)):
+        assert keep_right(v_pref, 0.5, ego, [coming], 5.0, corridor(width), CONFIG)[1] == (
+            pytest.approx(lean, abs=1e-12))
+    # Its end, a wall across it, within LANE_LENGTH ahead (a door across it, a turn): the lean
+    # of open space among walls.
+    width = 3.0 * needed
+    end = 0.9 * LANE_LENGTH
+    ending = walls([[[-20.0, 0.5 * width], [end, 0.5 * width]],
+                    [[-20.0, -0.5 * width], [end, -0.5 * width]],
+                    [[end, -0.5 * width], [end, 0.5 * width]]])
+    assert keep_right(v_pref, 0.5, ego, [coming], 5.0, ending, CONFIG)[1] == WALL_LEAN
 
 
 def met_one_by_one(position, direction, neighbours):

@@ -67,7 +67,9 @@ def run(tmp_path, seed, give_way, on_step=None, **planner):
 
 
 def test_without_the_rule_the_robot_stops_in_front_of_the_two(tmp_path):
-    arrived, _ = run(tmp_path, 1, False, time_horizon=5.0)
+    # Without keeping right too: leaning toward its lane (`lanes.corridor_lane`) it pushes
+    # between them in the run's last seconds (at 29.7 s of 30).
+    arrived, _ = run(tmp_path, 1, False, time_horizon=5.0, keep_right=0.0)
     assert arrived[PASSING] is None
 
 

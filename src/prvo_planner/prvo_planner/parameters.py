@@ -306,7 +306,8 @@ _SPECS = (
     ParameterSpec('keep_right', FLOAT, KEEP_RIGHT, 'A robot meeting a neighbour coming toward '
                   'it turns its preferred velocity this much [rad] to its right, where the way '
                   'is wide enough for two (open space, or twice the width it needs to be '
-                  'certified through; among walls at most 0.3), fading over the last metre to '
+                  'certified through; among walls at most 0.3; in a corridor of two lanes '
+                  'toward the middle of its lane, at most this), fading over the last metre to '
                   'its goal; longer ways (a factor 1 / cos) for smoother flow. In [0, 0.8]; '
                   '0 = never.', (0.0, 0.8)),
     # Give way (`prvo_planner.give_way`): a robot at its goal, or held short of it, steps off

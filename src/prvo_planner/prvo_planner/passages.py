@@ -81,13 +81,23 @@ def way_width(obstacles, point, direction, length):
     """
     Return the clear width of the way from POINT, LENGTH [m] along DIRECTION: a straight strip.
 
+    The sum of `way_sides`.
+    """
+    left, right = way_sides(obstacles, point, direction, length)
+    return left + right
+
+
+def way_sides(obstacles, point, direction, length):
+    """
+    Return (left, right) [m]: the clear way from POINT, LENGTH [m] along DIRECTION, each side.
+
     The free distance to the left of the line from POINT (2,) along DIRECTION (2,) nonzero,
-    the least over the way, plus the same to the right, over the obstacles of OBSTACLES
+    the least over the way, and the same to the right, over the obstacles of OBSTACLES
     (`StaticObstacles`) beside the way (those whose extent along it overlaps [0, LENGTH]): inf
-    where a side is open all along, 0 where an obstacle reaches the line. This is the widest
-    strip along the way that no obstacle enters; unlike `clear_width` at a few points, it does
-    not step over a wall thinner than their spacing (a door's jambs). A wall's ends are
-    counted a half-width early (a conservative width, by at most the half-width).
+    where a side is open all along, both 0 where an obstacle reaches the line. Together the
+    widest strip along the way that no obstacle enters; unlike `clear_width` at a few points,
+    it does not step over a wall thinner than their spacing (a door's jambs). A wall's ends
+    are counted a half-width early (a conservative width, by at most the half-width).
     """
     unit = np.asarray(direction, dtype=float) / np.hypot(*direction)
     left = np.array([-unit[1], unit[0]])
@@ -114,7 +124,7 @@ def way_width(obstacles, point, direction, length):
         across_leave = across[:, 0] + leave * (across[:, 1] - across[:, 0])
         nearest = np.minimum(np.abs(across_enter), np.abs(across_leave)) - grown
         if np.any(overlaps & ((across_enter * across_leave <= 0.0) | (nearest <= 0.0))):
-            return 0.0
+            return 0.0, 0.0
         _narrow_sides(sides, overlaps, across_enter, nearest)
     if len(obstacles.disc_centres):
         relative = obstacles.disc_centres - point
@@ -125,9 +135,9 @@ def way_width(obstacles, point, direction, length):
         overlaps = beyond < radii
         nearest = np.abs(across) - np.sqrt(np.maximum(radii ** 2 - beyond ** 2, 0.0))
         if np.any(overlaps & (nearest <= 0.0)):
-            return 0.0
+            return 0.0, 0.0
         _narrow_sides(sides, overlaps, across, nearest)
-    return float(sides[0] + sides[1])
+    return float(sides[0]), float(sides[1])
 
 
 def _narrow_sides(sides, overlaps, across, nearest):
