@@ -319,3 +319,21 @@ def test_cost_terms_only_rank_velocities_that_meet_the_constraints(model, progre
 def test_choice_cost_weights_are_validated(field, value):
     with pytest.raises(ValueError, match=field):
         PlannerConfig(**{field: value})
+
+
+@pytest.mark.parametrize('count', [64, 12, 10])
+@pytest.mark.parametrize('seed', [None, 3])
+def test_candidate_headings_are_even_and_opposite_ones_exactly_opposite(count, seed):
+    config = PlannerConfig(num_directions=count, seed=seed)
+    ego = AgentBelief([0.0, 0.0], [0.0, 0.0], np.zeros((4, 4)), 0.25)
+    # A zero preference and a zero velocity add no direction: the grid alone.
+    directions = candidate_directions(ego, np.zeros(2), config)
+    angles = np.unwrap(np.arctan2(directions[:, 1], directions[:, 0]))
+    np.testing.assert_allclose(np.hypot(*directions.T), 1.0, rtol=0.0, atol=1e-15)
+    np.testing.assert_allclose(np.diff(angles), 2.0 * math.pi / count, rtol=0.0, atol=1e-12)
+    if count % 4 == 0:
+        # Two robots facing each other see mirror images, bit for bit (sin(pi) is not 0).
+        np.testing.assert_array_equal(directions[count // 2:], -directions[:count // 2])
+        if seed is None:
+            np.testing.assert_array_equal(directions[::count // 4],
+                                          [[1.0, 0.0], [0.0, 1.0], [-1.0, 0.0], [0.0, -1.0]])

@@ -144,8 +144,17 @@ def _headings(count, seed):
     offset = 0.0
     if seed is not None:
         offset = np.random.default_rng(seed).uniform(0.0, 2.0 * np.pi / count)
-    headings = offset + 2.0 * np.pi * np.arange(count) / count
-    directions = np.stack([np.cos(headings), np.sin(headings)], axis=1)
+    if count % 4 == 0:
+        # A quarter turned by exact quarter turns: opposite and perpendicular headings are
+        # exactly so (sin(pi) is 1.2e-16, not 0), and two robots facing each other see mirror
+        # images whatever rounding the machine's BLAS kernels bring.
+        quarter = offset + 2.0 * np.pi * np.arange(count // 4) / count
+        x, y = np.cos(quarter), np.sin(quarter)
+        directions = np.stack([np.concatenate([x, -y, -x, y]),
+                               np.concatenate([y, x, -y, -x])], axis=1) + 0.0
+    else:
+        headings = offset + 2.0 * np.pi * np.arange(count) / count
+        directions = np.stack([np.cos(headings), np.sin(headings)], axis=1)
     # Shared between calls: read-only so that no caller can alter the cached value.
     directions.flags.writeable = False
     return directions
