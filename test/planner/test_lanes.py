@@ -237,11 +237,14 @@ def met_one_by_one(position, direction, neighbours):
     unit = np.asarray(direction, dtype=float) / math.hypot(*direction)
     for other in neighbours:
         offset = other.position - position
-        ahead = float(offset @ unit)
+        # Products of 2-vectors component by component: a BLAS dot product may fuse them
+        # (OpenBLAS's AVX-512 kernels do), and an edge neighbour would round otherwise.
+        ahead = float(offset[0] * unit[0] + offset[1] * unit[1])
         across = abs(float(offset[0] * unit[1] - offset[1] * unit[0]))
         if (0.0 < ahead <= RANGE and across <= ahead * math.tan(CONE)
                 and math.hypot(ahead, across) <= RANGE
-                and float(other.velocity @ unit) < -ONCOMING_SPEED):
+                and float(other.velocity[0] * unit[0] + other.velocity[1] * unit[1])
+                < -ONCOMING_SPEED):
             return True
     return False
 
