@@ -30,38 +30,36 @@ _SIGNATURE = types.Tuple((types.int64[::1], types.float64[::1], types.float64[::
 _ROOTS = 4
 
 
-@jit()
-def _all_rejected(reject, base, conditions, has_receding, has_horizon, enabled):
-    """Whether every accepted alternative ``f or g or (h1 and h2) or h3`` is rejected."""
-    if not reject[base]:
-        return False
-    if has_receding and enabled and not reject[base + 1]:
-        return False
+@jit(inline='always')
+def _all_rejected(reject, segment, base, conditions, has_receding, has_horizon, enabled):
+    """Whether every alternative ``f or g or (h1 and h2) or h3`` is rejected on SEGMENT."""
+    # Without branches on the flags, which follow no pattern a processor could predict.
+    result = reject[segment, base]
+    if has_receding:
+        result &= (not enabled) | reject[segment, base + 1]
     if has_horizon:
-        if not (reject[base + conditions - 3] or reject[base + conditions - 2]):
-            return False
-        if not reject[base + conditions - 1]:
-            return False
-    return True
+        first = base + conditions - 3
+        result &= ((reject[segment, first] | reject[segment, first + 1])
+                   & reject[segment, first + 2])
+    return result
 
 
-@jit()
-def _some_accepted(accept, base, conditions, has_receding, has_horizon, enabled):
-    """Whether ``f or g or (h1 and h2) or h3`` holds, from per-condition ACCEPT flags."""
-    if accept[base]:
-        return True
-    if has_receding and enabled and accept[base + 1]:
-        return True
+@jit(inline='always')
+def _some_accepted(accept, segment, base, conditions, has_receding, has_horizon, enabled):
+    """Whether ``f or g or (h1 and h2) or h3`` holds, from ACCEPT flags (segment, row)."""
+    result = accept[segment, base]
+    if has_receding:
+        result |= enabled & accept[segment, base + 1]
     if has_horizon:
-        if accept[base + conditions - 3] and accept[base + conditions - 2]:
-            return True
-        if accept[base + conditions - 1]:
-            return True
-    return False
+        first = base + conditions - 3
+        result |= ((accept[segment, first] & accept[segment, first + 1])
+                   | accept[segment, first + 2])
+    return result
 
 
-@jit()
-def _relevant(reject, base, condition, conditions, has_receding, has_horizon, enabled):
+@jit(inline='always')
+def _relevant(reject, segment, base, condition, conditions, has_receding, has_horizon,
+              enabled):
     """
     Whether a condition's acceptance can change its pair's on a segment.
 
@@ -69,9 +67,9 @@ def _relevant(reject, base, condition, conditions, has_receding, has_horizon, en
     whole segment; their roots need not bound pieces.
     """
     if has_horizon and condition == conditions - 3:
-        return not reject[base + conditions - 2]
+        return not reject[segment, base + conditions - 2]
     if has_horizon and condition == conditions - 2:
-        return not reject[base + conditions - 3]
+        return not reject[segment, base + conditions - 3]
     if has_receding and condition == 1:
         return enabled
     return True
@@ -88,15 +86,18 @@ def _horner_column(coefficients, row, t):
 
 
 @jit()
-def _row_roots(test, row, quartic, quadratic_row, out):
-    """Write the roots of column ROW of TEST (L, K) into OUT (4,), NaN-padded."""
-    out[:] = np.nan
+def _row_roots(coefficients, row, quartic, quadratic_row, roots, test):
+    """Write the roots of column ROW of COEFFICIENTS (L, K) into ROOTS[TEST, ROW], NaN-padded."""
     if quadratic_row or not quartic:
         # g's quartic is a quadratic: its mean is linear and its variance quadratic in t.
-        out[0], out[1] = quadratic_roots(test[0, row], test[1, row], test[2, row])
+        roots[test, row, 0], roots[test, row, 1] = quadratic_roots(
+            coefficients[0, row], coefficients[1, row], coefficients[2, row])
+        roots[test, row, 2] = roots[test, row, 3] = np.nan
     else:
-        out[0], out[1], out[2], out[3] = polynomial_roots(
-            test[0, row], test[1, row], test[2, row], test[3, row], test[4, row])
+        (roots[test, row, 0], roots[test, row, 1], roots[test, row, 2],
+         roots[test, row, 3]) = polynomial_roots(
+            coefficients[0, row], coefficients[1, row], coefficients[2, row],
+            coefficients[3, row], coefficients[4, row])
 
 
 @jit(_SIGNATURE)
@@ -176,35 +177,51 @@ def team_gaps(means, variances, margins, link_ray, link_enabled, ray_local, pref
                              - margin_sq * variances[2, row])
             first[3, row] = linear * square * 2.0 - margin_sq * variances[3, row]
             first[4, row] = square * square - margin_sq * variances[4, row]
-    # Per (test, segment, row): certified >= 0, certified < 0.
-    nonnegative = np.empty((tests, SEGMENTS, count), dtype=np.bool_)
-    negative = np.empty((tests, SEGMENTS, count), dtype=np.bool_)
-    segment_certificates(first, nonnegative[0], negative[0])
+    # Per (test, segment, row): how many Bernstein coefficients are >= 0 (all of them: the
+    # test is certified >= 0 there; none: < 0).
+    counts = np.empty((tests, SEGMENTS, count), dtype=np.uint8)
+    segment_certificates(first, counts[0])
     if tests == 2:
-        segment_certificates(means, nonnegative[1], negative[1])
-    accept = nonnegative[0].copy()
-    reject = negative[0].copy()
-    for test in range(1, tests):
-        accept &= nonnegative[test]
-        reject |= negative[test]
-    # A segment of a ray is open unless some neighbour rejects all of it: (S, R).
-    open_segments = np.ones((SEGMENTS, rays), dtype=np.bool_)
+        segment_certificates(means, counts[1])
+    lengths = (first.shape[0], 3)
+    # Per (segment, row): every test certified >= 0, some test certified < 0.
+    accept = np.empty((SEGMENTS, count), dtype=np.bool_)
+    reject = np.empty((SEGMENTS, count), dtype=np.bool_)
+    for segment in range(SEGMENTS):
+        for row in range(count):
+            accept[segment, row] = counts[0, segment, row] == lengths[0]
+            if tests == 2:
+                accept[segment, row] &= counts[1, segment, row] == lengths[1]
+    for segment in range(SEGMENTS):
+        for row in range(count):
+            reject[segment, row] = counts[0, segment, row] == 0
+            if tests == 2:
+                reject[segment, row] |= counts[1, segment, row] == 0
+    # A segment of a ray is open unless some neighbour rejects all of it: (S, R). (One loop
+    # per result: storing both in one loop took ten times as long.)
     accept_pair = np.empty((SEGMENTS, links), dtype=np.bool_)
     for segment in range(SEGMENTS):
         for link in range(links):
-            base = link * conditions
-            enabled = link_enabled[link]
             accept_pair[segment, link] = _some_accepted(
-                accept[segment], base, conditions, has_receding, has_horizon, enabled)
-            if _all_rejected(reject[segment], base, conditions, has_receding, has_horizon,
-                             enabled):
+                accept, segment, link * conditions, conditions, has_receding, has_horizon,
+                link_enabled[link])
+    reject_pair = np.empty((SEGMENTS, links), dtype=np.bool_)
+    for segment in range(SEGMENTS):
+        for link in range(links):
+            reject_pair[segment, link] = _all_rejected(
+                reject, segment, link * conditions, conditions, has_receding, has_horizon,
+                link_enabled[link])
+    open_segments = np.ones((SEGMENTS, rays), dtype=np.bool_)
+    for segment in range(SEGMENTS):
+        for link in range(links):
+            if reject_pair[segment, link]:
                 open_segments[segment, link_ray[link]] = False
     # Units: (segment, link) on an open segment, not certified accepted there.
     open_unit = np.empty((SEGMENTS, links), dtype=np.bool_)
     for segment in range(SEGMENTS):
         for link in range(links):
-            open_unit[segment, link] = (not accept_pair[segment, link]
-                                        and open_segments[segment, link_ray[link]])
+            open_unit[segment, link] = ((not accept_pair[segment, link])
+                                        & open_segments[segment, link_ray[link]])
     # Only a condition undecided on a segment can split it, and only where its own test is;
     # each test's undecided rows need their roots.
     undecided = np.zeros((tests, SEGMENTS, count), dtype=np.bool_)
@@ -217,14 +234,16 @@ def team_gaps(means, variances, margins, link_ray, link_enabled, ray_local, pref
             for condition in range(conditions):
                 row = base + condition
                 if accept[segment, row] or reject[segment, row] or not _relevant(
-                        reject[segment], base, condition, conditions, has_receding,
+                        reject, segment, base, condition, conditions, has_receding,
                         has_horizon, link_enabled[link]):
                     continue
                 for test in range(tests):
-                    if not (nonnegative[test, segment, row] or negative[test, segment, row]):
+                    signs = counts[test, segment, row]
+                    if signs != 0 and signs != lengths[test]:
                         undecided[test, segment, row] = True
                         needed[test, row] = True
-    roots = np.full((tests, count, _ROOTS), np.nan)
+    # Per (test, row), written where needed (NaN for a quiet row).
+    roots = np.empty((tests, count, _ROOTS))
     inside = 0
     for test in range(tests):
         test_rows = first if test == 0 else means
@@ -233,9 +252,10 @@ def team_gaps(means, variances, margins, link_ray, link_enabled, ray_local, pref
                 continue
             # Quiet rows: a variance certified positive needs no cuts at the mean's roots.
             if test == 1 and not bernstein_may_vanish(variances, row):
+                roots[test, row, :] = np.nan
                 continue
             _row_roots(test_rows, row, test_rows.shape[0] == 5,
-                       has_receding and row % conditions == 1, roots[test, row])
+                       has_receding and row % conditions == 1, roots, test)
             for index in range(_ROOTS):
                 value = roots[test, row, index]
                 if value > 0.0 and value < 1.0:
@@ -251,7 +271,7 @@ def team_gaps(means, variances, margins, link_ray, link_enabled, ray_local, pref
     piece_ray = np.empty(units + inside, dtype=np.int64)
     rejected = 0
     cuts = np.empty(2 + tests * conditions * _ROOTS)
-    accepted = np.empty(conditions, dtype=np.bool_)
+    accepted = np.empty((1, conditions), dtype=np.bool_)
     for segment in range(SEGMENTS):
         for link in range(links):
             if not open_unit[segment, link]:
@@ -281,10 +301,10 @@ def team_gaps(means, variances, margins, link_ray, link_enabled, ray_local, pref
                 midpoint = 0.5 * (start + end)
                 for condition in range(conditions):
                     row = base + condition
-                    accepted[condition] = _horner_column(first, row, midpoint) >= 0.0
+                    accepted[0, condition] = _horner_column(first, row, midpoint) >= 0.0
                     if tests == 2:
-                        accepted[condition] &= _horner_column(means, row, midpoint) >= 0.0
-                if not _some_accepted(accepted, 0, conditions, has_receding, has_horizon,
+                        accepted[0, condition] &= _horner_column(means, row, midpoint) >= 0.0
+                if not _some_accepted(accepted, 0, 0, conditions, has_receding, has_horizon,
                                       link_enabled[link]):
                     piece_start[rejected] = start
                     piece_end[rejected] = end

@@ -23,7 +23,7 @@ from numba.extending import intrinsic
 import numpy as np
 
 
-def jit(*signature):
+def jit(*signature, inline='never'):
     """
     Compile a function of the ray search with numba, cached on disk where numba can write.
 
@@ -31,14 +31,17 @@ def jit(*signature):
     raising. The cache is ``__pycache__`` beside the source, else numba's user-wide directory
     (``NUMBA_CACHE_DIR``, else ``~/.cache/numba``); where none of them can be written (a
     read-only install and home) numba refuses to cache, and the function is compiled in memory
-    by every process instead.
+    by every process instead. ``inline='always'`` inlines a small helper where it is called
+    (numba's own inlining: no call, no reference counting of its array arguments).
     """
     def decorate(function):
         try:
-            return njit(*signature, cache=True, error_model='numpy', nogil=True)(function)
+            return njit(*signature, cache=True, error_model='numpy', nogil=True,
+                        inline=inline)(function)
         except RuntimeError:
             # numba: 'cannot cache function ...: no locator available'.
-            return njit(*signature, cache=False, error_model='numpy', nogil=True)(function)
+            return njit(*signature, cache=False, error_model='numpy', nogil=True,
+                        inline=inline)(function)
 
     return decorate
 
@@ -285,7 +288,7 @@ def bernstein_may_vanish(variances, row):
 
 
 @jit()
-def segment_certificates(coefficients, nonnegative, negative):
+def segment_certificates(coefficients, counts):
     """
     Certify a constant sign on each of the ``SEGMENTS`` equal segments of [0, 1].
 
@@ -296,35 +299,38 @@ def segment_certificates(coefficients, nonnegative, negative):
     ----------
     coefficients : numpy.ndarray
         Ascending coefficients, coefficient-major: shape (L, K) with L = 3 or 5.
-    nonnegative, negative : numpy.ndarray
-        Booleans, shape (SEGMENTS, K), filled.
+    counts : numpy.ndarray
+        Filled with how many of each segment's L Bernstein coefficients are ``>= 0``: L
+        certifies ``p >= 0``, 0 certifies ``p < 0``; shape (SEGMENTS, K), uint8.
 
     """
-    length, count = coefficients.shape
-    matrix = _SEGMENT_BERNSTEIN_4 if length == 5 else _SEGMENT_BERNSTEIN_2
-    nonnegative[:] = True
-    negative[:] = True
-    for segment in range(SEGMENTS):
-        every, some = nonnegative[segment], negative[segment]
-        for index in range(length):
-            weights = matrix[segment * length + index]
-            if length == 5:
-                for row in range(count):
-                    value = _fma(weights[4], coefficients[4, row], _fma(
-                        weights[3], coefficients[3, row], _fma(
-                            weights[2], coefficients[2, row], _fma(
-                                weights[1], coefficients[1, row],
-                                weights[0] * coefficients[0, row]))))
-                    sign = value >= 0.0
-                    every[row] = every[row] & sign
-                    some[row] = some[row] & (not sign)
-            else:
-                for row in range(count):
-                    value = _fma(weights[2], coefficients[2, row], _fma(
-                        weights[1], coefficients[1, row], weights[0] * coefficients[0, row]))
-                    sign = value >= 0.0
-                    every[row] = every[row] & sign
-                    some[row] = some[row] & (not sign)
+    count = coefficients.shape[1]
+    if coefficients.shape[0] == 5:
+        matrix = _SEGMENT_BERNSTEIN_4
+        for segment in range(SEGMENTS):
+            for row in range(count):
+                c0, c1, c2 = coefficients[0, row], coefficients[1, row], coefficients[2, row]
+                c3, c4 = coefficients[3, row], coefficients[4, row]
+                nonnegative = 0
+                for index in range(5):
+                    weights = segment * 5 + index
+                    value = _fma(matrix[weights, 4], c4, _fma(
+                        matrix[weights, 3], c3, _fma(matrix[weights, 2], c2, _fma(
+                            matrix[weights, 1], c1, matrix[weights, 0] * c0))))
+                    nonnegative += value >= 0.0
+                counts[segment, row] = nonnegative
+    else:
+        matrix = _SEGMENT_BERNSTEIN_2
+        for segment in range(SEGMENTS):
+            for row in range(count):
+                c0, c1, c2 = coefficients[0, row], coefficients[1, row], coefficients[2, row]
+                nonnegative = 0
+                for index in range(3):
+                    weights = segment * 3 + index
+                    value = _fma(matrix[weights, 2], c2, _fma(
+                        matrix[weights, 1], c1, matrix[weights, 0] * c0))
+                    nonnegative += value >= 0.0
+                counts[segment, row] = nonnegative
 
 
 @jit()
