@@ -109,6 +109,11 @@ setup() {
     rm -rf "$ROOT/src/$package/build" "$ROOT/src/$package/$package.egg-info"
   done
   link_ros2_run_executables || die 'could not link the executables under .venv/lib/<package>/'
+  # The ray search is compiled by numba on its first import; compiled here once, into the
+  # installed package's __pycache__, every planner process after this only loads it.
+  echo 'prvo setup: compiling the ray search (numba, once per install, about 10 s)'
+  "$VENV/bin/python" -I -c 'import prvo_planner.core.ray_search' \
+    || die 'could not compile the ray search (prvo_planner.core.ray_search) with numba'
   echo "$wanted" >"$STAMP"
   echo 'prvo setup: done'
 }

@@ -14,14 +14,6 @@ import numpy as np
 
 from .moments import reach_weights
 from .probability import rvo_condition_of
-from .ray_solver import (
-    SEGMENTS,
-    bernstein_minimum,
-    polynomial_roots,
-    quadratic_roots,
-    segment_certificates,
-    taylor_quadratics,
-)
 
 
 def combine_conditions(per_condition, layout, receding_enabled, any_of=np.logical_or,
@@ -103,96 +95,6 @@ def achieved_margins(means, variances, layout, receding_enabled):
     return result
 
 
-def horner_coefficient_major(coefficients, t):
-    """Evaluate polynomials with ascending coefficients along axis 0, shape (L, ...), at t."""
-    value = coefficients[-1]
-    for power in range(coefficients.shape[0] - 2, -1, -1):
-        value = value * t + coefficients[power]
-    return value
-
-
-def _row_tests(mean_rows, variance_rows, margins_sq, method, deterministic, taylor_inputs):
-    """
-    Build the acceptance tests of every (neighbour, direction, condition) row.
-
-    For the exact method ``mean - k sigma >= 0`` iff ``mean >= 0`` and ``mean^2 - k^2 var >= 0``
-    (the quartic). Where the variance is certified positive on the ray, the surrogate changes
-    only where ``mean = k sigma``, a root of the quartic, so the mean's roots bound pieces only
-    where the variance may vanish (there the quartic has a double root at the mean's root,
-    which closed-form roots resolve poorly).
-
-    Parameters
-    ----------
-    mean_rows, variance_rows : numpy.ndarray
-        Coefficient-major polynomials of the K rows, shapes (3, K) and (5, K).
-    margins_sq : numpy.ndarray
-        ``k^2`` per row, shape (K,).
-    method, deterministic
-        As for :func:`ray_gaps`.
-    taylor_inputs : tuple
-        ``(means, variances, margins, preferred)`` for :func:`taylor_quadratics` (rows last but
-        one), used by the Taylor method only.
-
-    Returns
-    -------
-    list of (numpy.ndarray, numpy.ndarray or None)
-        Each test's coefficients, coefficient-major: shape (L, K) (acceptance needs every test
-        ``>= 0``), with ``None``, or the variance polynomials (5, K) where a row's roots need
-        not bound pieces if its variance is certified positive.
-
-    """
-    rows = mean_rows.shape[1]
-    if deterministic:
-        return [(mean_rows, None)]
-    if method == 'taylor':
-        quadratic = taylor_quadratics(*taylor_inputs)
-        return [(np.moveaxis(quadratic, -1, 0).reshape(3, rows), None)]
-    constant, linear, square = mean_rows
-    quartic = np.empty((5, rows))
-    np.multiply(constant, constant, out=quartic[0])
-    np.multiply(constant, linear, out=quartic[1])
-    quartic[1] *= 2.0
-    np.multiply(constant, square, out=quartic[2])
-    quartic[2] *= 2.0
-    quartic[2] += linear * linear
-    np.multiply(linear, square, out=quartic[3])
-    quartic[3] *= 2.0
-    np.multiply(square, square, out=quartic[4])
-    quartic -= margins_sq * variance_rows
-    return [(quartic, None), (mean_rows, variance_rows)]
-
-
-def _relevant_conditions(reject_all, layout, receding_enabled):
-    """
-    Mark the conditions whose acceptance can change their pair's on a segment.
-
-    A disabled ``g`` cannot, nor can ``h1`` (``h2``) when ``h2`` (``h1``) is rejected on the
-    whole segment; their roots need not bound pieces.
-
-    Parameters
-    ----------
-    reject_all : numpy.ndarray
-        Per condition, rejected on the whole segment, shape (..., P, C).
-    layout : ConditionLayout
-        Column meaning.
-    receding_enabled : numpy.ndarray
-        Whether ``g`` counts, shape (P,).
-
-    Returns
-    -------
-    numpy.ndarray
-        Booleans, shape (..., P, C).
-
-    """
-    relevant = np.ones(reject_all.shape, dtype=bool)
-    if layout.has_receding:
-        relevant[..., 1] = receding_enabled
-    if layout.has_horizon:
-        relevant[..., -3] = ~reject_all[..., -2]
-        relevant[..., -2] = ~reject_all[..., -3]
-    return relevant
-
-
 def ray_gaps(means, variances, margins, layout, method, deterministic, preferred):
     """
     Feasible speed intervals on every ray of one plan (:func:`team_ray_gaps` for one robot).
@@ -270,52 +172,19 @@ class RayRows:
     preferred: np.ndarray
 
 
-def _unit_cuts(unit_segment, values, slots):
-    """
-    Order every open unit's cuts: its segment's start, its roots ascending, its segment's end.
-
-    A root lies in ``[start, end)`` of its segment (``t SEGMENTS`` is exact), so the order is
-    that of sorting all of them by (unit, value), the segment's start first among equal values;
-    only the roots need sorting.
-
-    Parameters
-    ----------
-    unit_segment : numpy.ndarray
-        Segment of each open unit, shape (U,).
-    values, slots : numpy.ndarray
-        The roots that cut units and the unit of each, shape (R,).
-
-    Returns
-    -------
-    values, slots : numpy.ndarray
-        Shape (2 U + R,): the cuts of unit 0, then of unit 1, ...
-
-    """
-    order = np.lexsort((values, slots))
-    values, slots = values[order], slots[order]
-    units = unit_segment.size
-    roots_per_unit = np.bincount(slots, minlength=units)
-    ends = np.cumsum(roots_per_unit + 2) - 1
-    starts = ends - roots_per_unit - 1
-    cut_values = np.empty(2 * units + values.size)
-    cut_values[starts] = unit_segment / SEGMENTS
-    cut_values[ends] = (unit_segment + 1) / SEGMENTS
-    first_root = np.cumsum(roots_per_unit) - roots_per_unit
-    cut_values[starts[slots] + 1 + np.arange(values.size) - first_root[slots]] = values
-    return cut_values, np.repeat(np.arange(units), roots_per_unit + 2)
-
-
 def team_ray_gaps(rows, layout, method, deterministic):
     """
     Feasible speed intervals on every ray: the intersection over neighbours of accepted sets.
 
-    Rays are split into ``SEGMENTS`` equal segments of ``t``. A segment that some neighbour
-    rejects entirely (a Bernstein certificate) is closed; on every other segment, each
-    (neighbour, direction) link whose acceptance is not certified there is cut at the roots of
-    its tests that fall in the segment; each piece is accepted or not by its midpoint, and the
-    rejected pieces and closed segments of each ray are swept in one sort. Every value of a
-    ray is computed by the same operations whatever the other rays in the call, so a robot's
-    intervals do not depend on which robots are planned with it.
+    Rays are split into 4 equal segments of ``t``. A segment that some neighbour rejects
+    entirely (a Bernstein certificate) is closed; on every other segment, each (neighbour,
+    direction) link whose acceptance is not certified there is cut at the roots of its tests
+    that fall in the segment; each piece is accepted or not by its midpoint, and the rejected
+    pieces and closed segments of each ray are swept in order. Every value of a ray is computed
+    by the same operations whatever the other rays in the call, so a robot's intervals do not
+    depend on which robots are planned with it. The search is compiled
+    (:func:`prvo_planner.core.ray_search.team_gaps`, imported, and so loaded or compiled, on
+    the first call).
 
     Parameters
     ----------
@@ -336,110 +205,23 @@ def team_ray_gaps(rows, layout, method, deterministic):
         Interval ends in ``t``, shape (G,), ``lower < upper``.
 
     """
+    from .ray_search import team_gaps
+
     links, conditions = rows.means.shape[:2]
-    ray_count = rows.ray_local.shape[0]
     count = links * conditions
     # Free reshapes of coefficient-major polynomials.
-    mean_rows = rows.means.transpose(2, 0, 1).reshape(3, count)
-    variance_rows = rows.variances.transpose(2, 0, 1).reshape(5, count)
-    margins = np.ascontiguousarray(rows.margins)
-    tests = _row_tests(mean_rows, variance_rows, (margins ** 2).reshape(count), method,
-                       deterministic, (rows.means, rows.variances, margins,
-                                       rows.preferred[rows.link_ray][:, None]))
-    # Per (segment, row): (S, K), viewed as (S, P, C).
-    certificates = [segment_certificates(test) for test, _ in tests]
-    accept, reject = certificates[0]
-    for nonnegative, negative in certificates[1:]:
-        accept, reject = accept & nonnegative, reject | negative
-    enabled = rows.link_enabled
-    accept = accept.reshape(SEGMENTS, links, conditions)
-    reject = reject.reshape(SEGMENTS, links, conditions)
-    accept_pair = combine_conditions(accept, layout, enabled)
-    reject_pair = ~combine_conditions(~reject, layout, enabled)
-    # A segment of a ray is open unless some neighbour rejects all of it: (S, R).
-    segment_ray = (np.arange(SEGMENTS)[:, None] * ray_count + rows.link_ray).ravel()
-    open_segments = np.bincount(segment_ray[reject_pair.ravel()],
-                                minlength=SEGMENTS * ray_count).reshape(SEGMENTS, -1) == 0
-    open_rays = open_segments.any(axis=0)
-    # Units: (segment, link) on an open segment, not certified accepted there; flat s P + p.
-    open_unit = (~accept_pair & open_segments[:, rows.link_ray]).ravel()
-    open_index = open_unit.nonzero()[0]
-    unit_slot = np.zeros(open_unit.size, dtype=int)
-    unit_slot[open_index] = np.arange(open_index.size)
-    # Only a condition undecided on a segment can split it, and only where its own test is.
-    splitting = (~(accept | reject) & _relevant_conditions(reject, layout, enabled)
-                 & open_unit.reshape(SEGMENTS, links, 1))
-    # g's quartic is a quadratic: its mean is linear and its variance quadratic in t.
-    quadratic_condition = np.zeros(conditions, dtype=bool)
-    quadratic_condition[1:2] = layout.has_receding
-    # Every open unit's cuts inside its segment, flat: cut values and the open unit (slot)
-    # each belongs to.
-    cut_values, cut_slots = [np.empty(0)], [np.empty(0, dtype=int)]
-    for (test, test_variances), (nonnegative, negative) in zip(tests, certificates,
-                                                               strict=True):
-        undecided = splitting & ~(nonnegative | negative).reshape(SEGMENTS, links, conditions)
-        needed = undecided.any(axis=0)
-        quadratic_rows = needed & quadratic_condition
-        for selected, quartic in ((needed & ~quadratic_condition, test.shape[0] == 5),
-                                  (quadratic_rows, False)):
-            row = selected.ravel().nonzero()[0]
-            if test_variances is not None and row.size:
-                # Quiet rows: a variance certified positive needs no cuts at this test's roots.
-                row = row[bernstein_minimum(np.take(test_variances, row, axis=1)) <= 0.0]
-            if not row.size:
-                continue
-            columns = np.take(test, row, axis=1)
-            roots = (polynomial_roots(columns) if quartic else
-                     quadratic_roots(columns[0], columns[1], columns[2]))
-            # A root cuts the unit of the segment it falls in, if the row splits that one.
-            inside = (roots > 0.0) & (roots < 1.0)
-            values = roots[inside]
-            segment = np.minimum((values * SEGMENTS).astype(int), SEGMENTS - 1)
-            root_row = np.broadcast_to(row[:, None], roots.shape)[inside]
-            cuts = undecided.reshape(SEGMENTS, -1)[segment, root_row]
-            cut_values.append(values[cuts])
-            cut_slots.append(unit_slot[segment[cuts] * links + root_row[cuts] // conditions])
-    cut_values, cut_slots = _unit_cuts(open_index // links, np.concatenate(cut_values),
-                                       np.concatenate(cut_slots))
-    piece = cut_slots[1:] == cut_slots[:-1]
-    piece_start, piece_end = cut_values[:-1][piece], cut_values[1:][piece]
-    piece_link = open_index[cut_slots[:-1][piece]] % links
-    midpoints = (0.5 * (piece_start + piece_end))[:, None]
-    accepted = True
-    for test, _ in tests:
-        # (L, pieces, C): each piece's link's coefficients; Horner's rule at its midpoint.
-        value = horner_coefficient_major(
-            np.take(test.reshape(test.shape[0], links, conditions), piece_link, axis=1),
-            midpoints)
-        accepted = accepted & (value >= 0.0)
-    accepted = combine_conditions(accepted, layout, enabled[piece_link])
-    # Sweep the rejected pieces and closed segments of each open ray, shifted by 4 per
-    # direction of its robot so that one sort handles every ray; sentinels reject t < 0 and
-    # t > 1 and end where the next ray's first sentinel starts, so no gap spans two rays.
-    rejected = ~accepted
-    closed_segment, closed_ray = (~open_segments & open_rays).nonzero()
-    sentinel_ray = open_rays.nonzero()[0]
-    ray = np.concatenate([rows.link_ray[piece_link[rejected]], closed_ray, sentinel_ray,
-                          sentinel_ray])
-    shift = 4.0 * rows.ray_local[ray]
-    sentinels = sentinel_ray.size
-    starts = np.concatenate([piece_start[rejected], closed_segment / SEGMENTS,
-                             np.full(sentinels, -1.0), np.ones(sentinels)]) + shift
-    ends = np.concatenate([piece_end[rejected], (closed_segment + 1) / SEGMENTS,
-                           np.zeros(sentinels), np.full(sentinels, 3.0)]) + shift
-    robot = rows.ray_robot[ray]
-    order = np.lexsort((starts, robot))
-    starts, ray, ends, robot = starts[order], ray[order], ends[order], robot[order]
-    # The running end of the rejected set, restarted for every robot.
-    reach = np.empty_like(ends)
-    bounds = np.flatnonzero(np.diff(robot)) + 1
-    for first, last in zip(np.concatenate([[0], bounds]), np.concatenate([bounds, [ray.size]]),
-                           strict=True):
-        np.maximum.accumulate(ends[first:last], out=reach[first:last])
-    valid = (starts[1:] > reach[:-1]) & (ray[1:] == ray[:-1])
-    ray = ray[1:][valid]
-    local_shift = 4.0 * rows.ray_local[ray]
-    return ray, reach[:-1][valid] - local_shift, starts[1:][valid] - local_shift
+    means = np.ascontiguousarray(rows.means.transpose(2, 0, 1).reshape(3, count),
+                                 dtype=np.float64)
+    variances = np.ascontiguousarray(rows.variances.transpose(2, 0, 1).reshape(5, count),
+                                     dtype=np.float64)
+    margins = np.ascontiguousarray(rows.margins, dtype=np.float64).reshape(count)
+    return team_gaps(
+        means, variances, margins, np.ascontiguousarray(rows.link_ray, dtype=np.int64),
+        np.ascontiguousarray(rows.link_enabled, dtype=np.bool_),
+        np.ascontiguousarray(rows.ray_local, dtype=np.int64),
+        np.ascontiguousarray(rows.preferred, dtype=np.float64), conditions,
+        bool(layout.has_receding), bool(layout.has_horizon), method == 'taylor',
+        bool(deterministic))
 
 
 def monte_carlo_probabilities(encounter, layout, directions, speeds, config, rng):
