@@ -2,6 +2,7 @@
 
 import numpy as np
 
+from prvo_planner.core import AgentBelief
 from prvo_planner.encounters import EncounterDistribution, random_encounter
 
 
@@ -19,3 +20,17 @@ def random_two_robot_encounter(rng, position_noise=0.1, velocity_noise=0.1):
         position_std=(0.2 * position_noise, position_noise),
         velocity_std=(0.2 * velocity_noise, velocity_noise), radius=(0.2, 0.5)))
     return ego, neighbour
+
+
+def crowd(rng, count, noise):
+    """Ego at the origin and ``count`` neighbours in a 10 m box, none overlapping the ego."""
+    ego = AgentBelief([0.0, 0.0], rng.uniform(-0.5, 1.0, size=2),
+                      random_covariance(rng, 4, noise) if noise else np.zeros((4, 4)), 0.3)
+    neighbours = []
+    while len(neighbours) < count:
+        position = rng.uniform(-5.0, 5.0, size=2)
+        if np.hypot(*position) > 1.0:
+            neighbours.append(AgentBelief(
+                position, rng.uniform(-1.0, 1.0, size=2),
+                random_covariance(rng, 4, noise) if noise else np.zeros((4, 4)), 0.3))
+    return ego, neighbours

@@ -4,7 +4,7 @@ import math
 
 from independent import line_clear, relative_samples, rvo_f
 import numpy as np
-from prvo_core_testing import random_covariance, random_two_robot_encounter
+from prvo_core_testing import crowd, random_covariance, random_two_robot_encounter
 import pytest
 
 from prvo_planner.core import (
@@ -28,20 +28,6 @@ def deterministic_f(ego, neighbour, velocity, radius=None):
     relative_position = np.broadcast_to(ego.position - neighbour.position,
                                         relative_velocity.shape)
     return rvo_f(relative_position, relative_velocity, radius)
-
-
-def crowd(rng, count, noise):
-    """Ego at the origin and ``count`` neighbours in a 10 m box, none overlapping the ego."""
-    ego = AgentBelief([0.0, 0.0], rng.uniform(-0.5, 1.0, size=2),
-                      random_covariance(rng, 4, noise) if noise else np.zeros((4, 4)), 0.3)
-    neighbours = []
-    while len(neighbours) < count:
-        position = rng.uniform(-5.0, 5.0, size=2)
-        if np.hypot(*position) > 1.0:
-            neighbours.append(AgentBelief(
-                position, rng.uniform(-1.0, 1.0, size=2),
-                random_covariance(rng, 4, noise) if noise else np.zeros((4, 4)), 0.3))
-    return ego, neighbours
 
 
 @pytest.mark.parametrize('model', MODELS)

@@ -4,9 +4,10 @@ import math
 
 import numpy as np
 from numpy.polynomial import polynomial
+from prvo_core_testing import crowd
 import pytest
 
-from prvo_planner.core import AgentBelief, PlannerConfig
+from prvo_planner.core import PlannerConfig
 from prvo_planner.core.encounter import build_encounter, candidate_directions, condition_layout
 from prvo_planner.core.feasibility import ray_gaps
 from prvo_planner.core.moments import condition_moments, ray_polynomials
@@ -74,22 +75,6 @@ def test_quadratic_roots_handle_a_vanishing_leading_term_and_no_real_root():
     assert first == 0.25 and math.isnan(second)
     assert all(math.isnan(root) for root in quadratic_roots(1.0, 0.0, 1.0))
     assert all(math.isnan(root) for root in quadratic_roots(1.0, 0.0, 0.0))
-
-
-def crowd(rng, count, noise):
-    """Ego at the origin and COUNT neighbours in a 10 m box, none overlapping it."""
-    def covariance():
-        factor = rng.normal(size=(4, 4)) * noise
-        return factor @ factor.T + 1e-4 * np.eye(4) if noise else np.zeros((4, 4))
-
-    ego = AgentBelief([0.0, 0.0], rng.uniform(-0.5, 1.0, size=2), covariance(), 0.3)
-    neighbours = []
-    while len(neighbours) < count:
-        position = rng.uniform(-5.0, 5.0, size=2)
-        if np.hypot(*position) > 1.0:
-            neighbours.append(AgentBelief(position, rng.uniform(-1.0, 1.0, size=2),
-                                          covariance(), 0.3))
-    return ego, neighbours
 
 
 def assert_gaps_match(gap_direction, lower, upper, t, accepted):
