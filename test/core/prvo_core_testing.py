@@ -3,6 +3,8 @@
 import numpy as np
 
 from prvo_planner.core import AgentBelief
+from prvo_planner.core.encounter import build_encounter, candidate_directions, condition_layout
+from prvo_planner.core.moments import ray_polynomials
 from prvo_planner.encounters import EncounterDistribution, random_encounter
 
 
@@ -34,3 +36,18 @@ def crowd(rng, count, noise):
                 position, rng.uniform(-1.0, 1.0, size=2),
                 random_covariance(rng, 4, noise) if noise else np.zeros((4, 4)), 0.3))
     return ego, neighbours
+
+
+def crowd_rays(ego, neighbours, config):
+    """Return (encounter, layout, directions (M', 2), means, variances) of a plan's rays.
+
+    The candidate directions are those of a preference along +x; the ray polynomials are
+    `ray_polynomials`' over them, at CONFIG's speed and horizon.
+    """
+    encounter = build_encounter(ego, neighbours, config)
+    layout = condition_layout(encounter, config)
+    directions = candidate_directions(ego, np.array([1.0, 0.0]), config)
+    means, variances = ray_polynomials(encounter.origin, encounter.cov, encounter.combined_radius,
+                                       directions, config.max_speed, config.time_horizon,
+                                       layout.has_receding)
+    return encounter, layout, directions, means, variances

@@ -4,7 +4,7 @@ import math
 
 from independent import line_clear, relative_samples, rvo_f
 import numpy as np
-from prvo_core_testing import crowd, random_covariance, random_two_robot_encounter
+from prvo_core_testing import crowd, crowd_rays, random_covariance, random_two_robot_encounter
 import pytest
 
 from prvo_planner.core import (
@@ -13,9 +13,9 @@ from prvo_planner.core import (
     plan_velocity,
     rvo_moments,
 )
-from prvo_planner.core.encounter import build_encounter, candidate_directions, condition_layout
+from prvo_planner.core.encounter import candidate_directions
 from prvo_planner.core.feasibility import ray_gaps
-from prvo_planner.core.moments import condition_moments, ray_polynomials
+from prvo_planner.core.moments import condition_moments
 from prvo_planner.core.probability import sample_relative_states
 
 MODELS = ('prvo', 'rvo', 'inflate', 'mc')
@@ -93,12 +93,8 @@ def test_exact_ray_intervals_match_dense_evaluation_of_the_surrogate():
         ego, neighbours = crowd(rng, int(rng.integers(1, 4)), 0.15)
         config = PlannerConfig(receding_gate=False, time_horizon=math.inf, num_directions=24,
                                k=float(rng.uniform(0.5, 3.0)), actuation_cov=0.01 * np.eye(2))
-        encounter = build_encounter(ego, neighbours, config)
-        layout = condition_layout(encounter, config)
-        directions = candidate_directions(ego, np.array([1.0, 0.0]), config)
-        means, variances = ray_polynomials(encounter.origin, encounter.cov,
-                                           encounter.combined_radius, directions,
-                                           config.max_speed, config.time_horizon, False)
+        encounter, layout, directions, means, variances = crowd_rays(ego, neighbours,
+                                                                         config)
         gap_direction, lower, upper = ray_gaps(means, variances, layout.margins(encounter),
                                                layout, 'exact', False, directions[:, 0])
         # Independent: closed-form moments at every grid velocity, no ray polynomials.
@@ -125,12 +121,8 @@ def test_ray_intervals_of_every_condition_match_dense_evaluation(receding_gate, 
         k = float(rng.uniform(0.5, 3.0))
         config = PlannerConfig(receding_gate=receding_gate, time_horizon=time_horizon,
                                num_directions=24, k=k, actuation_cov=0.01 * np.eye(2))
-        encounter = build_encounter(ego, neighbours, config)
-        layout = condition_layout(encounter, config)
-        directions = candidate_directions(ego, np.array([1.0, 0.0]), config)
-        means, variances = ray_polynomials(encounter.origin, encounter.cov,
-                                           encounter.combined_radius, directions,
-                                           config.max_speed, time_horizon, layout.has_receding)
+        encounter, layout, directions, means, variances = crowd_rays(ego, neighbours,
+                                                                         config)
         gap_direction, lower, upper = ray_gaps(means, variances, layout.margins(encounter),
                                                layout, 'exact', False, directions[:, 0])
         # Independent: each condition's closed-form moments at every grid velocity, accepted

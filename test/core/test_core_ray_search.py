@@ -4,13 +4,12 @@ import math
 
 import numpy as np
 from numpy.polynomial import polynomial
-from prvo_core_testing import crowd
+from prvo_core_testing import crowd, crowd_rays
 import pytest
 
 from prvo_planner.core import PlannerConfig
-from prvo_planner.core.encounter import build_encounter, candidate_directions, condition_layout
 from prvo_planner.core.feasibility import ray_gaps
-from prvo_planner.core.moments import condition_moments, ray_polynomials
+from prvo_planner.core.moments import condition_moments
 from prvo_planner.core.ray_solver import polynomial_roots, quadratic_roots
 
 
@@ -116,13 +115,9 @@ def test_taylor_intervals_match_dense_evaluation_of_the_surrogate():
         ego, neighbours = crowd(rng, int(rng.integers(1, 4)), 0.15)
         config = PlannerConfig(receding_gate=False, time_horizon=math.inf, num_directions=24,
                                k=float(rng.uniform(0.5, 3.0)), actuation_cov=0.01 * np.eye(2))
-        encounter = build_encounter(ego, neighbours, config)
-        layout = condition_layout(encounter, config)
-        directions = candidate_directions(ego, np.array([1.0, 0.0]), config)
+        encounter, layout, directions, means, variances = crowd_rays(ego, neighbours,
+                                                                         config)
         preferred = rng.uniform(-0.2, 1.2, directions.shape[0])
-        means, variances = ray_polynomials(encounter.origin, encounter.cov,
-                                           encounter.combined_radius, directions,
-                                           config.max_speed, config.time_horizon, False)
         gap_direction, lower, upper = ray_gaps(means, variances, layout.margins(encounter),
                                                layout, 'taylor', False, preferred)
         accepted = np.ones((directions.shape[0], t.size), dtype=bool)
@@ -143,12 +138,8 @@ def test_noise_free_intervals_match_dense_evaluation_of_the_means(receding_gate,
         ego, neighbours = crowd(rng, int(rng.integers(1, 9)), 0.0)
         config = PlannerConfig(receding_gate=receding_gate, time_horizon=time_horizon,
                                num_directions=24, model='rvo')
-        encounter = build_encounter(ego, neighbours, config)
-        layout = condition_layout(encounter, config)
-        directions = candidate_directions(ego, np.array([1.0, 0.0]), config)
-        means, variances = ray_polynomials(encounter.origin, encounter.cov,
-                                           encounter.combined_radius, directions,
-                                           config.max_speed, time_horizon, layout.has_receding)
+        encounter, layout, directions, means, variances = crowd_rays(ego, neighbours,
+                                                                         config)
         gap_direction, lower, upper = ray_gaps(means, variances, layout.margins(encounter),
                                                layout, 'exact', True, directions[:, 0])
         # Independent: each condition's closed-form mean at every grid velocity.
