@@ -8,6 +8,7 @@ relative Gaussian handed to the certificate is the linear map of the independent
 
 import math
 
+import mpmath
 import numpy as np
 import pytest
 
@@ -17,12 +18,13 @@ from prvo_planner.core.certificate import (
     METHODS,
     SLACK,
     condition_bound,
-    harmonic_ranges,
     horizon_certificate,
     receding_certificate,
     rvo_certificate,
 )
 from prvo_planner.core.special import ndtr
+from prvo_planner.core.wedge_bound import cut_wedges, harmonic_range
+from prvo_planner.core.wedge_bound import ndtr as compiled_ndtr
 
 # One-sided z for the validity checks; the bound sits below the truth, so a false alarm needs
 # a deviation beyond 4.5 standard errors of the sampled probability.
@@ -451,24 +453,48 @@ def test_the_condition_bound_is_the_three_certificates_each_where_the_others_fal
 
 def test_harmonic_ranges_are_the_extremes_of_the_sinusoids_over_each_wedge():
     # Dense samples of c cos(m x) + s sin(m x) over each wedge, m = 1 or 2, ends included: the
-    # ranges contain every sample and exceed them by at most the curvature between samples.
+    # range contains every sample and exceeds them by at most the curvature between samples.
     rng = np.random.default_rng(97)
-    count, wedges, steps = 40, 16, 4001
-    start = rng.uniform(0.0, math.pi, size=(count, wedges))
-    width = rng.uniform(0.0, math.pi, size=(count, wedges)) * (rng.random((count, wedges)) < 0.9)
-    single = [rng.normal(size=(count, 2)) for _ in range(3)]
-    double = [rng.normal(size=(count, 2)) for _ in range(2)]
-    low, high = harmonic_ranges(start, width, single, double)
-    assert low.shape == high.shape == (5, count, wedges)
-    x = start[..., None] + width[..., None] * np.linspace(0.0, 1.0, steps)
-    for index, (c, s) in enumerate(np.stack(single + double)[..., None, None].swapaxes(1, 2)):
-        multiple = 1.0 if index < len(single) else 2.0
-        values = c * np.cos(multiple * x) + s * np.sin(multiple * x)
-        slack = np.hypot(c, s)[..., 0] * (multiple * width / (steps - 1)) ** 2
-        assert np.all(low[index] <= values.min(axis=-1) + 1e-12)
-        assert np.all(high[index] >= values.max(axis=-1) - 1e-12)
-        assert np.all(low[index] >= values.min(axis=-1) - slack - 1e-12)
-        assert np.all(high[index] <= values.max(axis=-1) + slack + 1e-12)
+    count, steps = 400, 4001
+    starts = rng.uniform(0.0, math.pi, size=count)
+    widths = rng.uniform(0.0, math.pi, size=count) * (rng.random(count) < 0.9)
+    coefficients = rng.normal(size=(count, 2))
+    for index in range(count):
+        (c, s), start, width = coefficients[index], starts[index], widths[index]
+        for multiple in (1.0, 2.0):
+            low, high = harmonic_range(c, s, multiple, start, width)
+            x = start + width * np.linspace(0.0, 1.0, steps)
+            values = c * np.cos(multiple * x) + s * np.sin(multiple * x)
+            slack = math.hypot(c, s) * (multiple * width / (steps - 1)) ** 2
+            assert values.min() - slack - 1e-12 <= low <= values.min() + 1e-12
+            assert values.max() - 1e-12 <= high <= values.max() + slack + 1e-12
+
+
+def test_wedge_masses_never_exceed_the_sampled_masses_of_the_direction():
+    # The compiled cut's lower bounds on the probability that the direction of w falls in each
+    # wedge and in its opposite, against the fractions of sampled w (an own sampler).
+    rng = np.random.default_rng(98)
+    cases = cases_of(99, KINDS, 4)
+    means, covs, _ = stacked(cases)
+    pairs, count = 16, 200_000
+    start, width, masses, invertible = cut_wedges(np.ascontiguousarray(means[:, 2:]),
+                                                  np.ascontiguousarray(covs[:, 2:, 2:]), pairs)
+    assert start.shape == width.shape == (len(cases), pairs)
+    assert masses.shape == (len(cases), 2 * pairs) and invertible.all()
+    assert np.allclose(width.sum(axis=1), math.pi, rtol=0.0, atol=1e-12)
+    assert np.all(masses >= 0.0) and np.all(masses.sum(axis=1) <= 1.0 + 1e-12)
+    for index in range(len(cases)):
+        w = means[index, 2:] + rng.standard_normal((count, 2)) @ square_root(
+            covs[index, 2:, 2:]).T
+        angle = np.arctan2(w[:, 1], w[:, 0])
+        for side in range(2):
+            offset = np.mod(angle - start[index][:, None] - side * math.pi, 2.0 * math.pi)
+            sampled = np.mean(offset <= width[index][:, None], axis=1)
+            standard_error = np.sqrt(np.maximum(sampled * (1.0 - sampled), 1.0 / count) / count)
+            assert np.all(masses[index, side * pairs:(side + 1) * pairs]
+                          <= sampled + Z * standard_error)
+        # Informative: together the bounds claim most of the mass.
+        assert masses[index].sum() >= 0.5
 
 
 @pytest.mark.parametrize('wedges', [3, 2, 5, MAX_WEDGES + 2, 64.0, True])
@@ -484,10 +510,23 @@ def test_invalid_shapes_and_values_are_rejected():
         receding_certificate(np.array([0.0, 0.0, np.nan, 1.0]), np.eye(4))
 
 
-def test_the_normal_distribution_function_the_bound_uses_matches_the_c_library():
-    # SLACK covers an error of 2e-14 per evaluation of Phi (the module's docstring).
+def test_the_normal_distribution_functions_the_bounds_use_match_the_c_library():
+    # SLACK covers an error of 2e-14 per evaluation of Phi (the module's docstring): scipy's
+    # (the horizon and known-velocity bounds) and the compiled one (the wedge bounds).
     x = np.concatenate([np.linspace(-40.0, 40.0, 200_001), [-np.inf, np.inf]])
     reference = np.array([0.5 * math.erfc(-value / math.sqrt(2.0)) for value in x])
     assert np.max(np.abs(ndtr(x) - reference)) <= 2e-14
     assert np.isnan(ndtr(np.nan))
     assert ndtr(np.zeros((2, 3))).shape == (2, 3)
+    # The compiled one is erf and erfc of the C library: its oracle is mpmath's, at 40 digits.
+    # In the lower tail (where the minima and miss probabilities are) its relative error is
+    # that of rounding x / sqrt(2), amplified by d log Phi / dx, about |x|.
+    with mpmath.workdps(40):
+        for value in np.concatenate([np.linspace(-38.0, 9.0, 4_701), [-np.inf, np.inf]]):
+            exact = mpmath.ncdf(mpmath.mpf(float(value)))
+            compiled = compiled_ndtr(value)
+            assert abs(compiled - exact) <= 2e-14
+            if -37.0 <= value < 0.0:
+                # (Below -37 Phi is subnormal, its relative precision less.)
+                assert abs(compiled - exact) <= 2e-16 * (value * value + 4.0) * exact
+    assert math.isnan(compiled_ndtr(math.nan))

@@ -1,0 +1,560 @@
+"""
+The wedge bound of :mod:`.certificate` compiled: wedges, their masses, and the bound on them.
+
+Two numba functions, compiled for one signature each when this module is first imported
+(:mod:`.certificate` imports it on its first wedge bound) and kept in numba's on-disk cache, as
+the ray search is (:mod:`.ray_search`; ``./run.sh setup`` compiles both once after installing):
+
+* :func:`cut_wedges` cuts each entry's directions of ``w`` into wedges and bounds their masses
+  from below (steps 4 and 5 of the proof in :mod:`.certificate`'s docstring);
+* :func:`wedge_bounds` bounds ``P(f >= 0)`` or ``P(g >= 0)`` of each entry on those wedges
+  (steps 1 to 5).
+
+Both work entry by entry and wedge by wedge in scalars, with the arithmetic the proof states:
+the ranges of the sinusoids of the direction angle over a wedge (:func:`harmonic_range`), the
+lengths of ``w`` on a strip, the minima of the folded and half normal over a box of mean and
+variance. Each entry's bound depends on the others of its call in one way only, as it did in
+numpy: the strip events are tried for every entry when some entry of the call has a
+cross-covariance left after the shift (``reach > 0``), else only the discs.
+
+``Phi`` is :func:`ndtr`, cephes' form over the C library's ``erf`` and ``erfc`` (within 2e-14 of
+``math.erfc``'s ``Phi`` everywhere, which the bound's ``SLACK`` covers).
+"""
+
+import math
+
+from numba import types
+import numpy as np
+
+from .certificate import (
+    ADAPTIVE_SPAN,
+    CONDITION_LIMIT,
+    DISC_SIZES,
+    PSI_SWITCH,
+    SLACK,
+    STRIP_SIZES,
+    WIDENING,
+)
+from .ray_solver import jit
+
+_SQRT_HALF = math.sqrt(0.5)
+_SQRT_2PI = math.sqrt(2.0 * math.pi)
+_TWO_PI = 2.0 * math.pi
+# The largest float below pi: an edge that ``mod`` rounds up to pi itself is put there.
+_BELOW_PI = float(np.nextafter(math.pi, 0.0))
+# The events: J = 3 discs, then 3 strips where a cross-covariance is left. Their miss
+# probabilities are exp(-rho^2 / 2) and 2 Phi(-rho) = erfc(rho / sqrt(2)); the disc of size 40
+# misses with probability exp(-800), which underflows to 0.
+_DISCS = np.array(DISC_SIZES)
+_STRIPS = np.array(STRIP_SIZES)
+_DISC_MISSES = np.exp(-0.5 * np.square(DISC_SIZES))
+_STRIP_MISSES = np.array([math.erfc(size * _SQRT_HALF) for size in STRIP_SIZES])
+_EVENTS = len(DISC_SIZES) + len(STRIP_SIZES)
+
+_MATRICES = types.float64[:, :, ::1]
+_ROWS = types.float64[:, ::1]
+_VECTOR = types.float64[::1]
+_FLAGS = types.boolean[::1]
+_CUT_SIGNATURE = types.Tuple((_ROWS, _ROWS, _ROWS, _FLAGS))(_ROWS, _MATRICES, types.int64)
+_BOUND_SIGNATURE = types.Tuple((_VECTOR, _FLAGS))(
+    _ROWS, _MATRICES, _VECTOR, types.boolean, _ROWS, _ROWS, _ROWS, _FLAGS)
+
+
+@jit()
+def ndtr(x):
+    """
+    Return ``Phi(x)``, the standard normal distribution function, NaN for NaN.
+
+    Near 0 as ``1/2 + erf(x / sqrt 2) / 2``, elsewhere from ``erfc`` of ``|x| / sqrt 2``, whose
+    relative error stays at the C library's in either tail.
+    """
+    scaled = x * _SQRT_HALF
+    size = abs(scaled)
+    if size < _SQRT_HALF:
+        return 0.5 + 0.5 * math.erf(scaled)
+    tail = 0.5 * math.erfc(size)
+    return 1.0 - tail if scaled > 0.0 else tail
+
+
+@jit(inline='always')
+def _ratio(numerator, denominator, zero_by_zero):
+    """``numerator / denominator`` for ``denominator >= 0``: ``+-inf`` by 0, ``0 / 0`` given."""
+    quotient = numerator / denominator
+    return zero_by_zero if quotient != quotient else quotient
+
+
+@jit()
+def harmonic_range(cosine, sine, multiple, start, width):
+    """
+    Exact range of ``c cos mx + s sin mx`` over the wedge ``[a, a + w]``, ``m`` 1 or 2.
+
+    With ``y = m x`` over ``[m a, m a + m w]`` (``m w <= 2 pi``), the extremes are at the ends or
+    at the interior stationary points: the peak ``atan2(s, c)``, of value ``hypot(c, s)``, and the
+    trough half a turn from it.
+
+    Returns
+    -------
+    low, high : float
+        The minimum and maximum.
+
+    """
+    begin = multiple * start
+    span = multiple * width
+    end = begin + span
+    first = cosine * math.cos(begin) + sine * math.sin(begin)
+    last = cosine * math.cos(end) + sine * math.sin(end)
+    amplitude = math.hypot(cosine, sine)
+    peak = math.atan2(sine, cosine)
+    # Python's float % takes the divisor's sign, as numpy.mod does.
+    low = -amplitude if (peak + math.pi - begin) % _TWO_PI <= span else min(first, last)
+    high = amplitude if (peak - begin) % _TWO_PI <= span else max(first, last)
+    return low, high
+
+
+@jit(inline='always')
+def _invertible(xx, xy, yy):
+    """Whether ``S_ww = [[xx, xy], [xy, yy]]`` may be inverted: eigenvalue ratio >= the limit."""
+    trace = xx + yy
+    # From det / tr^2 = ratio / (1 + ratio)^2.
+    return xx * yy - xy * xy > CONDITION_LIMIT / (1.0 + CONDITION_LIMIT) ** 2 * trace * trace
+
+
+@jit()
+def _wedge_edges(mu_x, mu_y, xx, xy, yy, pairs, edges):
+    """
+    Cut the line directions ``[0, pi)`` of ``w`` into PAIRS wedges; write their edges, sorted.
+
+    A quarter of the edges are even over the half turn. The others resolve where the mass is: a
+    narrow direction (``|mu_w| > 2 sigma``) gets the directions of ``mu_w + z sigma e``, ``e``
+    across ``mu_w``, ``sigma`` the standard deviation of ``w`` along ``e``, for ``z`` even in
+    ``[-6, 6)``; a broad one gets more even edges. Every set is nested when ``pairs`` doubles, so
+    the cut is refined. EDGES, shape (pairs,), receives each wedge's first edge in ``[0, pi)``.
+    """
+    even = max(pairs // 4, 1)
+    spread = pairs - even
+    # sigma |mu_w| without dividing by |mu_w|: (-mu_y, mu_x)' S_ww (-mu_y, mu_x).
+    across = math.sqrt(max(mu_y * mu_y * xx - 2.0 * mu_x * mu_y * xy + mu_x * mu_x * yy, 0.0))
+    speed_sq = mu_x * mu_x + mu_y * mu_y
+    for index in range(even):
+        edges[index] = math.pi * index / even
+    narrow = speed_sq > 2.0 * across
+    heading = math.atan2(mu_y, mu_x)
+    for index in range(spread):
+        if narrow:
+            step = ADAPTIVE_SPAN * (2.0 * index / spread - 1.0)
+            edges[even + index] = (heading + math.atan2(across * step, speed_sq)) % math.pi
+        else:
+            edges[even + index] = math.pi * index / spread
+    edges.sort()
+    for index in range(pairs):
+        edges[index] = min(edges[index], _BELOW_PI)
+
+
+@jit(inline='always')
+def _half_plane(mu_x, mu_y, xx, xy, yy, angle):
+    """``Phi`` of the argument for ``P(d(angle) x w > 0)``: ``w`` points into ``(angle, + pi)``."""
+    cos, sin = math.cos(angle), math.sin(angle)
+    mean = cos * mu_y - sin * mu_x
+    variance = xx * sin * sin - 2.0 * xy * sin * cos + yy * cos * cos
+    # Zero variance: 1 if the mean is positive, else 0 (the inequality is strict).
+    return ndtr(_ratio(mean, math.sqrt(max(variance, 0.0)), -np.inf))
+
+
+@jit(inline='always')
+def _scaled_psi_lower(beta, quadratic):
+    """
+    Lower bound on ``exp(-C/2) psi(beta)``, ``psi(beta) = int_0^inf y exp(-y^2/2 + beta y) dy``.
+
+    ``psi(beta) = 1 + sqrt(2 pi) beta exp(beta^2 / 2) Phi(beta)``, increasing in ``beta``. Below
+    ``beta = -3`` that form cancels; there ``exp(-y^2/2) >= 1 - y^2/2`` gives
+    ``psi(beta) >= 1/beta^2 - 3/beta^4``. The bound is >= 0.
+    """
+    scale = math.exp(-0.5 * quadratic)
+    if beta >= PSI_SWITCH:
+        value = scale + _SQRT_2PI * beta * ndtr(beta) * math.exp(
+            0.5 * (beta * beta - quadratic))
+    else:
+        inverse_sq = 1.0 / (beta * beta)
+        value = scale * inverse_sq * (1.0 - 3.0 * inverse_sq)
+    return max(value, 0.0)
+
+
+@jit(_CUT_SIGNATURE)
+def cut_wedges(mu_w, cov_ww, pairs):
+    """
+    Each entry's wedges of the directions of ``w``, and lower bounds on their masses.
+
+    They depend on the mean and covariance of ``w`` alone: the bounds on ``f`` and on ``g`` of
+    the same entries share them. Let ``m`` and ``m~`` be the masses of a wedge ``W`` and of its
+    opposite ``W + pi``.
+
+    * ``m - m~`` is exactly the difference of the half-plane probabilities through the wedge's
+      edges, ``P(theta in (a, a + pi)) - P(theta in (b, b + pi))``.
+    * ``m >= width * min_W p``, with the density of the direction of ``w ~ N(mu, S)``
+      ``p(x) = exp(-C/2) psi(B / sqrt(A)) / (2 pi sqrt(det S) A)``, ``A = d' S^-1 d``,
+      ``B = d' S^-1 mu``, ``C = mu' S^-1 mu`` (the density integrated along the ray ``l d``);
+      ``psi`` increases, so the minimum is bounded from the exact ranges of the sinusoids ``A``
+      and ``B``. Used only where ``S`` may be inverted (else 0).
+
+    So ``m >= max(L, (m - m~) + L~)`` and ``m~ >= max(L~, L - (m - m~))`` with the density bounds
+    ``L``, ``L~``.
+
+    Parameters
+    ----------
+    mu_w : numpy.ndarray
+        Mean of ``w`` per entry, shape (N, 2).
+    cov_ww : numpy.ndarray
+        Its covariance, shape (N, 2, 2).
+    pairs : int
+        K, wedges of the half turn, >= 2.
+
+    Returns
+    -------
+    start, width : numpy.ndarray
+        Each wedge's first edge in ``[0, pi)`` and its width, shape (N, K), the widths summing
+        to ``pi`` (wedges of zero width are possible).
+    masses : numpy.ndarray
+        Lower bounds on the masses of the wedges and then of their opposites, shape (N, 2 K).
+    invertible : numpy.ndarray
+        Whether ``S_ww`` may be inverted, shape (N,).
+
+    """
+    count = mu_w.shape[0]
+    start = np.empty((count, pairs))
+    width = np.empty((count, pairs))
+    masses = np.empty((count, 2 * pairs))
+    invertible = np.empty(count, dtype=np.bool_)
+    half_planes = np.empty(pairs + 1)
+    for entry in range(count):
+        mu_x, mu_y = mu_w[entry, 0], mu_w[entry, 1]
+        xx, xy, yy = cov_ww[entry, 0, 0], cov_ww[entry, 0, 1], cov_ww[entry, 1, 1]
+        edges = start[entry]
+        _wedge_edges(mu_x, mu_y, xx, xy, yy, pairs, edges)
+        for wedge in range(pairs - 1):
+            width[entry, wedge] = edges[wedge + 1] - edges[wedge]
+        width[entry, pairs - 1] = edges[0] + math.pi - edges[pairs - 1]
+        for wedge in range(pairs):
+            half_planes[wedge] = _half_plane(mu_x, mu_y, xx, xy, yy, edges[wedge])
+        half_planes[pairs] = _half_plane(mu_x, mu_y, xx, xy, yy,
+                                         edges[pairs - 1] + width[entry, pairs - 1])
+        usable = _invertible(xx, xy, yy)
+        invertible[entry] = usable
+        if not usable:
+            # No density bound: the masses are the half planes' differences alone.
+            for wedge in range(pairs):
+                difference = half_planes[wedge] - half_planes[wedge + 1]
+                masses[entry, wedge] = max(0.0, difference)
+                masses[entry, pairs + wedge] = max(0.0, -difference)
+            continue
+        determinant = xx * yy - xy * xy
+        # S^-1 from the adjugate; B = d' S^-1 mu is a sinusoid of x, A = d' S^-1 d a constant
+        # plus one of 2x.
+        pxx, pxy, pyy = yy / determinant, -xy / determinant, xx / determinant
+        pulled_x, pulled_y = pxx * mu_x + pxy * mu_y, pxy * mu_x + pyy * mu_y
+        quadratic = pulled_x * mu_x + pulled_y * mu_y
+        constant = 0.5 * (pxx + pyy)
+        # A >= 1 / lambda_max(S) > 0; the floor keeps rounding from reaching 0.
+        floor = 0.5 / (xx + yy)
+        scale = (1.0 - WIDENING) / (2.0 * math.pi * math.sqrt(determinant))
+        for wedge in range(pairs):
+            b_low, b_high = harmonic_range(pulled_x, pulled_y, 1.0, edges[wedge],
+                                           width[entry, wedge])
+            a_low, a_high = harmonic_range(0.5 * (pxx - pyy), pxy, 2.0, edges[wedge],
+                                           width[entry, wedge])
+            a_low, a_high = math.sqrt(max(constant + a_low, floor)), constant + a_high
+            densities = scale * width[entry, wedge] / a_high
+            # The smallest B / sqrt(A) over the wedge (and its opposite, where B changes sign):
+            # a positive B over the largest A, a negative one over the smallest.
+            own = b_low / math.sqrt(a_high) if b_low >= 0.0 else b_low / a_low
+            opposite = -b_high / math.sqrt(a_high) if -b_high >= 0.0 else -b_high / a_low
+            own = densities * _scaled_psi_lower(own, quadratic)
+            opposite = densities * _scaled_psi_lower(opposite, quadratic)
+            difference = half_planes[wedge] - half_planes[wedge + 1]
+            masses[entry, wedge] = max(own, difference + opposite)
+            masses[entry, pairs + wedge] = max(opposite, own - difference)
+    return start, width, masses, invertible
+
+
+@jit(inline='always')
+def _folded_normal_minimum(low, high, sd_low, sd_high, radius):
+    """
+    Lower bound on ``F = P(|X| >= R)``, ``X ~ N(m, s^2)``, over a box of ``m`` and ``s``.
+
+    ``1 - F`` is the probability of the band ``|X| < R``,
+    ``Phi((R - |m|) / s) - Phi((-R - |m|) / s)``, which decreases in ``|m|``: it is largest at the
+    smallest ``|m|`` of the box, ``a`` (0 if ``m`` may change sign), moved towards 0 by a
+    relative ``WIDENING``. There its first term is largest at the smallest ``s`` when
+    ``a <= R`` (else at the largest) and its second smallest at the smallest ``s``. An empty box
+    (``low > high``) gives 1.
+    """
+    if low > high:
+        return 1.0
+    closest = 0.0 if low <= 0.0 <= high else min(abs(low), abs(high))
+    size = max(abs(low), abs(high))
+    closest = max(closest - WIDENING * (size if math.isfinite(size) else 0.0), 0.0)
+    near_side = radius - closest
+    band = (ndtr(_ratio(near_side, sd_low if near_side >= 0.0 else sd_high, 0.0))
+            - ndtr(_ratio(-radius - closest, sd_low, -np.inf)))
+    return min(max(1.0 - band, 0.0), 1.0)
+
+
+@jit(inline='always')
+def _half_normal_minimum(low, high, sd_low, sd_high):
+    """
+    Lower bound on ``G = P(X >= 0)``, ``X ~ N(m, s^2)``, over a box of ``m`` and ``s``.
+
+    ``Phi(m / s)`` at the smallest ``m`` (moved down by a relative ``WIDENING``), and at the
+    largest ``s`` if that ``m >= 0`` (else at the smallest). An empty box gives 1.
+    """
+    if low > high:
+        return 1.0
+    size = max(abs(low), abs(high))
+    smallest = low - WIDENING * (size if math.isfinite(size) else 0.0)
+    return ndtr(_ratio(smallest, sd_high if smallest >= 0.0 else sd_low, np.inf))
+
+
+@jit(inline='always')
+def _strip_lengths(c_low, c_high, t_low, t_high):
+    """
+    Range of the length ``l`` of ``w = l d`` on a wedge where ``c = e . d`` is in a range.
+
+    On the strip ``e . w`` in ``[t_low, t_high]``, ``l = (e . w) / c``: bounded where ``c`` keeps
+    its sign over the wedge, ``[0, inf)`` where it may vanish. Returns ``low > high`` where the
+    strip misses the wedge.
+    """
+    if c_low > 0.0:
+        if t_high < 0.0:
+            return np.inf, -np.inf
+        return max(t_low, 0.0) / c_high, t_high / c_low
+    if c_high < 0.0:
+        if t_low > 0.0:
+            return np.inf, -np.inf
+        return max(-t_high, 0.0) / -c_low, -t_low / -c_high
+    return 0.0, np.inf
+
+
+@jit(inline='always')
+def _product(a, b):
+    """Return ``a b``, with ``0 inf`` taken as 0 (an unbounded length times a zero gain)."""
+    value = a * b
+    return 0.0 if value != value else value
+
+
+@jit(inline='always')
+def _interval_product(low, high, factor_low, factor_high):
+    """Range of ``x y`` for ``x`` in ``[low, high]``, ``y`` in a range."""
+    corners = (_product(low, factor_low), _product(low, factor_high),
+               _product(high, factor_low), _product(high, factor_high))
+    return (min(min(corners[0], corners[1]), min(corners[2], corners[3])),
+            max(max(corners[0], corners[1]), max(corners[2], corners[3])))
+
+
+@jit()
+def _split(mean, cov, across, invertible, split):
+    """
+    Write ``r^ = r + T w`` split into ``r'``, independent of ``w``, and ``K (w - mu_w)``.
+
+    ``T = -lambda I`` for ``f`` (ACROSS) and ``kappa J`` for ``g``, the shift that leaves the
+    least cross-covariance ``D = S_rw + T S_ww`` (:mod:`.certificate`, step 1); ``K = D S_ww^-1``
+    the gain (0 where ``D = 0`` or ``S_ww`` is not inverted). SPLIT (N, 12) receives per entry
+    the mean of ``r'`` (2), ``S' = Cov(r^) - D S_ww^-1 D'`` (``xx, xy, yy``), ``K`` (row-major,
+    4), the reach ``||D S_ww^-1/2||_2``, the scale of the entries of ``S'`` (for widening its
+    ranges) and whether the split is known (``S_ww`` inverted or ``D = 0``: 1, else 0).
+    """
+    for entry in range(mean.shape[0]):
+        c = cov[entry]
+        xx, xy, yy = c[2, 2], c[2, 3], c[3, 3]
+        trace = xx + yy
+        if xx == 0.0 and xy == 0.0 and c[3, 2] == 0.0 and yy == 0.0:
+            trace = 1.0
+        # T = [[t00, t01], [t10, t11]].
+        if across:
+            t00 = t11 = -((c[0, 2] + c[1, 3]) / trace)
+            t01 = t10 = 0.0
+        else:
+            kappa = (c[0, 3] - c[1, 2]) / trace
+            t00 = t11 = 0.0
+            t01, t10 = -kappa, kappa
+        # T S_ww and T S_ww T'.
+        tw00, tw01 = t00 * c[2, 2] + t01 * c[3, 2], t00 * c[2, 3] + t01 * c[3, 3]
+        tw10, tw11 = t10 * c[2, 2] + t11 * c[3, 2], t10 * c[2, 3] + t11 * c[3, 3]
+        tt00, tt01 = tw00 * t00 + tw01 * t01, tw00 * t10 + tw01 * t11
+        tt10, tt11 = tw10 * t00 + tw11 * t01, tw10 * t10 + tw11 * t11
+        # S_rw T'.
+        rt00, rt01 = c[0, 2] * t00 + c[0, 3] * t01, c[0, 2] * t10 + c[0, 3] * t11
+        rt10, rt11 = c[1, 2] * t00 + c[1, 3] * t01, c[1, 2] * t10 + c[1, 3] * t11
+        # D = S_rw + T S_ww and Cov(r^) = S_rr + S_rw T' + T S_wr + T S_ww T'.
+        d00, d01, d10, d11 = c[0, 2] + tw00, c[0, 3] + tw01, c[1, 2] + tw10, c[1, 3] + tw11
+        hat00 = c[0, 0] + rt00 + rt00 + tt00
+        hat01 = c[0, 1] + rt01 + rt10 + tt01
+        hat11 = c[1, 1] + rt11 + rt11 + tt11
+        no_cross = d00 == 0.0 and d01 == 0.0 and d10 == 0.0 and d11 == 0.0
+        k00 = k01 = k10 = k11 = 0.0
+        if invertible[entry] and not no_cross:
+            determinant = xx * yy - xy * xy
+            i00, i01, i11 = yy / determinant, -xy / determinant, xx / determinant
+            k00, k01 = d00 * i00 + d01 * i01, d00 * i01 + d01 * i11
+            k10, k11 = d10 * i00 + d11 * i01, d10 * i01 + d11 * i11
+        # K D', symmetrised.
+        e00 = k00 * d00 + k01 * d01
+        e11 = k10 * d10 + k11 * d11
+        e01 = 0.5 * ((k00 * d10 + k01 * d11) + (k10 * d00 + k11 * d01))
+        # The largest eigenvalue of D S^-1 D', grown by the relative error of the inverse.
+        reach = math.sqrt(max(0.5 * (e00 + e11) + math.hypot(0.5 * (e00 - e11), e01), 0.0))
+        split[entry, 0] = mean[entry, 0] + t00 * mean[entry, 2] + t01 * mean[entry, 3]
+        split[entry, 1] = mean[entry, 1] + t10 * mean[entry, 2] + t11 * mean[entry, 3]
+        split[entry, 2] = hat00 - e00
+        split[entry, 3] = hat01 - e01
+        split[entry, 4] = hat11 - e11
+        split[entry, 5], split[entry, 6], split[entry, 7], split[entry, 8] = k00, k01, k10, k11
+        split[entry, 9] = reach * (1.0 + 1e-6)
+        split[entry, 10] = (abs(c[0, 0]) + abs(c[0, 1]) + abs(c[1, 0]) + abs(c[1, 1])
+                            + 2.0 * (abs(rt00) + abs(rt01) + abs(rt10) + abs(rt11))
+                            + abs(tt00) + abs(tt01) + abs(tt10) + abs(tt11)
+                            + abs(e00) + 2.0 * abs(e01) + abs(e11))
+        split[entry, 11] = invertible[entry] or no_cross
+
+
+@jit(_BOUND_SIGNATURE)
+def wedge_bounds(mean, cov, radius, across, start, width, masses, invertible):
+    """
+    Return the wedge bound of ``f`` (ACROSS) or of ``g`` per entry, and where it applies.
+
+    After the split (:func:`_split`), ``r^ . v`` given ``w`` is normal with variance
+    ``s^2 = v' S' v`` and mean ``m``; ``v`` is the normal ``n`` for ``f`` and the direction ``d``
+    for ``g``. On a wedge, ``s^2`` ranges over the range of its sinusoid (widened by a relative
+    ``WIDENING`` of its scale); on the disc of size ``rho``, ``m`` is within
+    ``rho ||D S_ww^-1/2||`` of ``mu^ . v``; on the strip, ``m = a + l b`` with the ranges of
+    ``a = (mu^ - K mu_w) . v``, of ``b = v' K d`` and of ``l`` (:func:`_strip_lengths`). On the
+    opposite wedge ``v`` and ``d`` change sign: ``mu^ . v`` and ``a`` do, ``b`` and ``s^2`` do
+    not. Over each box the conditional probability is at least the folded (``f``) or half
+    (``g``) normal's minimum. The true masses are at least the wedges' and sum to one, so the
+    conditional probability averages to at least ``sum q_k F_k + (1 - sum q_k) min F``; masses
+    that sum above one by rounding are scaled down (they stay lower bounds). Each event's miss
+    probability is then subtracted, the best event kept, and ``SLACK`` subtracted.
+
+    Parameters
+    ----------
+    mean : numpy.ndarray
+        Mean of ``z = (r, w)``, shape (N, 4).
+    cov : numpy.ndarray
+        Covariance of ``z``, shape (N, 4, 4).
+    radius : numpy.ndarray
+        ``R`` per entry, shape (N,) (unused for ``g``).
+    across : bool
+        The bound of ``f`` (else of ``g``).
+    start, width, masses, invertible : numpy.ndarray
+        The entries' wedges, shapes (N, K), (N, K), (N, 2 K), (N,) (:func:`cut_wedges`).
+
+    Returns
+    -------
+    probability : numpy.ndarray
+        The bound per entry, shape (N,) (not clipped to [0, 1]).
+    usable : numpy.ndarray
+        False where ``S_ww`` is not inverted but a cross-covariance is left: the split, and so
+        the bound, is unknown there, shape (N,).
+
+    """
+    count, pairs = start.shape
+    split = np.empty((count, 12))
+    _split(mean, cov, across, invertible, split)
+    strips = False
+    for entry in range(count):
+        strips |= split[entry, 9] > 0.0
+    events = _EVENTS if strips else len(DISC_SIZES)
+    probability = np.empty(count)
+    usable = np.empty(count, dtype=np.bool_)
+    claimed = np.empty(events)
+    least = np.empty(events)
+    lows = np.empty(events)
+    highs = np.empty(events)
+    sign = -1.0 if across else 1.0
+    for entry in range(count):
+        usable[entry] = split[entry, 11] != 0.0
+        mu_x, mu_y = mean[entry, 2], mean[entry, 3]
+        hat_x, hat_y = split[entry, 0], split[entry, 1]
+        k00, k01, k10, k11 = split[entry, 5], split[entry, 6], split[entry, 7], split[entry, 8]
+        reach = split[entry, 9]
+        widening = WIDENING * split[entry, 10]
+        # The sinusoids of x: mu^ . v (m = 1) and s^2 = v' S' v (m = 2); for v = n(x) the
+        # linear coefficients are (-y, x) and the double-angle part changes sign.
+        mean_c, mean_s = (-hat_y, hat_x) if across else (hat_x, hat_y)
+        var_constant = 0.5 * (split[entry, 2] + split[entry, 4])
+        var_c, var_s = sign * 0.5 * (split[entry, 2] - split[entry, 4]), sign * split[entry, 3]
+        # The strips' terms, set where they are tried.
+        speed = e_x = e_y = spread = a_c = a_s = b_constant = b_c = b_s = 0.0
+        c_low = c_high = a_low = a_high = b_low = b_high = 0.0
+        if strips:
+            speed = math.hypot(mu_x, mu_y)
+            e_x, e_y = (mu_x / speed, mu_y / speed) if speed > 0.0 else (1.0, 0.0)
+            spread = math.sqrt(max(e_x * e_x * cov[entry, 2, 2] + 2.0 * e_x * e_y
+                                   * cov[entry, 2, 3] + e_y * e_y * cov[entry, 3, 3], 0.0))
+            # a = (mu^ - K mu_w) . v, and b = v' K d = constant + a sinusoid of 2x.
+            a_x = hat_x - (k00 * mu_x + k01 * mu_y)
+            a_y = hat_y - (k10 * mu_x + k11 * mu_y)
+            a_c, a_s = (-a_y, a_x) if across else (a_x, a_y)
+            if across:
+                b_constant = 0.5 * (k01 - k10)
+                b_c, b_s = -0.5 * (k01 + k10), 0.5 * (k00 - k11)
+            else:
+                b_constant = 0.5 * (k00 + k11)
+                b_c, b_s = 0.5 * (k00 - k11), 0.5 * (k01 + k10)
+        total = 0.0
+        for side in range(2 * pairs):
+            total += masses[entry, side]
+        normaliser = max(total, 1.0)
+        claimed[:] = 0.0
+        least[:] = np.inf
+        mass_sum = 0.0
+        for wedge in range(pairs):
+            begin, span = start[entry, wedge], width[entry, wedge]
+            mean_low, mean_high = harmonic_range(mean_c, mean_s, 1.0, begin, span)
+            var_low, var_high = harmonic_range(var_c, var_s, 2.0, begin, span)
+            sd_low = math.sqrt(max(var_constant + var_low - widening, 0.0))
+            sd_high = math.sqrt(max(var_constant + var_high + widening, 0.0))
+            if strips:
+                c_low, c_high = harmonic_range(e_x, e_y, 1.0, begin, span)
+                a_low, a_high = harmonic_range(a_c, a_s, 1.0, begin, span)
+                b_low, b_high = harmonic_range(b_c, b_s, 2.0, begin, span)
+                b_low, b_high = b_constant + b_low, b_constant + b_high
+            for side in range(2):
+                # The opposite wedge: the linear ranges negated.
+                if side == 1:
+                    mean_low, mean_high = -mean_high, -mean_low
+                    if strips:
+                        c_low, c_high = -c_high, -c_low
+                        a_low, a_high = -a_high, -a_low
+                for disc in range(len(DISC_SIZES)):
+                    lows[disc] = mean_low - reach * _DISCS[disc]
+                    highs[disc] = mean_high + reach * _DISCS[disc]
+                if strips:
+                    for strip in range(len(STRIP_SIZES)):
+                        extent = spread * _STRIPS[strip]
+                        l_low, l_high = _strip_lengths(c_low, c_high, speed - extent,
+                                                       speed + extent)
+                        event = len(DISC_SIZES) + strip
+                        if l_low > l_high:
+                            lows[event], highs[event] = np.inf, -np.inf
+                        else:
+                            product_low, product_high = _interval_product(l_low, l_high,
+                                                                          b_low, b_high)
+                            lows[event] = a_low + product_low
+                            highs[event] = a_high + product_high
+                mass = masses[entry, side * pairs + wedge] / normaliser
+                mass_sum += mass
+                for event in range(events):
+                    if across:
+                        minimum = _folded_normal_minimum(lows[event], highs[event], sd_low,
+                                                         sd_high, radius[entry])
+                    else:
+                        minimum = _half_normal_minimum(lows[event], highs[event], sd_low,
+                                                       sd_high)
+                    claimed[event] += mass * minimum
+                    least[event] = min(least[event], minimum)
+        best = -np.inf
+        for event in range(events):
+            miss = (_DISC_MISSES[event] if event < len(DISC_SIZES)
+                    else _STRIP_MISSES[event - len(DISC_SIZES)])
+            best = max(best, claimed[event] + (1.0 - mass_sum) * least[event] - miss)
+        probability[entry] = best - SLACK
+    return probability, usable
