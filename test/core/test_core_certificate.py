@@ -22,9 +22,9 @@ from prvo_planner.core.certificate import (
     receding_certificate,
     rvo_certificate,
 )
+from prvo_planner.core.certificate_kernels import cut_wedges, harmonic_range
+from prvo_planner.core.certificate_kernels import ndtr as compiled_ndtr
 from prvo_planner.core.special import ndtr
-from prvo_planner.core.wedge_bound import cut_wedges, harmonic_range
-from prvo_planner.core.wedge_bound import ndtr as compiled_ndtr
 
 # One-sided z for the validity checks; the bound sits below the truth, so a false alarm needs
 # a deviation beyond 4.5 standard errors of the sampled probability.

@@ -12,12 +12,13 @@ from prvo_planner.parameters import DEFAULTS, planner_config_from
 agent = PlannerAgent('self', planner_config_from({}), AgentSettings.from_parameters(DEFAULTS))
 before = sorted(m for m in sys.modules if m.startswith('prvo_planner.core.'))
 agent.warm_up()
-print(sorted(m for m in ('prvo_planner.core.ray_search', 'prvo_planner.core.wedge_bound')
-             if m in sys.modules and m not in before))
+kernels = ('prvo_planner.core.ray_search', 'prvo_planner.core.certificate_kernels')
+print(sorted(m for m in kernels if m in sys.modules and m not in before))
 """
 
 
-def test_the_warm_up_loads_the_ray_search_and_the_wedge_bound(python_executable):
+def test_the_warm_up_loads_the_ray_search_and_the_certificate(python_executable):
     output = subprocess.run([python_executable, '-c', PROBE], capture_output=True, text=True,
                             check=True).stdout
-    assert output.strip() == "['prvo_planner.core.ray_search', 'prvo_planner.core.wedge_bound']"
+    assert output.strip() == str(['prvo_planner.core.certificate_kernels',
+                                  'prvo_planner.core.ray_search'])

@@ -23,9 +23,9 @@ floating-point rounding.
    ``P(f >= 0 | w) = F(m, s) = Phi((m - R) / s) + Phi((-m - R) / s)``, a folded normal.
 4. **Cells.** The directions are cut into wedges, each with its opposite. Over a wedge and the
    lengths ``l`` of an event ``E`` of high probability, ``m`` and ``s^2`` lie in ranges bounded
-   from the exact ranges of their sinusoids (``wedge_bound.harmonic_range``), and ``F`` is at
-   least its value at the worst end of those ranges. Two kinds of ``E`` are tried, at several
-   sizes ``rho``. The strip ``|e . (w - mu_w)| <= rho sd(e . w)``, ``e`` the mean's
+   from the exact ranges of their sinusoids (``certificate_kernels.harmonic_range``), and ``F``
+   is at least its value at the worst end of those ranges. Two kinds of ``E`` are tried, at
+   several sizes ``rho``. The strip ``|e . (w - mu_w)| <= rho sd(e . w)``, ``e`` the mean's
    direction, bounds ``l`` on each wedge and misses with probability ``2 Phi(-rho)`` (the gain
    ``b = n' S_rw S_ww^-1 d`` does not depend on ``lambda``, as ``n . d = 0``). On the disc
    ``|S_ww^-1/2 (w - mu_w)| <= rho``, ``|n . K (w - mu_w)| <= rho ||D S_ww^-1/2||_2`` whatever
@@ -34,8 +34,8 @@ floating-point rounding.
    is kept; each is valid.
 5. **Masses.** The probability that the direction falls in a wedge is at least the difference of
    the half-plane probabilities through its edges less its opposite's mass, and at least its
-   width times the minimum of the direction's density (``wedge_bound.cut_wedges``). With lower
-   bounds ``q_k`` on the masses and ``F_k`` on the minima,
+   width times the minimum of the direction's density (``certificate_kernels.cut_wedges``).
+   With lower bounds ``q_k`` on the masses and ``F_k`` on the minima,
    ``P >= sum_k q_k F_k + (1 - sum_k q_k) min_k F_k - P(not E)``: the masses sum to one, and
    what no wedge claims gets the smallest minimum.
 
@@ -51,13 +51,15 @@ variable given the direction of ``w`` (``h1`` compares ``r . d`` with ``-tau l``
 h2)`` holds wherever the segment from ``r`` to ``r + tau w`` misses the disc, and that event is
 bounded from below by two normal tails per half-plane (:func:`horizon_certificate`).
 
-Steps 1 to 5 are compiled by numba (:mod:`prvo_planner.core.wedge_bound`, loaded on the first
-wedge bound); the rest of this module is numpy. Rounding is made to go the safe way where it is
-cheap: the ranges of ``m`` and ``s^2`` are widened by a relative 1e-9 of their scales, the
-density bound is shrunk by a relative 1e-9, and ``SLACK = 1e-9`` is subtracted from every bound,
-which covers the error of ``Phi`` (scipy's ``ndtr`` here, the compiled one in the wedge bound,
-each below 2e-14 per call, checked against ``math.erfc`` and mpmath) summed over up to
-``MAX_WEDGES`` wedges and the rounding of the sums. This holds for covariances that are not ill
+Steps 1 to 5 and the horizon bound are compiled by numba
+(:mod:`prvo_planner.core.certificate_kernels`, loaded on the first bound); the rest of this
+module (the arguments, the exact cases, Cantelli's bound and the choice among the bounds) is
+numpy. Rounding is made to go the safe way where it is cheap: the ranges of ``m`` and ``s^2``
+are widened by a relative 1e-9 of their scales, the density bound is shrunk by a relative 1e-9,
+and ``SLACK = 1e-9`` is subtracted from every bound, which covers the error of ``Phi`` (scipy's
+``ndtr`` in the exact cases, the compiled one in the kernels, each below 2e-14 per call, checked
+against ``math.erfc`` and mpmath) summed over up to ``MAX_WEDGES`` wedges and the rounding of
+the sums. This holds for covariances that are not ill
 conditioned; the bound is not computed in interval arithmetic.
 """
 
@@ -92,13 +94,12 @@ SEARCH_MARGINS = (0.99, 1.26, 1.51, 1.89)
 # Relative widening of the ranges of m and s^2, and shrinking of the density bound.
 WIDENING = 1e-9
 # Below this beta the direct form of psi(beta) cancels; its polynomial bound is used instead
-# (:func:`prvo_planner.core.wedge_bound.cut_wedges`).
+# (:func:`prvo_planner.core.certificate_kernels.cut_wedges`).
 PSI_SWITCH = -3.0
 # g = z' G z with G = [[0, I], [I, 0]] / 2.
 _HALF_SWAP = np.block([[np.zeros((2, 2)), 0.5 * np.eye(2)], [0.5 * np.eye(2), np.zeros((2, 2))]])
 # Even directions of the half-planes :func:`horizon_certificate` tries, besides the means'.
 HORIZON_DIRECTIONS = 64
-_HORIZON_ANGLES = 2.0 * math.pi * np.arange(HORIZON_DIRECTIONS) / HORIZON_DIRECTIONS
 
 
 @dataclass(frozen=True)
@@ -195,7 +196,7 @@ class _Wedges:
 
     They depend on the mean and covariance of ``w`` alone: the bounds on ``f`` and on ``g`` of
     the same entries share them (:func:`condition_bound`). Made by
-    :func:`prvo_planner.core.wedge_bound.cut_wedges`.
+    :func:`prvo_planner.core.certificate_kernels.cut_wedges`.
 
     Attributes
     ----------
@@ -223,7 +224,7 @@ def _wedges(mean, cov, wedges):
     """Return the :class:`_Wedges` of ``wedges`` wedges of ``mean`` (N, 4), ``cov`` (N, 4, 4)."""
     # Imported, and so loaded or compiled, on the first wedge bound: a process that certifies
     # nothing does not import numba for it.
-    from .wedge_bound import cut_wedges
+    from .certificate_kernels import cut_wedges
 
     return _Wedges(*cut_wedges(_writable(mean[:, 2:]), _writable(cov[:, 2:, 2:]), wedges // 2))
 
@@ -233,9 +234,9 @@ def _wedge_bound(mean, cov, radius, wedges):
     Return the wedge bound of ``f`` (given ``radius``, (N,)) or of ``g``, and where it applies.
 
     ``mean`` (N, 4), ``cov`` (N, 4, 4) and their :class:`_Wedges`; results (N,)
-    (:func:`prvo_planner.core.wedge_bound.wedge_bounds`, compiled).
+    (:func:`prvo_planner.core.certificate_kernels.wedge_bounds`, compiled).
     """
-    from .wedge_bound import wedge_bounds
+    from .certificate_kernels import wedge_bounds
 
     across = radius is not None
     return wedge_bounds(_writable(mean), _writable(cov),
@@ -424,8 +425,8 @@ def condition_bound(mean, cov, radius, required, gated, horizon=None, wedges=DEF
     condition's probability, so the largest is one. A later bound is computed only for the
     entries the earlier ones leave short, and on exactly those (an entry's bound depends on the
     batch it is computed in only by rounding and by which events are tried, see
-    :func:`~prvo_planner.core.wedge_bound.wedge_bounds`, so the batches are the ones the three
-    functions would be called with).
+    :func:`~prvo_planner.core.certificate_kernels.wedge_bounds`, so the batches are the ones the
+    three functions would be called with).
     The wedges and their masses depend on ``w`` alone: ``f`` and ``g`` share them.
 
     Parameters
@@ -515,27 +516,7 @@ def horizon_certificate(mean, cov, radius, horizon):
     horizon = np.broadcast_to(np.asarray(horizon, dtype=float), shape).reshape(-1)
     if not (np.isfinite(horizon).all() and (horizon > 0.0).all()):
         raise ValueError('horizon must be finite and > 0')
-    tau = horizon[:, None, None]
-    mu_r = mean[:, :2]
-    mu_p = mu_r + horizon[:, None] * mean[:, 2:]
-    cov_rw = cov[:, :2, 2:]
-    cov_pp = (cov[:, :2, :2] + tau * (cov_rw + cov_rw.transpose(0, 2, 1))
-              + tau * tau * cov[:, 2:, 2:])
-    angles = np.concatenate([
-        np.broadcast_to(_HORIZON_ANGLES, (mean.shape[0], _HORIZON_ANGLES.size)),
-        np.arctan2(np.stack([mu_r[:, 1], mu_p[:, 1]], axis=1),
-                   np.stack([mu_r[:, 0], mu_p[:, 0]], axis=1))], axis=1)
-    bisector = 0.5 * (angles[:, -2] + angles[:, -1])
-    bisector = np.where(np.abs(angles[:, -2] - angles[:, -1]) > math.pi, bisector + math.pi,
-                        bisector)
-    angles = np.concatenate([angles, bisector[:, None]], axis=1)
-    directions = np.stack([np.cos(angles), np.sin(angles)], axis=-1)
-    tails = []
-    for mu, spread in ((mu_r, cov[:, :2, :2]), (mu_p, cov_pp)):
-        along = np.einsum('nai,ni->na', directions, mu) - radius[:, None]
-        sd = np.sqrt(np.maximum(np.einsum('nai,nij,naj->na', directions, spread, directions),
-                                0.0))
-        # An end exactly on the line with no spread still lies in the closed half-plane.
-        tails.append(ndtr(-_ratio(along, sd, np.inf)))
-    bound = np.max(1.0 - tails[0] - tails[1], axis=1) - SLACK
+    from .certificate_kernels import horizon_bounds
+
+    bound = horizon_bounds(_writable(mean), _writable(cov), _writable(radius), _writable(horizon))
     return np.clip(bound, 0.0, 1.0).reshape(shape)

@@ -30,6 +30,7 @@ from .certificate import (
     ADAPTIVE_SPAN,
     CONDITION_LIMIT,
     DISC_SIZES,
+    HORIZON_DIRECTIONS,
     PSI_SWITCH,
     SLACK,
     STRIP_SIZES,
@@ -58,6 +59,7 @@ _FLAGS = types.boolean[::1]
 _CUT_SIGNATURE = types.Tuple((_ROWS, _ROWS, _ROWS, _FLAGS))(_ROWS, _MATRICES, types.int64)
 _BOUND_SIGNATURE = types.Tuple((_VECTOR, _FLAGS))(
     _ROWS, _MATRICES, _VECTOR, types.boolean, _ROWS, _ROWS, _ROWS, _FLAGS)
+_HORIZON_SIGNATURE = _VECTOR(_ROWS, _MATRICES, _VECTOR, _VECTOR)
 
 
 @jit()
@@ -558,3 +560,72 @@ def wedge_bounds(mean, cov, radius, across, start, width, masses, invertible):
             best = max(best, claimed[event] + (1.0 - mass_sum) * least[event] - miss)
         probability[entry] = best - SLACK
     return probability, usable
+
+
+@jit(inline='always')
+def _half_plane_bound(angle, r_x, r_y, rxx, rxy, ryy, p_x, p_y, pxx, pxy, pyy, radius):
+    """
+    ``1 - Phi((R - e . mu_r) / s_r) - Phi((R - e . mu_p) / s_p)`` for ``e`` at ANGLE.
+
+    The probability that both ends of the segment lie in the half-plane ``e . x >= R``, at
+    least; an end exactly on the line with no spread still lies in the closed half-plane.
+    """
+    cos, sin = math.cos(angle), math.sin(angle)
+    bound = 1.0
+    for x, y, xx, xy, yy in ((r_x, r_y, rxx, rxy, ryy), (p_x, p_y, pxx, pxy, pyy)):
+        along = cos * x + sin * y - radius
+        spread = math.sqrt(max(cos * cos * xx + 2.0 * cos * sin * xy + sin * sin * yy, 0.0))
+        bound -= ndtr(-_ratio(along, spread, np.inf))
+    return bound
+
+
+@jit(_HORIZON_SIGNATURE)
+def horizon_bounds(mean, cov, radius, horizon):
+    """
+    Return the horizon bound per entry (``certificate.horizon_certificate``).
+
+    The segment from ``r`` to ``p = r + tau w`` misses the disc of radius ``R`` when both ends
+    lie in a half-plane ``e . x >= R``; for each ``e`` that has probability at least one less
+    the two normal tails of ``e . r`` and ``e . p``. The largest over ``HORIZON_DIRECTIONS``
+    even directions and those of ``mu_r``, ``mu_p`` and their bisector is kept, less
+    ``SLACK``, clipped to [0, 1].
+
+    Parameters
+    ----------
+    mean : numpy.ndarray
+        Mean of ``z = (r, w)``, shape (N, 4).
+    cov : numpy.ndarray
+        Covariance of ``z``, shape (N, 4, 4).
+    radius, horizon : numpy.ndarray
+        ``R`` and ``tau`` per entry, shape (N,).
+
+    Returns
+    -------
+    numpy.ndarray
+        The bound per entry, shape (N,).
+
+    """
+    count = mean.shape[0]
+    bounds = np.empty(count)
+    for entry in range(count):
+        c, tau, big_r = cov[entry], horizon[entry], radius[entry]
+        r_x, r_y = mean[entry, 0], mean[entry, 1]
+        p_x, p_y = r_x + tau * mean[entry, 2], r_y + tau * mean[entry, 3]
+        # Cov(p) = S_rr + tau (S_rw + S_wr) + tau^2 S_ww.
+        pxx = c[0, 0] + tau * (c[0, 2] + c[0, 2]) + tau * tau * c[2, 2]
+        pxy = c[0, 1] + tau * (c[0, 3] + c[1, 2]) + tau * tau * c[2, 3]
+        pyy = c[1, 1] + tau * (c[1, 3] + c[1, 3]) + tau * tau * c[3, 3]
+        best = -np.inf
+        for direction in range(HORIZON_DIRECTIONS):
+            best = max(best, _half_plane_bound(
+                _TWO_PI * direction / HORIZON_DIRECTIONS, r_x, r_y, c[0, 0], c[0, 1], c[1, 1],
+                p_x, p_y, pxx, pxy, pyy, big_r))
+        toward_r, toward_p = math.atan2(r_y, r_x), math.atan2(p_y, p_x)
+        bisector = 0.5 * (toward_r + toward_p)
+        if abs(toward_r - toward_p) > math.pi:
+            bisector += math.pi
+        for angle in (toward_r, toward_p, bisector):
+            best = max(best, _half_plane_bound(angle, r_x, r_y, c[0, 0], c[0, 1], c[1, 1],
+                                               p_x, p_y, pxx, pxy, pyy, big_r))
+        bounds[entry] = min(max(best - SLACK, 0.0), 1.0)
+    return bounds
