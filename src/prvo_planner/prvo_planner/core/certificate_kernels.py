@@ -1,24 +1,28 @@
 """
-The wedge bound of :mod:`.certificate` compiled: wedges, their masses, and the bound on them.
+The certificate's arithmetic compiled (:mod:`.certificate`): wedges, masses, the two bounds.
 
-Two numba functions, compiled for one signature each when this module is first imported
-(:mod:`.certificate` imports it on its first wedge bound) and kept in numba's on-disk cache, as
-the ray search is (:mod:`.ray_search`; ``./run.sh setup`` compiles both once after installing):
+Three numba functions, compiled for one signature each when this module is first imported
+(:mod:`.certificate` imports it on its first bound) and kept in numba's on-disk cache, as the ray
+search is (:mod:`.ray_search`; ``./run.sh setup`` compiles both modules once after installing):
 
 * :func:`cut_wedges` cuts each entry's directions of ``w`` into wedges and bounds their masses
   from below (steps 4 and 5 of the proof in :mod:`.certificate`'s docstring);
 * :func:`wedge_bounds` bounds ``P(f >= 0)`` or ``P(g >= 0)`` of each entry on those wedges
-  (steps 1 to 5).
+  (steps 1 to 5);
+* :func:`horizon_bounds` bounds the whole condition by half-planes the segment from ``r`` to
+  ``r + tau w`` stays in (:func:`.certificate.horizon_certificate`).
 
-Both work entry by entry and wedge by wedge in scalars, with the arithmetic the proof states:
+They work entry by entry and wedge by wedge in scalars, with the arithmetic the proof states:
 the ranges of the sinusoids of the direction angle over a wedge (:func:`harmonic_range`), the
 lengths of ``w`` on a strip, the minima of the folded and half normal over a box of mean and
-variance. Each entry's bound depends on the others of its call in one way only, as it did in
-numpy: the strip events are tried for every entry when some entry of the call has a
-cross-covariance left after the shift (``reach > 0``), else only the discs.
+variance; no (entry, wedge, event) arrays are made. Each entry's bound depends on the others of
+its call in one way only, as it did in numpy: the strip events are tried for every entry when
+some entry of the call has a cross-covariance left after the shift (``reach > 0``), else only
+the discs.
 
-``Phi`` is :func:`ndtr`, cephes' form over the C library's ``erf`` and ``erfc`` (within 2e-14 of
-``math.erfc``'s ``Phi`` everywhere, which the bound's ``SLACK`` covers).
+``Phi`` is :func:`ndtr`, cephes' form over the C library's ``erf`` and ``erfc`` (numba cannot
+call scipy's ufunc): within 2e-14 of ``math.erfc``'s ``Phi`` everywhere, which the bound's
+``SLACK`` covers.
 """
 
 import math
