@@ -25,7 +25,7 @@ import numpy as np
 
 def jit(*signature, inline='never'):
     """
-    Compile a function of the core (ray search, wedge bound) with numba, cached where it can.
+    Compile a function of the core (ray search, certificate) with numba, cached where it can.
 
     Division by zero and the square root of a negative give inf and NaN as in numpy instead of
     raising. The cache is ``__pycache__`` beside the source, else numba's user-wide directory
