@@ -23,8 +23,8 @@ from prvo_planner.core.certificate import (
     rvo_certificate,
 )
 from prvo_planner.core.certificate_kernels import cut_wedges, harmonic_range
-from prvo_planner.core.certificate_kernels import ndtr as compiled_ndtr
 from prvo_planner.core.special import ndtr
+from prvo_planner.core.special_kernels import ndtr as compiled_ndtr
 
 # One-sided z for the validity checks; the bound sits below the truth, so a false alarm needs
 # a deviation beyond 4.5 standard errors of the sampled probability.

@@ -16,6 +16,7 @@ its neighbours' on theirs.
 import collections
 import concurrent.futures
 import dataclasses
+import importlib
 import sys
 import threading
 import time
@@ -347,8 +348,16 @@ class PlannerNode(Node):
                                         self._agent.own_announcement_stamp)
 
     def warm_up(self):
-        """Pay the first plans' one-off costs before spinning (see PlannerAgent.warm_up)."""
+        """
+        Pay the first plans' one-off costs before spinning (see PlannerAgent.warm_up).
+
+        The walls' compiled kernels (`core.wall_kernels`) are loaded here too, by their import:
+        a map or walls can reach the planner at any time, and the load in a callback would be
+        late. A Monte Carlo planner never plans beside walls.
+        """
         self._agent.warm_up()
+        if self._agent.config.model != 'mc':
+            importlib.import_module('prvo_planner.core.wall_kernels')
 
     # Inputs -----------------------------------------------------------------------------------
 

@@ -41,6 +41,7 @@ from .certificate import (
     WIDENING,
 )
 from .ray_solver import jit
+from .special_kernels import ndtr
 
 _SQRT_HALF = math.sqrt(0.5)
 _SQRT_2PI = math.sqrt(2.0 * math.pi)
@@ -64,22 +65,6 @@ _CUT_SIGNATURE = types.Tuple((_ROWS, _ROWS, _ROWS, _FLAGS))(_ROWS, _MATRICES, ty
 _BOUND_SIGNATURE = types.Tuple((_VECTOR, _FLAGS))(
     _ROWS, _MATRICES, _VECTOR, types.boolean, _ROWS, _ROWS, _ROWS, _FLAGS)
 _HORIZON_SIGNATURE = _VECTOR(_ROWS, _MATRICES, _VECTOR, _VECTOR)
-
-
-@jit()
-def ndtr(x):
-    """
-    Return ``Phi(x)``, the standard normal distribution function, NaN for NaN.
-
-    Near 0 as ``1/2 + erf(x / sqrt 2) / 2``, elsewhere from ``erfc`` of ``|x| / sqrt 2``, whose
-    relative error stays at the C library's in either tail.
-    """
-    scaled = x * _SQRT_HALF
-    size = abs(scaled)
-    if size < _SQRT_HALF:
-        return 0.5 + 0.5 * math.erf(scaled)
-    tail = 0.5 * math.erfc(size)
-    return 1.0 - tail if scaled > 0.0 else tail
 
 
 @jit(inline='always')

@@ -18,14 +18,15 @@ out of the half-plane ``n.x < c`` for the whole horizon. ``y(0) ~ N(m0, s0^2)`` 
 ``m0 = n.mu - c``, ``s0^2 = n' S_p n``; then ``y`` moves with the drift ``n.v`` and, at whole
 periods, as a Brownian motion of variance ``T n' S_a n`` per second, linear in between, so
 ``y >= 0`` on ``[0, tau]`` (rounded up to whole periods) fails with probability at most the
-reflection principle's bound (``crossing_bounds``). It grows with the speed towards the line,
-``-n.v``: on a ray ``v = t v_max e`` each condition accepts a half-line of ``t``, its end the
-largest speed towards the line whose bound is at most the risk (the reflected term is at most
-the first, so it lies between the first term's thresholds at half the risk and at the risk;
-regula falsi from there). A condition whose bound standing still exceeds its risk accepts
-nothing. Several conditions certify a piece when
-any one of them holds (each with the piece's whole risk); their normals depend on the beliefs
-and, for a disc's tangent parallel to a ray (``parallel_failures``), on the ray's direction.
+reflection principle's bound (``wall_kernels.crossing_bounds``, compiled). It grows with the
+speed towards the line, ``-n.v``: on a ray ``v = t v_max e`` each condition accepts a
+half-line of ``t``, its end the largest speed towards the line whose bound is at most the risk
+(the reflected term is at most the first, so it lies between the first term's thresholds at
+half the risk and at the risk; regula falsi from there, ``wall_kernels.line_speeds``). A
+condition whose bound standing still exceeds its risk accepts nothing. Several conditions
+certify a piece when any one of them holds (each with the piece's whole risk); their normals
+depend on the beliefs and, for a disc's tangent parallel to a ray (``parallel_failures``), on
+the ray's direction.
 
 Per wall (``delta = 1 - eta``) a velocity is accepted if either
 
@@ -73,7 +74,7 @@ import math
 import numpy as np
 
 from .probability import confidence_ellipse_scale
-from .special import erfcx, ndtr, ndtri
+from .special import ndtri
 
 # An end disc whose a-priori bound is at most this share of a wall's risk is out of reach.
 REACH_SHARE = 0.01
@@ -114,12 +115,6 @@ def closest_points(point, segments, frames):
     return closest, np.hypot(point[0] - closest[:, 0], point[1] - closest[:, 1])
 
 
-def _below_zero(mean, std):
-    """``P(N(mean, std^2) < 0)``, elementwise; a known value (std 0) gives 0 or 1."""
-    ratio = np.divide(mean, std, out=np.where(mean >= 0.0, np.inf, -np.inf), where=std > 0.0)
-    return ndtr(-ratio)
-
-
 def _quadratic_form(normals, cov):
     """``n' S n`` for normals (..., 2) and a 2x2 covariance S."""
     x, y = normals[..., 0], normals[..., 1]
@@ -155,72 +150,6 @@ def _fan(centres, radius, mean):
     offsets = (normals[..., 0] * centres[:, :1] + normals[..., 1] * centres[:, 1:]
                + radius[:, None])
     return normals, offsets, distance
-
-
-def crossing_bounds(mean0, std0, walk, horizon, approach):
-    """
-    Bound on ``P(min over [0, horizon] of y(t) < 0)`` for ``y(t) = y0 - approach t + W(t)``.
-
-    ``y0 ~ N(mean0, std0^2)`` and ``W`` a Brownian motion of variance ``walk`` per second,
-    independent of ``y0``; ``approach >= 0``. With ``t0 = std0^2 / walk``, ``y`` on
-    ``[0, horizon]`` is the restriction of a Brownian motion with the same drift started at
-    ``x0 = mean0 + approach t0`` at time ``-t0``, so the reflection principle over
-    ``[-t0, horizon]`` bounds it:
-    ``Phi(-(mean0 - approach horizon) / S) + exp(2 approach x0 / walk) Phi(-u)``, with
-    ``S^2 = std0^2 + walk horizon`` and ``u = (mean0 + approach (horizon + 2 t0)) / S``. The
-    second term is computed as ``phi((mean0 - approach horizon) / S) sqrt(pi / 2)
-    erfcx(u / sqrt(2))`` (the same number, without the overflow). Without a walk the path is
-    straight and the bound is exact: ``P(y0 < approach horizon)``. Elementwise; in [0, 1].
-    """
-    reach = mean0 - approach * horizon
-    spread = np.sqrt(std0 * std0 + walk * horizon)
-    first = _below_zero(reach, spread)
-    noisy = walk > 0.0
-    if not noisy.any():
-        return first
-    # With a walk the spread is positive; elsewhere any positive stand-in (unused).
-    scale = np.where(noisy, spread, 1.0)
-    before = std0 * std0 / np.where(noisy, walk, 1.0)
-    start = mean0 + approach * before
-    # Only a drift towards the line makes u depend on t0 (which is inf for a vanishing walk).
-    far = mean0 + np.where(approach > 0.0, approach * (horizon + 2.0 * before), 0.0)
-    ratio = reach / scale
-    # phi(ratio) sqrt(pi / 2) = exp(-ratio^2 / 2) / 2; where x0 <= 0 the bound is 1 and u is
-    # not needed (clipped at 0 to keep erfcx finite).
-    second = 0.5 * np.exp(-0.5 * ratio * ratio) * erfcx(np.maximum(far, 0.0) / (scale * _SQRT2))
-    bound = np.where(start > 0.0, first + second, 1.0)
-    return np.clip(np.where(noisy, bound, first), 0.0, 1.0)
-
-
-_SQRT2 = math.sqrt(2.0)
-# Steps of regula falsi (Illinois) for the largest speed towards a line a condition accepts:
-# the bracket is already (z(delta / 2) - z(delta)) S / tau wide (a few mm/s) and the bound is
-# smooth and monotone in it, so a few steps leave it far below any speed's meaning.
-_FALSI_STEPS = 8
-
-
-def _largest_accepted(bound, low, high, limit):
-    """
-    Largest ``a`` in ``[low, high]`` with ``bound(a) <= limit``, from below, elementwise.
-
-    ``bound`` is nondecreasing, ``bound(low) <= limit`` and ``bound(high) >= limit``; the
-    answer is always a point where the bound holds (``low`` at worst).
-    """
-    below, above = bound(low) - limit, bound(high) - limit
-    last = np.zeros(low.shape, dtype=int)
-    for _ in range(_FALSI_STEPS):
-        gap = above - below
-        middle = np.where(gap > 0.0, high - above * (high - low) / np.where(
-            gap > 0.0, gap, 1.0), 0.5 * (low + high))
-        middle = np.clip(middle, low, high)
-        value = bound(middle) - limit
-        accepted = value <= 0.0
-        # Illinois: the end kept twice in a row has its value halved, so both ends move.
-        below = np.where(accepted, value, np.where(last == -1, 0.5 * below, below))
-        above = np.where(accepted, np.where(last == 1, 0.5 * above, above), value)
-        low, high = np.where(accepted, middle, low), np.where(accepted, high, middle)
-        last = np.where(accepted, 1, -1)
-    return low
 
 
 @dataclass(frozen=True)
@@ -266,13 +195,12 @@ class LinearConditions:
     @classmethod
     def of(cls, normals, offsets, risks, mean, position_cov, actuation_cov, horizon, period):
         """Return the conditions of NORMALS and OFFSETS for the ego's belief."""
+        from .wall_kernels import line_speeds
         mean0 = normals @ mean - offsets
         std0 = np.sqrt(np.maximum(_quadratic_form(normals, position_cov), 0.0))
         walk = period * np.maximum(_quadratic_form(normals, actuation_cov), 0.0)
         # A partial last period would move less than the walk: cover it whole.
         horizon = period * math.ceil(horizon / period - 1e-9)
-        still = crossing_bounds(mean0, std0, walk, horizon, np.zeros_like(mean0))
-        usable = still < risks
         # The reflected term is at most the first (Mills' ratio falls and u >= (m0 - a tau) / S),
         # so the bound lies between the first term and twice it: the largest speed towards the
         # line lies between first-term thresholds at delta / 2 (accepted) and delta (not).
@@ -280,14 +208,9 @@ class LinearConditions:
         risk = np.clip(risks, 1e-300, 1.0)
         low = np.maximum(mean0 + ndtri(0.5 * risk) * spread, 0.0) / horizon
         high = np.maximum(mean0 + ndtri(risk) * spread, 0.0) / horizon
-        active = np.flatnonzero(usable & (high > low))
-        if active.size:
-            arguments = mean0[active], std0[active], walk[active]
-            low[active] = _largest_accepted(
-                lambda approach: crossing_bounds(*arguments, horizon, approach),
-                low[active], high[active], risks[active])
+        still, approach = line_speeds(mean0, std0, walk, horizon, risks, low, high)
         return cls(normals=normals, mean0=mean0, std0=std0, walk=walk, horizon=horizon,
-                   still_risk=still, risks=risks, approach=np.where(usable, low, -np.inf))
+                   still_risk=still, risks=risks, approach=approach)
 
     def accepted(self, directions, max_speed):
         """
@@ -298,7 +221,8 @@ class LinearConditions:
         return half_lines(max_speed * (self.normals @ directions.T), -self.approach[:, None])
 
     def failures(self, velocity):
-        """Return the bound on each condition failing at VELOCITY (``crossing_bounds``)."""
+        """Return the bound on each condition failing at VELOCITY (``crossing_bounds``), (K,)."""
+        from .wall_kernels import crossing_bounds
         return crossing_bounds(self.mean0, self.std0, self.walk, self.horizon,
                                np.maximum(-(self.normals @ velocity), 0.0))
 
@@ -399,12 +323,14 @@ def certifiable_width(ego, config):
     ellipse). A narrower door cannot be certified and the robot holds in front of it; a wider
     one can still be too narrow where the ends of a short jamb share the risk.
     """
+    from .wall_kernels import crossing_bounds
     position_cov, actuation_cov, growth = _planning_covariances(ego, config)
     std0 = _largest_std(position_cov)
     walk = config.control_period * _largest_std(actuation_cov) ** 2
     horizon = config.control_period * math.ceil(config.obstacle_horizon / config.control_period
                                                 - 1e-9)
     risk = 1.0 - config.effective_eta
+
     def fails(margin):
         return crossing_bounds(np.array([margin]), np.array([std0]), np.array([walk]), horizon,
                                np.zeros(1))[0] > risk
@@ -533,13 +459,16 @@ def parallel_failures(model, centres, radius, directions):
     is certified by it where the fan's tangents, fixed by the beliefs, slant towards the path
     and limit the speed. CENTRES (K, 2) and RADIUS (K,) grown; DIRECTIONS (M, 2) unit.
     """
+    from .wall_kernels import crossing_bounds
     across = np.stack([-directions[:, 1], directions[:, 0]], axis=1)
     side = (model.mean_position - centres) @ across.T
     margin = np.abs(side) - radius[:, None]
     std0 = np.sqrt(np.maximum(_quadratic_form(across, model.position_cov), 0.0))
     walk = np.maximum(_quadratic_form(across, model.walk_cov), 0.0)
-    return crossing_bounds(margin, std0[None], walk[None], model.conditions.horizon,
-                           np.zeros_like(margin))
+    # One condition per (shape, ray): the kernel takes flat arrays.
+    rows = len(margin)
+    return crossing_bounds(margin.ravel(), np.tile(std0, rows), np.tile(walk, rows),
+                           model.conditions.horizon, np.zeros(margin.size)).reshape(margin.shape)
 
 
 def rejected_intervals(model, directions):
