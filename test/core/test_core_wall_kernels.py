@@ -1,8 +1,10 @@
-"""The walls' compiled crossing bounds (core/wall_kernels.py) against high-precision oracles.
+"""The walls' compiled kernels (core/wall_kernels.py) against independent oracles.
 
-The oracle is the reflection principle's bound written out in mpmath at 50 digits, in its own
-form (``exp(2 a x0 / walk) Phi(-u)``, not through ``erfcx``), and the largest accepted speed is
-that oracle's root found by bisection in mpmath: nothing of the kernels is reused.
+The crossing bound's oracle is the reflection principle's bound written out in mpmath at 50
+digits, in its own form (``exp(2 a x0 / walk) Phi(-u)``, not through ``erfcx``), and the largest
+accepted speed is that oracle's root found by bisection in mpmath. The rejected intervals are
+checked on dense samples of each ray, each speed judged from the definitions of the conditions
+and pieces, the parallel tangents' bounds in closed form: nothing of the kernels is reused.
 """
 
 import math
@@ -10,9 +12,13 @@ import math
 import mpmath
 import numpy as np
 import pytest
+from scipy.stats import norm
 
+from prvo_planner.core import AgentBelief, PlannerConfig
+from prvo_planner.core.obstacles import StaticObstacles
 from prvo_planner.core.special_kernels import erfcx
 from prvo_planner.core.wall_kernels import crossing_bounds, line_speeds
+from prvo_planner.core.walls import rejected_intervals, wall_model
 
 mpmath.mp.dps = 50
 
@@ -115,3 +121,96 @@ def test_the_largest_accepted_speed_is_the_bound_s_root(seed):
             lower, upper = ((middle, upper) if exact_bound(*arguments, middle) <= risks[index]
                             else (lower, middle))
         assert approach[index] == pytest.approx(float(lower), abs=1e-7)
+
+
+def parallel_bound(model, point, radius, direction):
+    """Return the crossing bound of the tangent to a disc parallel to DIRECTION, closed form.
+
+    Moving along the tangent nothing approaches it, and the reflection principle's bound with no
+    drift is twice the first term (the path straight, without a walk: the first term alone).
+    """
+    across = np.array([-direction[1], direction[0]])
+    margin = abs((model.mean_position - point) @ across) - radius
+    std0 = math.sqrt(max(across @ model.position_cov @ across, 0.0))
+    walk = max(across @ model.walk_cov @ across, 0.0)
+    if walk == 0.0:
+        return float(norm.cdf(-margin / std0)) if std0 > 0.0 else float(margin < 0.0)
+    if margin <= 0.0:
+        return 1.0
+    return min(2.0 * float(norm.cdf(-margin / math.sqrt(std0 ** 2
+                                                      + walk * model.conditions.horizon))), 1.0)
+
+
+def sampled_rejections(model, direction, speeds):
+    """Return, per shape (wall, then disc) and speed on the ray, whether it is rejected.
+
+    Pointwise from the definitions: a condition accepts ``v`` where ``n.v >= -approach``; a wall
+    rejects where its support line does and one of its pieces (the rectangle: all four sides;
+    an end in reach: its whole fan, unless its parallel tangent holds) does; a disc where its
+    whole fan does, unless its parallel tangent holds; a close shape wherever moving away does
+    not hold, ``n.v >= Phi^-1(eta) sqrt(n' S_a n)``.
+    """
+    conditions = model.conditions
+    velocities = speeds[:, None] * direction
+    accepts = velocities @ conditions.normals.T >= -conditions.approach
+    walls, per_wall, fan = len(model.segments), 5 + 2 * 5, 5
+    rejected = np.zeros((walls + len(model.centres), len(speeds)), dtype=bool)
+    away = velocities @ model.away_normals.T < model.away_thresholds
+    for wall in range(walls):
+        first = wall * per_wall
+        if model.close[wall]:
+            rejected[wall] = away[:, wall]
+            continue
+        pieces = [~accepts[:, first + 1:first + 5].any(axis=1)]
+        for end in range(2):
+            start = first + 5 + end * fan
+            held = (not model.end_in_reach[wall, end]) or parallel_bound(
+                model, model.segments[wall, end], model.radius[wall],
+                direction) <= conditions.risks[start]
+            pieces.append(np.zeros(len(speeds), dtype=bool) if held
+                          else ~accepts[:, start:start + fan].any(axis=1))
+        rejected[wall] = ~accepts[:, first] & np.any(pieces, axis=0)
+    for disc in range(len(model.centres)):
+        first = walls * per_wall + disc * fan
+        if model.close[walls + disc]:
+            rejected[walls + disc] = away[:, walls + disc]
+        elif parallel_bound(model, model.centres[disc], model.disc_radius[disc],
+                            direction) > conditions.risks[first]:
+            rejected[walls + disc] = ~accepts[:, first:first + fan].any(axis=1)
+    return rejected
+
+
+@pytest.mark.parametrize('seed', range(6))
+def test_rejected_intervals_are_where_the_conditions_reject_on_dense_samples(seed):
+    """Every wall's three intervals and every disc's one, against 401 speeds on 64 rays."""
+    rng = np.random.default_rng(seed)
+    segments = np.array([[[1.0, -5.0], [1.0, -0.45]], [[1.0, 0.45], [1.0, 5.0]],
+                         [[-1.5, 1.0], [-1.0, 1.0]], [[-1.0, 1.0], [-1.0, 1.5]],
+                         [[-1.0, 1.5], [-1.5, 1.5]], [[-1.5, 1.5], [-1.5, 1.0]],
+                         [[-2.0, -2.0], [0.0, -1.2]]])
+    world = StaticObstacles(segments, np.array([0.05, 0.05, 0.0, 0.0, 0.0, 0.0, 0.1]),
+                            np.array([[0.0, 1.0], [2.0, -1.0]]), np.array([0.2, 0.3]))
+    angles = 2.0 * np.pi * np.arange(64) / 64
+    directions = np.stack([np.cos(angles), np.sin(angles)], axis=1)
+    speeds = np.linspace(0.0, 1.0, 401)
+    shapes = 0
+    for _ in range(10):
+        std = rng.choice([0.0, 0.03, 0.1])
+        covariance = np.diag([std ** 2, (0.7 * std) ** 2, 0.05 ** 2, 0.05 ** 2])
+        ego = AgentBelief(rng.uniform([-2.0, -1.5], [2.5, 1.5]), [0.0, 0.0], covariance, 0.25)
+        config = PlannerConfig(eta=float(rng.choice([0.8, 0.95])), max_speed=1.0,
+                               actuation_cov=rng.choice([0.0, 0.05, 0.1]) ** 2 * np.eye(2))
+        model = wall_model(world, ego, config)
+        walls = len(model.segments)
+        shapes += walls + len(model.centres)
+        upper, lower = rejected_intervals(model, directions)
+        for ray, direction in enumerate(directions):
+            inside = (upper[:, ray, None] < speeds) & (speeds < lower[:, ray, None])
+            found = np.concatenate([inside[:3 * walls].reshape(walls, 3, -1).any(axis=1),
+                                    inside[3 * walls:]])
+            # Away from the intervals' ends, where rounding could put a speed on either side.
+            ends = np.concatenate([upper[:, ray], lower[:, ray]])
+            clear = np.min(np.abs(speeds[:, None] - ends), axis=1, initial=np.inf) > 1e-9
+            expected = sampled_rejections(model, direction, speeds)
+            assert np.array_equal(found[:, clear], expected[:, clear]), (ray, model.close)
+    assert shapes > 0

@@ -18,9 +18,11 @@ compiles all three modules once after installing).
 import math
 
 from numba import types
+import numpy as np
 
 from .ray_solver import jit
 from .special_kernels import erfcx, ndtr
+from .walls import FAN, PER_WALL
 
 _SQRT2 = math.sqrt(2.0)
 # Steps of regula falsi (Illinois) for the largest speed towards a line a condition accepts:
@@ -29,9 +31,15 @@ _SQRT2 = math.sqrt(2.0)
 _FALSI_STEPS = 8
 
 _VECTOR = types.float64[::1]
+_ROWS = types.float64[:, ::1]
 _BOUNDS_SIGNATURE = _VECTOR(_VECTOR, _VECTOR, _VECTOR, types.float64, _VECTOR)
 _SPEEDS_SIGNATURE = types.Tuple((_VECTOR, _VECTOR))(
     _VECTOR, _VECTOR, _VECTOR, types.float64, _VECTOR, _VECTOR, _VECTOR)
+_PARALLEL_SIGNATURE = _ROWS(_VECTOR, _ROWS, _VECTOR, _ROWS, _ROWS, _ROWS, types.float64)
+_REJECTED_SIGNATURE = types.Tuple((_ROWS, _ROWS))(
+    _ROWS, _VECTOR, _VECTOR, _ROWS, types.float64, _VECTOR, types.float64[:, :, ::1], _VECTOR,
+    types.boolean[:, ::1], _ROWS, _VECTOR, types.boolean[::1], _ROWS, _VECTOR, _ROWS, _ROWS,
+    types.float64)
 
 
 @jit(inline='always')
@@ -166,3 +174,188 @@ def line_speeds(mean0, std0, walk, horizon, risks, low, high):
                 last = -1
         approach[index] = lower
     return still, approach
+
+
+@jit(inline='always')
+def _half_line(slope, bound):
+    """
+    Return where ``slope t >= bound`` holds, as ``[0, upper] U [lower, 1]``: (upper, lower).
+
+    ``upper`` is ``-inf`` (``lower`` ``inf``) where that part is empty.
+    """
+    if slope < 0.0:
+        return bound / slope, math.inf
+    if slope > 0.0:
+        return -math.inf, bound / slope
+    return (math.inf if bound <= 0.0 else -math.inf), math.inf
+
+
+@jit(inline='always')
+def _quadratic_form(x, y, cov):
+    """Return ``n' S n`` for the normal (x, y) and a 2x2 covariance S, at least 0."""
+    return max(cov[0, 0] * x * x + 2.0 * cov[0, 1] * x * y + cov[1, 1] * y * y, 0.0)
+
+
+@jit(inline='always')
+def _parallel_failure(mean, centre_x, centre_y, radius, e_x, e_y, position_cov, walk_cov,
+                      horizon):
+    """
+    Return the crossing bound of a disc's tangent parallel to the unit direction ``e``.
+
+    Its normal is across ``e``, on the side of ``mu``; moving along ``e`` keeps the distance to
+    it, so it has no approach: the margin ``|n.(mu - c)| - R`` and the spreads across ``e``.
+    """
+    across_x, across_y = -e_y, e_x
+    side = (mean[0] - centre_x) * across_x + (mean[1] - centre_y) * across_y
+    return _crossing_bound(abs(side) - radius,
+                           math.sqrt(_quadratic_form(across_x, across_y, position_cov)),
+                           _quadratic_form(across_x, across_y, walk_cov), horizon, 0.0)
+
+
+@jit(_PARALLEL_SIGNATURE)
+def parallel_failures(mean, centres, radius, directions, position_cov, walk_cov, horizon):
+    """
+    Return the failure bounds of the discs' tangents parallel to each ray, shape (K, M).
+
+    Moving along ``e`` (a ray's direction), the tangent to a disc whose normal is across ``e``
+    (on the side of ``mu``) is the one the motion keeps its distance to: the drift towards it
+    is zero at every speed, so on the ray it holds at every ``t`` or at none, with the
+    crossing bound of its margin and no approach.
+
+    Parameters
+    ----------
+    mean : numpy.ndarray
+        ``mu``, shape (2,).
+    centres, radius : numpy.ndarray
+        The discs (K, 2) and their grown radius (K,).
+    directions : numpy.ndarray
+        Unit ray directions, shape (M, 2).
+    position_cov, walk_cov : numpy.ndarray
+        ``S_p`` and ``T S_a``, shape (2, 2).
+    horizon : float
+        ``tau`` in whole periods [s].
+
+    """
+    failures = np.empty((radius.size, directions.shape[0]))
+    for disc in range(radius.size):
+        for ray in range(directions.shape[0]):
+            failures[disc, ray] = _parallel_failure(
+                mean, centres[disc, 0], centres[disc, 1], radius[disc], directions[ray, 0],
+                directions[ray, 1], position_cov, walk_cov, horizon)
+    return failures
+
+
+@jit(inline='always')
+def _condition(normals, approach, index, e_x, e_y, max_speed):
+    """Return condition INDEX's accepted ``(upper, lower)`` on the ray ``e``: ``n.v >= -a``."""
+    return _half_line(max_speed * (normals[index, 0] * e_x + normals[index, 1] * e_y),
+                      -approach[index])
+
+
+@jit(inline='always')
+def _fan(normals, approach, first, e_x, e_y, max_speed):
+    """Return a fan's rejected ``(upper, lower)``: where every one of its FAN tangents does."""
+    upper, lower = -math.inf, math.inf
+    for index in range(first, first + FAN):
+        one_upper, one_lower = _condition(normals, approach, index, e_x, e_y, max_speed)
+        upper, lower = max(upper, one_upper), min(lower, one_lower)
+    return upper, lower
+
+
+@jit(_REJECTED_SIGNATURE)
+def rejected_intervals(normals, approach, risks, directions, max_speed, mean, segments, radius,
+                       end_in_reach, centres, disc_radius, close, away_normals,
+                       away_thresholds, position_cov, walk_cov, horizon):
+    """
+    Return the open intervals of ``t`` the near walls and discs reject on each ray.
+
+    Each condition accepts ``[0, upper] U [lower, 1]`` of a ray; a piece (any of its
+    conditions) rejects where all of them do: the largest ``upper``, the smallest ``lower``.
+    Per wall the pieces are the rectangle (its four sides) and the two end discs (a fan each,
+    or on a ray its parallel tangent, which accepts all of it when it holds at the end's share
+    of the risk; an end out of reach rejects nothing), and the wall rejects where the support
+    line and a piece both do: three intervals. A disc rejects where its fan does, unless its
+    parallel tangent holds at its risk. A shape close to ``mu`` accepts only moving away,
+    ``v_max (n.e) t >= Phi^-1(eta) sqrt(n' S_a n)``.
+
+    Parameters
+    ----------
+    normals, approach, risks : numpy.ndarray
+        The conditions (:class:`.walls.LinearConditions`): per near wall ``5 + 2 FAN`` (the
+        support line, the rectangle's four sides, the start's fan, the end's), then per near
+        disc its fan; shapes (C, 2), (C,), (C,).
+    directions : numpy.ndarray
+        Unit ray directions, shape (M, 2).
+    max_speed : float
+        ``v_max``.
+    mean : numpy.ndarray
+        ``mu``, shape (2,).
+    segments, radius, end_in_reach : numpy.ndarray
+        The near walls (n, 2, 2), their grown radius (n,), whether each end is in reach (n, 2).
+    centres, disc_radius : numpy.ndarray
+        The near discs (q, 2) and their grown radius (q,).
+    close, away_normals, away_thresholds : numpy.ndarray
+        Per wall then disc: only moving away accepted (n + q,), its normal (n + q, 2) and
+        threshold (n + q,).
+    position_cov, walk_cov : numpy.ndarray
+        ``S_p`` and ``T S_a``, shape (2, 2).
+    horizon : float
+        ``tau`` in whole periods [s].
+
+    Returns
+    -------
+    upper, lower : numpy.ndarray
+        Shape (3 n + q, M): rejected ``(upper, lower)`` (empty where ``upper >= lower``), three
+        per wall (with the rectangle, the start, the end), then one per disc.
+
+    """
+    walls, discs, rays = radius.size, disc_radius.size, directions.shape[0]
+    upper = np.empty((3 * walls + discs, rays))
+    lower = np.empty((3 * walls + discs, rays))
+    for wall in range(walls):
+        first = wall * PER_WALL
+        for ray in range(rays):
+            e_x, e_y = directions[ray, 0], directions[ray, 1]
+            if close[wall]:
+                away_upper, away_lower = _half_line(
+                    max_speed * (away_normals[wall, 0] * e_x + away_normals[wall, 1] * e_y),
+                    away_thresholds[wall])
+                for piece in range(3):
+                    upper[3 * wall + piece, ray] = away_upper
+                    lower[3 * wall + piece, ray] = away_lower
+                continue
+            support_upper, support_lower = _condition(normals, approach, first, e_x, e_y,
+                                                      max_speed)
+            piece_upper, piece_lower = -math.inf, math.inf
+            for index in range(first + 1, first + 5):
+                one_upper, one_lower = _condition(normals, approach, index, e_x, e_y,
+                                                  max_speed)
+                piece_upper, piece_lower = max(piece_upper, one_upper), min(piece_lower,
+                                                                           one_lower)
+            upper[3 * wall, ray] = max(support_upper, piece_upper)
+            lower[3 * wall, ray] = min(support_lower, piece_lower)
+            for end in range(2):
+                fan = first + 5 + end * FAN
+                piece_upper, piece_lower = _fan(normals, approach, fan, e_x, e_y, max_speed)
+                if not end_in_reach[wall, end] or _parallel_failure(
+                        mean, segments[wall, end, 0], segments[wall, end, 1], radius[wall], e_x,
+                        e_y, position_cov, walk_cov, horizon) <= risks[fan]:
+                    piece_upper = math.inf
+                upper[3 * wall + 1 + end, ray] = max(support_upper, piece_upper)
+                lower[3 * wall + 1 + end, ray] = min(support_lower, piece_lower)
+    for disc in range(discs):
+        first, row = walls * PER_WALL + disc * FAN, 3 * walls + disc
+        for ray in range(rays):
+            e_x, e_y = directions[ray, 0], directions[ray, 1]
+            if close[walls + disc]:
+                upper[row, ray], lower[row, ray] = _half_line(
+                    max_speed * (away_normals[walls + disc, 0] * e_x
+                                 + away_normals[walls + disc, 1] * e_y),
+                    away_thresholds[walls + disc])
+                continue
+            upper[row, ray], lower[row, ray] = _fan(normals, approach, first, e_x, e_y,
+                                                    max_speed)
+            if _parallel_failure(mean, centres[disc, 0], centres[disc, 1], disc_radius[disc],
+                                 e_x, e_y, position_cov, walk_cov, horizon) <= risks[first]:
+                upper[row, ray] = math.inf
+    return upper, lower

@@ -25,8 +25,8 @@ half-line of ``t``, its end the largest speed towards the line whose bound is at
 half the risk and at the risk; regula falsi from there, ``wall_kernels.line_speeds``). A
 condition whose bound standing still exceeds its risk accepts nothing. Several conditions
 certify a piece when any one of them holds (each with the piece's whole risk); their normals
-depend on the beliefs and, for a disc's tangent parallel to a ray (``parallel_failures``), on
-the ray's direction.
+depend on the beliefs and, for a disc's tangent parallel to a ray
+(``wall_kernels.parallel_failures``), on the ray's direction.
 
 Per wall (``delta = 1 - eta``) a velocity is accepted if either
 
@@ -39,7 +39,8 @@ Per wall (``delta = 1 - eta``) a velocity is accepted if either
   no covariance of its own) when one of its tangent half-planes holds, the normals a fan of
   ``FAN`` directions within ``arccos(R / d)`` of the direction from its centre to ``mu`` (``d``
   the distance), which are the tangents that can hold ``mu``, and on each ray the tangent
-  parallel to it (``parallel_failures``), which a straight path through a door keeps to.
+  parallel to it (``wall_kernels.parallel_failures``), which a straight path through a door
+  keeps to.
 
 The risk of the decomposition is split by a rule fixed in advance: an end disc the ego cannot
 reach except with probability at most ``REACH_SHARE delta`` (its a-priori bound) is charged
@@ -82,7 +83,7 @@ REACH_SHARE = 0.01
 FAN_HALF = 2
 FAN = 2 * FAN_HALF + 1
 # The support line, the rectangle's four sides, each end disc's fan.
-_PER_WALL = 5 + 2 * FAN
+PER_WALL = 5 + 2 * FAN
 _RECTANGLE = slice(1, 5)
 _START_FAN = slice(5, 5 + FAN)
 _END_FAN = slice(5 + FAN, 5 + 2 * FAN)
@@ -212,31 +213,11 @@ class LinearConditions:
         return cls(normals=normals, mean0=mean0, std0=std0, walk=walk, horizon=horizon,
                    still_risk=still, risks=risks, approach=approach)
 
-    def accepted(self, directions, max_speed):
-        """
-        Each condition's accepted ``t`` on each ray: ``[0, upper] U [lower, 1]``, (K, M).
-
-        ``n.v >= -approach`` is ``v_max (n.e) t >= -approach``.
-        """
-        return half_lines(max_speed * (self.normals @ directions.T), -self.approach[:, None])
-
     def failures(self, velocity):
         """Return the bound on each condition failing at VELOCITY (``crossing_bounds``), (K,)."""
         from .wall_kernels import crossing_bounds
         return crossing_bounds(self.mean0, self.std0, self.walk, self.horizon,
                                np.maximum(-(self.normals @ velocity), 0.0))
-
-
-def half_lines(slope, bound):
-    """
-    Where ``slope t >= bound`` holds, as ``[0, upper] U [lower, 1]``: (upper, lower).
-
-    ``upper`` is ``-inf`` (``lower`` ``inf``) where that part is empty.
-    """
-    cut = np.divide(bound, slope, out=np.zeros(slope.shape), where=slope != 0.0)
-    upper = np.where(slope < 0.0, cut, np.where((slope == 0.0) & (bound <= 0.0), np.inf,
-                                                -np.inf))
-    return upper, np.where(slope > 0.0, cut, np.inf)
 
 
 @dataclass(frozen=True)
@@ -314,14 +295,14 @@ def certifiable_width(ego, config):
     """
     Return the clear width of a passage below which nothing certifies EGO's way through [m].
 
-    Beside a wall moving along it, the best condition is a line parallel to the motion (the
-    support line of the wall beside it, or an end's parallel tangent, ``parallel_failures``)
+    Beside a wall moving along it, the best condition is a line parallel to the motion (the support
+    line of the wall beside it, or an end's parallel tangent, ``wall_kernels.parallel_failures``)
     at most at the whole risk ``delta``: its margin ``m`` on each side must bring
     ``crossing_bounds(m, s0, T s_a^2, tau, 0)`` down to ``delta``, with ``s0`` and ``s_a`` the
     largest position and execution stds (any direction). The width is ``2 (R + m)``, ``R`` the
-    planning radius grown by ``safety_margin`` (and, for ``inflate``, by its confidence
-    ellipse). A narrower door cannot be certified and the robot holds in front of it; a wider
-    one can still be too narrow where the ends of a short jamb share the risk.
+    planning radius grown by ``safety_margin`` (and, for ``inflate``, by its confidence ellipse). A
+    narrower door cannot be certified and the robot holds in front of it; a wider one can still be
+    too narrow where the ends of a short jamb share the risk.
     """
     from .wall_kernels import crossing_bounds
     position_cov, actuation_cov, growth = _planning_covariances(ego, config)
@@ -394,8 +375,8 @@ def wall_model(obstacles, ego, config):
     fans, fan_offsets, fan_distance = _fan(
         np.concatenate([segments[:, 0], segments[:, 1], centres]),
         np.concatenate([wall_radius, wall_radius, disc_radius]), mean)
-    normals = np.empty((count, _PER_WALL, 2))
-    offsets = np.empty((count, _PER_WALL))
+    normals = np.empty((count, PER_WALL, 2))
+    offsets = np.empty((count, PER_WALL))
     normals[:, 0] = support
     normals[:, 1] = across
     normals[:, 2] = -across
@@ -418,7 +399,7 @@ def wall_model(obstacles, ego, config):
     in_reach = end_bounds > REACH_SHARE * delta
     end_bounds[in_reach] = 0.0
     share = (delta - end_bounds.sum(axis=1)) / (1.0 + in_reach.sum(axis=1))
-    risks = np.empty((count, _PER_WALL))
+    risks = np.empty((count, PER_WALL))
     risks[:, 0] = delta
     risks[:, _RECTANGLE] = share[:, None]
     risks[:, _START_FAN] = np.where(in_reach[:, :1], share[:, None], 0.0)
@@ -433,47 +414,29 @@ def wall_model(obstacles, ego, config):
     still_risk = conditions.still_risk
     close = np.concatenate([wall_distance, fan_distance[2 * count:]]) <= np.concatenate(
         [wall_radius, disc_radius])
-    close[:count] |= still_risk[:count * _PER_WALL:_PER_WALL] >= delta
-    close[count:] |= still_risk[count * _PER_WALL + FAN_HALF::FAN] >= delta
+    close[:count] |= still_risk[:count * PER_WALL:PER_WALL] >= delta
+    close[count:] |= still_risk[count * PER_WALL + FAN_HALF::FAN] >= delta
     away_normals = np.concatenate([support, fans[2 * count:, FAN_HALF]]) if discs else support
     return WallModel(
-        mean_position=mean, clearance=clearance, far_bounds=bounds[~near],
+        mean_position=np.array(mean, dtype=float), clearance=clearance, far_bounds=bounds[~near],
         segments=segments, radius=wall_radius, distance=wall_distance, centres=centres,
         disc_radius=disc_radius, conditions=conditions, end_bounds=end_bounds,
-        end_in_reach=in_reach, close=close,
+        end_in_reach=np.ascontiguousarray(in_reach), close=close,
         away_normals=away_normals,
         away_thresholds=ndtri(eta) * np.sqrt(np.maximum(
             _quadratic_form(away_normals, actuation_cov), 0.0)),
-        horizon=horizon, max_speed=max_speed, position_cov=position_cov,
+        horizon=horizon, max_speed=max_speed, position_cov=np.ascontiguousarray(position_cov),
         walk_cov=config.control_period * actuation_cov)
-
-
-def parallel_failures(model, centres, radius, directions):
-    """
-    Failure bounds of the discs' tangents parallel to each ray, shape (K, M).
-
-    Moving along ``e`` (a ray's direction), the tangent to a disc whose normal is across ``e``
-    (on the side of ``mu``) is the one the motion keeps its distance to: the drift towards it
-    is zero at every speed, so on the ray it holds at every ``t`` or at none, with
-    ``crossing_bounds`` of its margin and no approach. A door's jamb, passed straight through,
-    is certified by it where the fan's tangents, fixed by the beliefs, slant towards the path
-    and limit the speed. CENTRES (K, 2) and RADIUS (K,) grown; DIRECTIONS (M, 2) unit.
-    """
-    from .wall_kernels import crossing_bounds
-    across = np.stack([-directions[:, 1], directions[:, 0]], axis=1)
-    side = (model.mean_position - centres) @ across.T
-    margin = np.abs(side) - radius[:, None]
-    std0 = np.sqrt(np.maximum(_quadratic_form(across, model.position_cov), 0.0))
-    walk = np.maximum(_quadratic_form(across, model.walk_cov), 0.0)
-    # One condition per (shape, ray): the kernel takes flat arrays.
-    rows = len(margin)
-    return crossing_bounds(margin.ravel(), np.tile(std0, rows), np.tile(walk, rows),
-                           model.conditions.horizon, np.zeros(margin.size)).reshape(margin.shape)
 
 
 def rejected_intervals(model, directions):
     """
     Return the open intervals of ``t`` the obstacles reject on each ray.
+
+    Each condition accepts ``[0, upper] U [lower, 1]`` of a ray, a piece rejects where all its
+    conditions do, a wall where its support line and a piece both do (three intervals per wall,
+    one per disc), a shape close to ``mu`` wherever moving away does not hold:
+    :func:`.wall_kernels.rejected_intervals`, compiled.
 
     Parameters
     ----------
@@ -485,54 +448,18 @@ def rejected_intervals(model, directions):
     Returns
     -------
     upper, lower : numpy.ndarray
-        Shape (K, M): rejected ``(upper, lower)`` (empty where ``upper >= lower``).
+        Shape (3 n + q, M), n near walls and q near discs: rejected ``(upper, lower)`` (empty
+        where ``upper >= lower``).
 
     """
-    rays = directions.shape[0]
-    count = len(model.segments)
-    upper, lower = model.conditions.accepted(directions, model.max_speed)
-    split = count * _PER_WALL
-    wall_upper = upper[:split].reshape(count, _PER_WALL, rays)
-    wall_lower = lower[:split].reshape(count, _PER_WALL, rays)
-    pieces_upper = np.stack([wall_upper[:, _RECTANGLE].max(axis=1),
-                             wall_upper[:, _START_FAN].max(axis=1),
-                             wall_upper[:, _END_FAN].max(axis=1)], axis=1)
-    pieces_lower = np.stack([wall_lower[:, _RECTANGLE].min(axis=1),
-                             wall_lower[:, _START_FAN].min(axis=1),
-                             wall_lower[:, _END_FAN].min(axis=1)], axis=1)
-    # An end out of reach rejects nothing; one in reach holds on a ray its parallel tangent
-    # certifies (at the end's share of the risk), at any speed.
-    end_risks = model.conditions.risks[:split].reshape(count, _PER_WALL)[
-        :, [_START_FAN.start, _END_FAN.start]]
-    reach = np.nonzero(model.end_in_reach)
-    if reach[0].size:
-        held = parallel_failures(model, model.segments[reach[0], reach[1]],
-                                 model.radius[reach[0]], directions) <= end_risks[reach][:, None]
-        pieces_upper[reach[0], 1 + reach[1]] = np.where(
-            held, np.inf, pieces_upper[reach[0], 1 + reach[1]])
-    pieces_upper[:, 1:][~model.end_in_reach] = np.inf
-    # A wall rejects where the support line and the decomposition both do.
-    wall_upper = np.maximum(wall_upper[:, :1], pieces_upper)
-    wall_lower = np.minimum(wall_lower[:, :1], pieces_lower)
-    disc_upper = upper[split:].reshape(-1, FAN, rays).max(axis=1)
-    disc_lower = lower[split:].reshape(-1, FAN, rays).min(axis=1)
-    if len(model.centres):
-        held = parallel_failures(model, model.centres, model.disc_radius, directions) \
-            <= model.conditions.risks[split::FAN][:, None]
-        disc_upper = np.where(held, np.inf, disc_upper)
-    if model.close.any():
-        # Close: moving away, v_max (n.e) t >= Phi^-1(eta) sqrt(n' S_a n), and nothing else.
-        away_upper, away_lower = half_lines(
-            model.max_speed * (model.away_normals @ directions.T),
-            model.away_thresholds[:, None])
-        close = model.close[:count]
-        wall_upper[close] = away_upper[:count][close][:, None]
-        wall_lower[close] = away_lower[:count][close][:, None]
-        close = model.close[count:]
-        disc_upper[close] = away_upper[count:][close]
-        disc_lower[close] = away_lower[count:][close]
-    return (np.concatenate([wall_upper.reshape(-1, rays), disc_upper]),
-            np.concatenate([wall_lower.reshape(-1, rays), disc_lower]))
+    from .wall_kernels import rejected_intervals as rejected
+    conditions = model.conditions
+    return rejected(conditions.normals, conditions.approach, conditions.risks,
+                    np.ascontiguousarray(directions, dtype=float), model.max_speed,
+                    model.mean_position, model.segments, model.radius, model.end_in_reach,
+                    model.centres, model.disc_radius, model.close, model.away_normals,
+                    model.away_thresholds, model.position_cov, model.walk_cov,
+                    conditions.horizon)
 
 
 def cut_by_walls(gap_ray, lower, upper, wall_ray, wall_upper, wall_lower):
@@ -667,18 +594,20 @@ def obstacle_probability(model, velocity):
     """
     failure = model.conditions.failures(velocity)
     count = len(model.segments)
-    walls = failure[:count * _PER_WALL].reshape(count, _PER_WALL)
+    walls = failure[:count * PER_WALL].reshape(count, PER_WALL)
     ends = np.stack([walls[:, _START_FAN].min(axis=1), walls[:, _END_FAN].min(axis=1)], axis=1)
-    discs = failure[count * _PER_WALL:].reshape(-1, FAN).min(axis=1, initial=1.0)
+    discs = failure[count * PER_WALL:].reshape(-1, FAN).min(axis=1, initial=1.0)
     speed = math.hypot(velocity[0], velocity[1])
     if speed > 0.0:
+        from .wall_kernels import parallel_failures
         # Moving, the tangents parallel to the motion certify too.
         direction = (np.asarray(velocity, dtype=float) / speed)[None]
+        arguments = model.position_cov, model.walk_cov, model.conditions.horizon
         ends = np.minimum(ends, parallel_failures(
-            model, model.segments.reshape(-1, 2), np.repeat(model.radius, 2),
-            direction).reshape(count, 2))
-        discs = np.minimum(discs, parallel_failures(model, model.centres, model.disc_radius,
-                                                    direction)[:, 0])
+            model.mean_position, model.segments.reshape(-1, 2), np.repeat(model.radius, 2),
+            direction, *arguments).reshape(count, 2))
+        discs = np.minimum(discs, parallel_failures(
+            model.mean_position, model.centres, model.disc_radius, direction, *arguments)[:, 0])
     ends = np.where(model.end_in_reach, ends, model.end_bounds)
     decomposition = walls[:, _RECTANGLE].min(axis=1) + ends.sum(axis=1)
     risks = np.concatenate([np.minimum(walls[:, 0], decomposition), discs, model.far_bounds])
