@@ -127,6 +127,13 @@ def test_obstacles_near_are_those_within_the_distance(seed, bucket_size):
         np.testing.assert_array_equal(near.half_widths, half_widths[expected_segments])
         np.testing.assert_array_equal(near.disc_centres, centres[expected_discs])
         np.testing.assert_array_equal(near.disc_radii, radii[expected_discs])
+        # The frames the subset carries are the ones its segments give (a unit vector along,
+        # one across, and the ends' coordinates along it), from the test's own arithmetic.
+        along = ends[expected_segments] - starts[expected_segments]
+        unit = along / np.linalg.norm(along, axis=1, keepdims=True)
+        np.testing.assert_allclose(near.frames, np.column_stack([
+            unit, -unit[:, 1], unit[:, 0], np.sum(unit * starts[expected_segments], axis=1),
+            np.sum(unit * ends[expected_segments], axis=1)]).reshape(-1, 6), atol=1e-12)
 
 
 def test_an_index_of_nothing_and_a_query_far_away_find_nothing():

@@ -362,5 +362,4 @@ class ObstacleIndex:
                             - obstacles.half_widths[segments] <= distance]
         discs = discs[np.linalg.norm(obstacles.disc_centres[discs] - position, axis=1)
                       - obstacles.disc_radii[discs] <= distance]
-        return StaticObstacles(obstacles.segments[segments], obstacles.half_widths[segments],
-                               obstacles.disc_centres[discs], obstacles.disc_radii[discs])
+        return obstacles.subset(segments, discs)

@@ -64,6 +64,36 @@ class StaticObstacles:
         """Return the obstacles of an empty plane."""
         return cls(np.zeros((0, 2, 2)), np.zeros(0), np.zeros((0, 2)), np.zeros(0))
 
+    def subset(self, segments, discs):
+        """
+        Return the segments and discs at the given indices, each in the order given.
+
+        The shapes were checked when this set was made, so the subset is not checked again (a
+        map's index asks for one every plan: the checks were a third of its query), and its
+        frames are this set's rows (the same numbers, computed row by row).
+
+        Parameters
+        ----------
+        segments, discs : numpy.ndarray
+            Integer indices into ``segments`` and into ``disc_centres``, shape (n,) and (q,).
+
+        Returns
+        -------
+        StaticObstacles
+
+        """
+        subset = object.__new__(StaticObstacles)
+        for name, value in (('segments', self.segments[segments]),
+                            ('half_widths', self.half_widths[segments]),
+                            ('disc_centres', self.disc_centres[discs]),
+                            ('disc_radii', self.disc_radii[discs])):
+            object.__setattr__(subset, name, value)
+        frames = self.frames[segments]
+        frames.setflags(write=False)
+        # functools.cached_property keeps its value in the instance's __dict__.
+        subset.__dict__['frames'] = frames
+        return subset
+
     def __len__(self):
         """Return the number of shapes: segments plus discs."""
         return len(self.segments) + len(self.disc_radii)
