@@ -214,3 +214,80 @@ def test_rejected_intervals_are_where_the_conditions_reject_on_dense_samples(see
             expected = sampled_rejections(model, direction, speeds)
             assert np.array_equal(found[:, clear], expected[:, clear]), (ray, model.close)
     assert shapes > 0
+
+
+@pytest.mark.parametrize('seed', range(4))
+def test_the_conditions_are_the_tangents_and_sides_of_the_grown_shapes(seed):
+    """Each condition's line from closed-form geometry; distances from dense samples.
+
+    Per near wall: the support line is at the grown radius ``R`` beyond the segment's farthest
+    point along its normal, and its normal points from the segment's closest point (found by
+    sampling 20,001 points of it) to ``mu``; the rectangle's sides are the wall's line moved by
+    ``R`` either way and the lines across its ends; every fan tangent touches its end disc
+    (its line at distance ``R`` from the centre) within ``arccos(R / d)`` of the direction to
+    ``mu``. The risks split ``delta`` as stated: the rectangle and each end within reach an
+    equal share of what the ends out of reach leave.
+    """
+    rng = np.random.default_rng(seed)
+    starts = rng.uniform(-3.0, 3.0, (12, 2))
+    ends = starts + rng.uniform(-2.0, 2.0, (12, 2))
+    world = StaticObstacles(np.stack([starts, ends], axis=1), rng.uniform(0.0, 0.1, 12),
+                            rng.uniform(-3.0, 3.0, (4, 2)), rng.uniform(0.1, 0.4, 4))
+    fractions = np.linspace(0.0, 1.0, 20001)[:, None]
+    for _ in range(10):
+        std = rng.choice([0.0, 0.05])
+        ego = AgentBelief(rng.uniform(-2.0, 2.0, 2), [0.0, 0.0],
+                          np.diag([std ** 2, std ** 2, 0.01, 0.01]), 0.25)
+        config = PlannerConfig(eta=0.9, max_speed=1.0, actuation_cov=0.0025 * np.eye(2),
+                               obstacle_horizon=1.0)
+        model = wall_model(world, ego, config)
+        mu, delta = model.mean_position, 0.1
+        conditions = model.conditions
+        # The lines n.x = c, with c from m0 = n.mu - c.
+        normals = conditions.normals
+        offsets = normals @ mu - conditions.mean0
+        assert np.allclose(np.hypot(*normals.T), 1.0, atol=1e-12)
+        grown = 0.25 + world.half_widths
+        distances = [np.min(np.hypot(*(start + fractions * (end - start) - mu).T))
+                     for start, end in zip(starts, ends, strict=True)]
+        disc_distances = np.hypot(*(world.disc_centres - mu).T)
+        assert model.clearance == pytest.approx(min(
+            np.min(np.array(distances) - grown), np.min(disc_distances - 0.25
+                                                        - world.disc_radii)), abs=1e-6)
+        for row, (segment, radius) in enumerate(zip(model.segments, model.radius, strict=True)):
+            first = 15 * row
+            along = (segment[1] - segment[0]) / np.linalg.norm(segment[1] - segment[0])
+            across = np.array([-along[1], along[0]])
+            points = segment[0] + fractions * (segment[1] - segment[0])
+            nearest = points[np.argmin(np.hypot(*(points - mu).T))]
+            support = normals[first]
+            if model.distance[row] > 1e-3:
+                assert support == pytest.approx((mu - nearest) / np.linalg.norm(mu - nearest),
+                                                abs=1e-3)
+            assert offsets[first] == pytest.approx(max(segment @ support) + radius, abs=1e-12)
+            for side, (normal, offset) in enumerate([
+                    (across, across @ segment[0] + radius),
+                    (-across, radius - across @ segment[0]),
+                    (-along, -along @ segment[0]), (along, along @ segment[1])]):
+                assert normals[first + 1 + side] == pytest.approx(normal, abs=1e-12)
+                assert offsets[first + 1 + side] == pytest.approx(offset, abs=1e-12)
+            for end in range(2):
+                centre = segment[end]
+                fan = slice(first + 5 + 5 * end, first + 10 + 5 * end)
+                # Tangent: the centre is R inside each line.
+                assert normals[fan] @ centre == pytest.approx(offsets[fan] - radius, abs=1e-12)
+                towards = (mu - centre) / np.linalg.norm(mu - centre)
+                opening = math.acos(min(radius / np.linalg.norm(mu - centre), 1.0))
+                # The angle from the direction to mu, as atan2 (arccos loses half the digits).
+                angles = np.arctan2(np.abs(normals[fan, 0] * towards[1]
+                                           - normals[fan, 1] * towards[0]), normals[fan] @ towards)
+                assert np.all(angles <= opening + 1e-9)
+            share = conditions.risks[first + 1]
+            ends_in = model.end_in_reach[row]
+            assert conditions.risks[first] == pytest.approx(delta)
+            assert share * (1 + ends_in.sum()) + model.end_bounds[row].sum() == pytest.approx(
+                delta, rel=1e-12)
+            for end in range(2):
+                assert np.all(conditions.risks[first + 5 + 5 * end:first + 10 + 5 * end]
+                              == (share if ends_in[end] else 0.0))
+        assert len(model.segments) + len(model.centres) + len(model.far_bounds) == len(world)

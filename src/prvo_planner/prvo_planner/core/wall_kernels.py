@@ -1,15 +1,21 @@
 """
-The walls' crossing bounds compiled (:mod:`.walls`): every condition's failure bound and speed.
+The walls' arithmetic compiled (:mod:`.walls`): geometry, crossing bounds, rejected intervals.
 
-A linear condition ``y(t) = n.p(t) - c >= 0`` over the horizon fails with probability at most
-the reflection principle's bound (:func:`crossing_bounds`); on a ray, the condition accepts
-speeds towards its line up to the largest one whose bound is at most its risk
-(:func:`line_speeds`). Both are arithmetic per condition (a handful of normal tails, eight
-steps of regula falsi), which numpy did as tens of calls on arrays of a few hundred elements:
-here each condition is one loop iteration in scalars. Two functions, compiled for one signature
-each when this module is first imported (:mod:`.walls` imports it on its first model) and kept
-in numba's on-disk cache, as the ray search and the certificate are (``./run.sh setup``
-compiles all three modules once after installing).
+Everything a plan beside walls computes per shape, per condition or per (condition, ray), which
+numpy did as tens of calls on arrays of a few to a few hundred elements, here in loops of
+scalars. Five functions, compiled for one signature each when this module is first imported
+(:mod:`.walls` imports it on its first model; the planner node's warm-up imports it before
+the node spins) and kept in numba's on-disk cache, as the ray search and the certificate are
+(``./run.sh setup`` compiles all three modules once after installing):
+
+* :func:`wall_geometry`: the shapes within reach of the horizon and their linear conditions
+  (each near wall's support line, rectangle sides and end fans, each near disc's fan), with
+  the risk each is planned with;
+* :func:`line_speeds`: each condition's bound standing still and the largest speed towards its
+  line it accepts (regula falsi on the reflection principle's bound);
+* :func:`crossing_bounds`: the reflection principle's bound of each condition at given speeds;
+* :func:`parallel_failures`: the bounds of the discs' tangents parallel to each ray;
+* :func:`rejected_intervals`: the open intervals of each ray that each shape rejects.
 
 ``Phi`` and ``erfcx`` are :mod:`.special_kernels`' (scipy's ufuncs cannot be called from numba):
 ``Phi`` within 2e-14 of scipy's, ``erfcx`` within a few ulps, so a bound moves by rounding only.
@@ -22,7 +28,7 @@ import numpy as np
 
 from .ray_solver import jit
 from .special_kernels import erfcx, ndtr
-from .walls import FAN, PER_WALL
+from .walls import FAN, FAN_HALF, PER_WALL, REACH_SHARE
 
 _SQRT2 = math.sqrt(2.0)
 # Steps of regula falsi (Illinois) for the largest speed towards a line a condition accepts:
@@ -36,6 +42,16 @@ _BOUNDS_SIGNATURE = _VECTOR(_VECTOR, _VECTOR, _VECTOR, types.float64, _VECTOR)
 _SPEEDS_SIGNATURE = types.Tuple((_VECTOR, _VECTOR))(
     _VECTOR, _VECTOR, _VECTOR, types.float64, _VECTOR, _VECTOR, _VECTOR)
 _PARALLEL_SIGNATURE = _ROWS(_VECTOR, _ROWS, _VECTOR, _ROWS, _ROWS, _ROWS, types.float64)
+_INDICES = types.int64[::1]
+# The obstacles' arrays are read-only (``StaticObstacles``), as is a belief's mean.
+_FIXED_VECTOR = types.Array(types.float64, 1, 'C', readonly=True)
+_FIXED_ROWS = types.Array(types.float64, 2, 'C', readonly=True)
+_GEOMETRY_SIGNATURE = types.Tuple((
+    types.float64, _VECTOR, _INDICES, _INDICES, _VECTOR, _VECTOR, _VECTOR, _VECTOR, _ROWS,
+    _VECTOR, _VECTOR, _ROWS, types.boolean[:, ::1], _ROWS))(
+    _FIXED_VECTOR, types.Array(types.float64, 3, 'C', readonly=True), _FIXED_ROWS, _FIXED_VECTOR,
+    _FIXED_ROWS, _FIXED_VECTOR, types.float64, types.float64, types.float64, types.float64,
+    types.float64, types.float64)
 _REJECTED_SIGNATURE = types.Tuple((_ROWS, _ROWS))(
     _ROWS, _VECTOR, _VECTOR, _ROWS, types.float64, _VECTOR, types.float64[:, :, ::1], _VECTOR,
     types.boolean[:, ::1], _ROWS, _VECTOR, types.boolean[::1], _ROWS, _VECTOR, _ROWS, _ROWS,
@@ -253,7 +269,7 @@ def _condition(normals, approach, index, e_x, e_y, max_speed):
 
 
 @jit(inline='always')
-def _fan(normals, approach, first, e_x, e_y, max_speed):
+def _fan_rejects(normals, approach, first, e_x, e_y, max_speed):
     """Return a fan's rejected ``(upper, lower)``: where every one of its FAN tangents does."""
     upper, lower = -math.inf, math.inf
     for index in range(first, first + FAN):
@@ -336,7 +352,8 @@ def rejected_intervals(normals, approach, risks, directions, max_speed, mean, se
             lower[3 * wall, ray] = min(support_lower, piece_lower)
             for end in range(2):
                 fan = first + 5 + end * FAN
-                piece_upper, piece_lower = _fan(normals, approach, fan, e_x, e_y, max_speed)
+                piece_upper, piece_lower = _fan_rejects(normals, approach, fan, e_x, e_y,
+                                                        max_speed)
                 if not end_in_reach[wall, end] or _parallel_failure(
                         mean, segments[wall, end, 0], segments[wall, end, 1], radius[wall], e_x,
                         e_y, position_cov, walk_cov, horizon) <= risks[fan]:
@@ -353,9 +370,174 @@ def rejected_intervals(normals, approach, risks, directions, max_speed, mean, se
                                  + away_normals[walls + disc, 1] * e_y),
                     away_thresholds[walls + disc])
                 continue
-            upper[row, ray], lower[row, ray] = _fan(normals, approach, first, e_x, e_y,
-                                                    max_speed)
+            upper[row, ray], lower[row, ray] = _fan_rejects(normals, approach, first, e_x, e_y,
+                                                            max_speed)
             if _parallel_failure(mean, centres[disc, 0], centres[disc, 1], disc_radius[disc],
                                  e_x, e_y, position_cov, walk_cov, horizon) <= risks[first]:
                 upper[row, ray] = math.inf
     return upper, lower
+
+
+@jit(inline='always')
+def _reach_bound(distance, radius, spread, horizon, max_speed):
+    """A-priori bound on the path entering a shape at DISTANCE (of grown RADIUS) within tau."""
+    gap = distance - radius - horizon * max_speed
+    if not gap > 0.0:
+        return 1.0
+    if spread == 0.0:
+        return 0.0
+    return min(2.0 * math.exp(-0.5 * (gap / spread) ** 2), 1.0)
+
+
+@jit(inline='always')
+def _write_fan(mean, centre_x, centre_y, radius, normals, offsets, first):
+    """
+    Write a disc's fan of tangents into rows FIRST.. of NORMALS and OFFSETS; return ``|mu - c|``.
+
+    The normals are the FAN directions within ``arccos(R / d)`` of the direction from the
+    centre to ``mu`` (all of them that direction when ``mu`` is inside the disc), the tangent
+    lines ``n.x = n.c + R``.
+    """
+    offset_x, offset_y = mean[0] - centre_x, mean[1] - centre_y
+    distance = math.hypot(offset_x, offset_y)
+    heading = math.atan2(offset_y, offset_x)
+    opening = math.acos(radius / distance if distance > radius else 1.0)
+    for step in range(FAN):
+        angle = heading + opening * ((step - FAN_HALF) / FAN_HALF)
+        normal_x, normal_y = math.cos(angle), math.sin(angle)
+        normals[first + step, 0], normals[first + step, 1] = normal_x, normal_y
+        offsets[first + step] = normal_x * centre_x + normal_y * centre_y + radius
+    return distance
+
+
+@jit(_GEOMETRY_SIGNATURE)
+def wall_geometry(mean, segments, frames, half_widths, disc_centres, disc_radii, base_radius,
+                  growth, spread, horizon, max_speed, delta):
+    """
+    Return one plan's shapes within reach and their linear conditions (:func:`.walls.wall_model`).
+
+    Each shape's distance from ``mu`` and grown radius ``R`` (``base_radius`` plus its
+    half-width or radius, plus ``growth``) give its a-priori bound of being entered within the
+    horizon; a shape is near where that bound exceeds ``REACH_SHARE delta``. Per near wall the
+    conditions are the support line (normal from the closest point to ``mu``, or across the wall
+    from a point on it), the rectangle's four sides and each end disc's fan; an end whose own
+    a-priori bound is at most ``REACH_SHARE delta`` is out of reach and charged that bound, and
+    the rest of ``delta`` is shared by the rectangle and the ends within reach. Per near disc,
+    its fan at ``delta``.
+
+    Parameters
+    ----------
+    mean : numpy.ndarray
+        ``mu``, shape (2,).
+    segments, frames, half_widths : numpy.ndarray
+        Every wall (N, 2, 2), its frame (``StaticObstacles.frames``, (N, 6)), half-width (N,).
+    disc_centres, disc_radii : numpy.ndarray
+        Every disc obstacle, (D, 2) and (D,).
+    base_radius, growth : float
+        The ego's radius plus the safety margin, and the model's growth of it (``inflate``).
+    spread, horizon, max_speed, delta : float
+        ``sigma_p + tau sigma_a`` (largest stds), ``tau``, ``v_max``, the risk ``1 - eta``.
+
+    Returns
+    -------
+    clearance : float
+        Smallest ``distance - R`` before the growth (``inf`` without shapes).
+    far_bounds : numpy.ndarray
+        A-priori bounds of the shapes out of reach, walls then discs, (F,).
+    walls, discs : numpy.ndarray
+        Indices of the near walls (n,) and near discs (q,).
+    wall_radius, wall_distance, disc_radius, disc_distance : numpy.ndarray
+        Their grown radius and distance from ``mu``, (n,), (n,), (q,), (q,).
+    normals, offsets, risks : numpy.ndarray
+        The conditions, ``n (5 + 2 FAN) + q FAN`` of them: (C, 2), (C,), (C,).
+    end_bounds, end_in_reach : numpy.ndarray
+        Per near wall and end, the bound charged (0 within reach) and whether in reach, (n, 2).
+    away_normals : numpy.ndarray
+        Per near wall its support normal, per near disc its fan's middle normal, (n + q, 2).
+
+    """
+    count, disc_count = half_widths.size, disc_radii.size
+    distance = np.empty(count + disc_count)
+    radius = np.empty(count + disc_count)
+    closest = np.empty((count, 2))
+    clearance = math.inf
+    for wall in range(count):
+        along = min(max(frames[wall, 0] * mean[0] + frames[wall, 1] * mean[1], frames[wall, 4]),
+                    frames[wall, 5])
+        closest[wall, 0] = segments[wall, 0, 0] + (along - frames[wall, 4]) * frames[wall, 0]
+        closest[wall, 1] = segments[wall, 0, 1] + (along - frames[wall, 4]) * frames[wall, 1]
+        distance[wall] = math.hypot(mean[0] - closest[wall, 0], mean[1] - closest[wall, 1])
+        radius[wall] = base_radius + half_widths[wall]
+    for disc in range(disc_count):
+        distance[count + disc] = math.hypot(mean[0] - disc_centres[disc, 0],
+                                            mean[1] - disc_centres[disc, 1])
+        radius[count + disc] = base_radius + disc_radii[disc]
+    bounds = np.empty(count + disc_count)
+    near = np.empty(count + disc_count, dtype=np.bool_)
+    for shape in range(count + disc_count):
+        clearance = min(clearance, distance[shape] - radius[shape])
+        radius[shape] += growth
+        bounds[shape] = _reach_bound(distance[shape], radius[shape], spread, horizon, max_speed)
+        near[shape] = bounds[shape] > REACH_SHARE * delta
+    walls = np.flatnonzero(near[:count])
+    discs = np.flatnonzero(near[count:])
+    far_bounds = bounds[~near]
+    near_count, near_discs = walls.size, discs.size
+    size = near_count * PER_WALL + near_discs * FAN
+    normals = np.empty((size, 2))
+    offsets = np.empty(size)
+    risks = np.empty(size)
+    end_bounds = np.zeros((near_count, 2))
+    end_in_reach = np.zeros((near_count, 2), dtype=np.bool_)
+    away_normals = np.empty((near_count + near_discs, 2))
+    for row in range(near_count):
+        wall = walls[row]
+        grown, first = radius[wall], row * PER_WALL
+        across_x, across_y = frames[wall, 2], frames[wall, 3]
+        support_x, support_y = across_x, across_y
+        if distance[wall] > 0.0:
+            support_x = (mean[0] - closest[wall, 0]) / distance[wall]
+            support_y = (mean[1] - closest[wall, 1]) / distance[wall]
+        away_normals[row, 0], away_normals[row, 1] = support_x, support_y
+        start_x, start_y = segments[wall, 0, 0], segments[wall, 0, 1]
+        end_x, end_y = segments[wall, 1, 0], segments[wall, 1, 1]
+        across_side = across_x * start_x + across_y * start_y
+        sides = ((support_x, support_y), (across_x, across_y), (-across_x, -across_y),
+                 (-frames[wall, 0], -frames[wall, 1]), (frames[wall, 0], frames[wall, 1]))
+        for side in range(5):
+            normals[first + side, 0], normals[first + side, 1] = sides[side]
+        offsets[first] = max(support_x * start_x + support_y * start_y,
+                             support_x * end_x + support_y * end_y) + grown
+        offsets[first + 1] = across_side + grown
+        offsets[first + 2] = grown - across_side
+        offsets[first + 3] = -frames[wall, 4]
+        offsets[first + 4] = frames[wall, 5]
+        for end in range(2):
+            end_distance = _write_fan(mean, segments[wall, end, 0], segments[wall, end, 1], grown,
+                                   normals, offsets, first + 5 + end * FAN)
+            bound = _reach_bound(end_distance, grown, spread, horizon, max_speed)
+            end_in_reach[row, end] = bound > REACH_SHARE * delta
+            if not end_in_reach[row, end]:
+                end_bounds[row, end] = bound
+        share = (delta - (end_bounds[row, 0] + end_bounds[row, 1])) / (
+            1.0 + (int(end_in_reach[row, 0]) + int(end_in_reach[row, 1])))
+        risks[first] = delta
+        for side in range(1, 5):
+            risks[first + side] = share
+        for end in range(2):
+            for step in range(FAN):
+                risks[first + 5 + end * FAN + step] = share if end_in_reach[row, end] else 0.0
+    disc_radius = np.empty(near_discs)
+    disc_distance = np.empty(near_discs)
+    for row in range(near_discs):
+        disc, first = discs[row], near_count * PER_WALL + row * FAN
+        disc_radius[row] = radius[count + disc]
+        disc_distance[row] = _write_fan(mean, disc_centres[disc, 0], disc_centres[disc, 1],
+                                     disc_radius[row], normals, offsets, first)
+        for step in range(FAN):
+            risks[first + step] = delta
+        away_normals[near_count + row, 0] = normals[first + FAN_HALF, 0]
+        away_normals[near_count + row, 1] = normals[first + FAN_HALF, 1]
+    return (clearance, far_bounds, walls, discs, radius[:count][walls], distance[:count][walls],
+            disc_radius, disc_distance, normals, offsets, risks, end_bounds, end_in_reach,
+            away_normals)

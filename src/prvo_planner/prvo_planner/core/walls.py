@@ -89,33 +89,6 @@ _START_FAN = slice(5, 5 + FAN)
 _END_FAN = slice(5 + FAN, 5 + 2 * FAN)
 
 
-def closest_points(point, segments, frames):
-    """
-    Closest point of each segment to POINT, and the distance.
-
-    Parameters
-    ----------
-    point : numpy.ndarray
-        Shape (2,).
-    segments : numpy.ndarray
-        Shape (N, 2, 2).
-    frames : numpy.ndarray
-        ``StaticObstacles.frames`` of the segments, shape (N, 6).
-
-    Returns
-    -------
-    closest : numpy.ndarray
-        Shape (N, 2).
-    distance : numpy.ndarray
-        Shape (N,).
-
-    """
-    along = np.clip(frames[:, 0] * point[0] + frames[:, 1] * point[1], frames[:, 4],
-                    frames[:, 5])
-    closest = segments[:, 0] + (along - frames[:, 4])[:, None] * frames[:, :2]
-    return closest, np.hypot(point[0] - closest[:, 0], point[1] - closest[:, 1])
-
-
 def _quadratic_form(normals, cov):
     """``n' S n`` for normals (..., 2) and a 2x2 covariance S."""
     x, y = normals[..., 0], normals[..., 1]
@@ -127,30 +100,6 @@ def _largest_std(cov):
     half_trace = 0.5 * (cov[0, 0] + cov[1, 1])
     return math.sqrt(max(half_trace + math.hypot(0.5 * (cov[0, 0] - cov[1, 1]), cov[0, 1]),
                          0.0))
-
-
-def _reach_bounds(distance, radius, spread, horizon, max_speed):
-    """A-priori bound on the path entering a shape at DISTANCE (of grown RADIUS) within tau."""
-    gap = distance - radius - horizon * max_speed
-    if spread == 0.0:
-        return np.where(gap > 0.0, 0.0, 1.0)
-    return np.where(gap > 0.0, np.minimum(2.0 * np.exp(-0.5 * (gap / spread) ** 2), 1.0), 1.0)
-
-
-_FAN_STEPS = np.arange(-FAN_HALF, FAN_HALF + 1) / FAN_HALF
-
-
-def _fan(centres, radius, mean):
-    """Tangent normals (K, FAN, 2) and offsets (K, FAN) of discs, and their distances (K,)."""
-    offset = mean - centres
-    distance = np.hypot(offset[:, 0], offset[:, 1])
-    heading = np.arctan2(offset[:, 1], offset[:, 0])
-    cosine = np.divide(radius, distance, out=np.ones_like(distance), where=distance > radius)
-    angles = heading[:, None] + np.arccos(cosine)[:, None] * _FAN_STEPS
-    normals = np.stack([np.cos(angles), np.sin(angles)], axis=-1)
-    offsets = (normals[..., 0] * centres[:, :1] + normals[..., 1] * centres[:, 1:]
-               + radius[:, None])
-    return normals, offsets, distance
 
 
 @dataclass(frozen=True)
@@ -346,83 +295,31 @@ def wall_model(obstacles, ego, config):
     WallModel
 
     """
+    from .wall_kernels import wall_geometry
     mean = ego.position
     eta = config.effective_eta
     delta = 1.0 - eta
     horizon, max_speed = config.obstacle_horizon, config.max_speed
     position_cov, actuation_cov, growth = _planning_covariances(ego, config)
     spread = _largest_std(position_cov) + horizon * _largest_std(actuation_cov)
-    walls = len(obstacles.segments)
-    closest, distance = closest_points(mean, obstacles.segments, obstacles.frames)
-    # Walls, then discs: grown radius and distance of the mean.
-    radius = ego.radius + config.safety_margin + np.concatenate([obstacles.half_widths,
-                                                                 obstacles.disc_radii])
-    distance = np.concatenate([distance, np.hypot(mean[0] - obstacles.disc_centres[:, 0],
-                                                  mean[1] - obstacles.disc_centres[:, 1])])
-    clearance = float(np.min(distance - radius))
-    radius = radius + growth
-    bounds = _reach_bounds(distance, radius, spread, horizon, max_speed)
-    near = bounds > REACH_SHARE * delta
-    near_walls, near_discs = near[:walls], near[walls:]
-    segments, frames = obstacles.segments[near_walls], obstacles.frames[near_walls]
-    closest, centres = closest[near_walls], obstacles.disc_centres[near_discs]
-    wall_radius, disc_radius = radius[:walls][near_walls], radius[walls:][near_discs]
-    wall_distance = distance[:walls][near_walls]
-    count, discs = len(segments), len(centres)
-    across = frames[:, 2:4]
-    support = np.divide(mean - closest, wall_distance[:, None], out=across.copy(),
-                        where=(wall_distance > 0.0)[:, None])
-    fans, fan_offsets, fan_distance = _fan(
-        np.concatenate([segments[:, 0], segments[:, 1], centres]),
-        np.concatenate([wall_radius, wall_radius, disc_radius]), mean)
-    normals = np.empty((count, PER_WALL, 2))
-    offsets = np.empty((count, PER_WALL))
-    normals[:, 0] = support
-    normals[:, 1] = across
-    normals[:, 2] = -across
-    normals[:, 3] = -frames[:, :2]
-    normals[:, 4] = frames[:, :2]
-    normals[:, _START_FAN] = fans[:count]
-    normals[:, _END_FAN] = fans[count:2 * count]
-    across_side = np.sum(across * segments[:, 0], axis=1)
-    offsets[:, 0] = np.maximum(np.sum(support * segments[:, 0], axis=1),
-                               np.sum(support * segments[:, 1], axis=1)) + wall_radius
-    offsets[:, 1] = across_side + wall_radius
-    offsets[:, 2] = wall_radius - across_side
-    offsets[:, 3] = -frames[:, 4]
-    offsets[:, 4] = frames[:, 5]
-    offsets[:, _START_FAN] = fan_offsets[:count]
-    offsets[:, _END_FAN] = fan_offsets[count:2 * count]
-    # The decomposition's risk split: ends out of reach are charged their a-priori bound.
-    end_bounds = _reach_bounds(fan_distance[:2 * count].reshape(2, count).T,
-                               wall_radius[:, None], spread, horizon, max_speed)
-    in_reach = end_bounds > REACH_SHARE * delta
-    end_bounds[in_reach] = 0.0
-    share = (delta - end_bounds.sum(axis=1)) / (1.0 + in_reach.sum(axis=1))
-    risks = np.empty((count, PER_WALL))
-    risks[:, 0] = delta
-    risks[:, _RECTANGLE] = share[:, None]
-    risks[:, _START_FAN] = np.where(in_reach[:, :1], share[:, None], 0.0)
-    risks[:, _END_FAN] = np.where(in_reach[:, 1:], share[:, None], 0.0)
-    if discs:
-        normals = np.concatenate([normals.reshape(-1, 2), fans[2 * count:].reshape(-1, 2)])
-        offsets = np.concatenate([offsets.ravel(), fan_offsets[2 * count:].ravel()])
-        risks = np.concatenate([risks.ravel(), np.full(discs * FAN, delta)])
-    conditions = LinearConditions.of(normals.reshape(-1, 2), offsets.ravel(), risks.ravel(),
-                                     mean, position_cov, actuation_cov, horizon,
-                                     config.control_period)
-    still_risk = conditions.still_risk
-    close = np.concatenate([wall_distance, fan_distance[2 * count:]]) <= np.concatenate(
+    (clearance, far_bounds, walls, discs, wall_radius, wall_distance, disc_radius, disc_distance,
+     normals, offsets, risks, end_bounds, in_reach, away_normals) = wall_geometry(
+        np.ascontiguousarray(mean, dtype=float), obstacles.segments,
+        np.ascontiguousarray(obstacles.frames), obstacles.half_widths, obstacles.disc_centres,
+        obstacles.disc_radii, ego.radius + config.safety_margin, growth, spread, horizon,
+        max_speed, delta)
+    conditions = LinearConditions.of(normals, offsets, risks, mean, position_cov, actuation_cov,
+                                     horizon, config.control_period)
+    count, still_risk = len(walls), conditions.still_risk
+    close = np.concatenate([wall_distance, disc_distance]) <= np.concatenate(
         [wall_radius, disc_radius])
     close[:count] |= still_risk[:count * PER_WALL:PER_WALL] >= delta
     close[count:] |= still_risk[count * PER_WALL + FAN_HALF::FAN] >= delta
-    away_normals = np.concatenate([support, fans[2 * count:, FAN_HALF]]) if discs else support
     return WallModel(
-        mean_position=np.array(mean, dtype=float), clearance=clearance, far_bounds=bounds[~near],
-        segments=segments, radius=wall_radius, distance=wall_distance, centres=centres,
-        disc_radius=disc_radius, conditions=conditions, end_bounds=end_bounds,
-        end_in_reach=np.ascontiguousarray(in_reach), close=close,
-        away_normals=away_normals,
+        mean_position=np.array(mean, dtype=float), clearance=clearance, far_bounds=far_bounds,
+        segments=obstacles.segments[walls], radius=wall_radius, distance=wall_distance,
+        centres=obstacles.disc_centres[discs], disc_radius=disc_radius, conditions=conditions,
+        end_bounds=end_bounds, end_in_reach=in_reach, close=close, away_normals=away_normals,
         away_thresholds=ndtri(eta) * np.sqrt(np.maximum(
             _quadratic_form(away_normals, actuation_cov), 0.0)),
         horizon=horizon, max_speed=max_speed, position_cov=np.ascontiguousarray(position_cov),
