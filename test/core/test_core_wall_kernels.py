@@ -18,7 +18,7 @@ from prvo_planner.core import AgentBelief, PlannerConfig
 from prvo_planner.core.obstacles import StaticObstacles
 from prvo_planner.core.special_kernels import erfcx
 from prvo_planner.core.wall_kernels import crossing_bounds, line_speeds
-from prvo_planner.core.walls import rejected_intervals, wall_model
+from prvo_planner.core.walls import obstacle_probability, rejected_intervals, wall_model
 
 mpmath.mp.dps = 50
 
@@ -291,3 +291,56 @@ def test_the_conditions_are_the_tangents_and_sides_of_the_grown_shapes(seed):
                 assert np.all(conditions.risks[first + 5 + 5 * end:first + 10 + 5 * end]
                               == (share if ends_in[end] else 0.0))
         assert len(model.segments) + len(model.centres) + len(model.far_bounds) == len(world)
+
+
+@pytest.mark.parametrize('seed', range(3))
+def test_the_probability_certified_is_the_best_decomposition_of_every_shape(seed):
+    """``obstacle_probability`` from the conditions' bounds in mpmath, combined as stated.
+
+    Per near wall the smaller failure of the support line and of the decomposition (the
+    rectangle's best side plus each end's best tangent, the parallel one included when moving,
+    or the end's a-priori bound when out of reach); per disc its best tangent; the largest of
+    these and of the far shapes' bounds.
+    """
+    rng = np.random.default_rng(seed)
+    segments = np.array([[[1.0, -5.0], [1.0, -0.45]], [[1.0, 0.45], [1.0, 5.0]],
+                         [[-1.5, 1.0], [-1.0, 1.0]], [[-4.0, -6.0], [4.0, -6.0]]])
+    world = StaticObstacles(segments, np.array([0.05, 0.05, 0.0, 0.1]),
+                            np.array([[0.0, 1.0], [2.0, -1.0]]), np.array([0.2, 0.3]))
+    for _ in range(3):
+        ego = AgentBelief(rng.uniform([-0.5, -0.5], [0.3, 0.5]), [0.0, 0.0],
+                          np.diag([0.004, 0.003, 0.01, 0.01]), 0.25)
+        config = PlannerConfig(eta=0.9, max_speed=1.0, actuation_cov=0.0049 * np.eye(2))
+        model = wall_model(world, ego, config)
+        conditions = model.conditions
+        for velocity in np.concatenate([[[0.0, 0.0], [0.6, 0.0]],
+                                        rng.uniform(-0.8, 0.8, (2, 2))]):
+            failures = [exact_bound(m0, s0, w, conditions.horizon, max(-(normal @ velocity), 0.0))
+                        for normal, m0, s0, w in zip(conditions.normals, conditions.mean0,
+                                                     conditions.std0, conditions.walk,
+                                                     strict=True)]
+            speed = np.hypot(*velocity)
+            direction = velocity / speed if speed > 0.0 else None
+            risks = list(model.far_bounds)
+            for row in range(len(model.segments)):
+                first = 15 * row
+                decomposition = min(failures[first + 1:first + 5])
+                for end in range(2):
+                    if not model.end_in_reach[row, end]:
+                        decomposition += model.end_bounds[row, end]
+                        continue
+                    best = min(failures[first + 5 + 5 * end:first + 10 + 5 * end])
+                    if direction is not None:
+                        best = min(best, parallel_bound(model, model.segments[row, end],
+                                                        model.radius[row], direction))
+                    decomposition += best
+                risks.append(min(failures[first], decomposition))
+            for disc in range(len(model.centres)):
+                first = 15 * len(model.segments) + 5 * disc
+                best = min(failures[first:first + 5])
+                if direction is not None:
+                    best = min(best, parallel_bound(model, model.centres[disc],
+                                                    model.disc_radius[disc], direction))
+                risks.append(best)
+            expected = min(max(1.0 - float(max(risks, default=0.0)), 0.0), 1.0)
+            assert obstacle_probability(model, velocity) == pytest.approx(expected, abs=1e-12)

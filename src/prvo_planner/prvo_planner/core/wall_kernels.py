@@ -14,7 +14,7 @@ the node spins) and kept in numba's on-disk cache, as the ray search and the cer
 * :func:`line_speeds`: each condition's bound standing still and the largest speed towards its
   line it accepts (regula falsi on the reflection principle's bound);
 * :func:`crossing_bounds`: the reflection principle's bound of each condition at given speeds;
-* :func:`parallel_failures`: the bounds of the discs' tangents parallel to each ray;
+* :func:`largest_failure`: the largest failure bound over the shapes at a velocity;
 * :func:`rejected_intervals`: the open intervals of each ray that each shape rejects.
 
 ``Phi`` and ``erfcx`` are :mod:`.special_kernels`' (scipy's ufuncs cannot be called from numba):
@@ -41,7 +41,9 @@ _ROWS = types.float64[:, ::1]
 _BOUNDS_SIGNATURE = _VECTOR(_VECTOR, _VECTOR, _VECTOR, types.float64, _VECTOR)
 _SPEEDS_SIGNATURE = types.Tuple((_VECTOR, _VECTOR))(
     _VECTOR, _VECTOR, _VECTOR, types.float64, _VECTOR, _VECTOR, _VECTOR)
-_PARALLEL_SIGNATURE = _ROWS(_VECTOR, _ROWS, _VECTOR, _ROWS, _ROWS, _ROWS, types.float64)
+_FAILURE_SIGNATURE = types.float64(
+    _ROWS, _VECTOR, _VECTOR, _VECTOR, types.float64, _VECTOR, _VECTOR, types.float64[:, :, ::1],
+    _VECTOR, types.boolean[:, ::1], _ROWS, _ROWS, _VECTOR, _VECTOR, _ROWS, _ROWS)
 _INDICES = types.int64[::1]
 # The obstacles' arrays are read-only (``StaticObstacles``), as is a belief's mean.
 _FIXED_VECTOR = types.Array(types.float64, 1, 'C', readonly=True)
@@ -226,39 +228,6 @@ def _parallel_failure(mean, centre_x, centre_y, radius, e_x, e_y, position_cov, 
     return _crossing_bound(abs(side) - radius,
                            math.sqrt(_quadratic_form(across_x, across_y, position_cov)),
                            _quadratic_form(across_x, across_y, walk_cov), horizon, 0.0)
-
-
-@jit(_PARALLEL_SIGNATURE)
-def parallel_failures(mean, centres, radius, directions, position_cov, walk_cov, horizon):
-    """
-    Return the failure bounds of the discs' tangents parallel to each ray, shape (K, M).
-
-    Moving along ``e`` (a ray's direction), the tangent to a disc whose normal is across ``e``
-    (on the side of ``mu``) is the one the motion keeps its distance to: the drift towards it
-    is zero at every speed, so on the ray it holds at every ``t`` or at none, with the
-    crossing bound of its margin and no approach.
-
-    Parameters
-    ----------
-    mean : numpy.ndarray
-        ``mu``, shape (2,).
-    centres, radius : numpy.ndarray
-        The discs (K, 2) and their grown radius (K,).
-    directions : numpy.ndarray
-        Unit ray directions, shape (M, 2).
-    position_cov, walk_cov : numpy.ndarray
-        ``S_p`` and ``T S_a``, shape (2, 2).
-    horizon : float
-        ``tau`` in whole periods [s].
-
-    """
-    failures = np.empty((radius.size, directions.shape[0]))
-    for disc in range(radius.size):
-        for ray in range(directions.shape[0]):
-            failures[disc, ray] = _parallel_failure(
-                mean, centres[disc, 0], centres[disc, 1], radius[disc], directions[ray, 0],
-                directions[ray, 1], position_cov, walk_cov, horizon)
-    return failures
 
 
 @jit(inline='always')
@@ -541,3 +510,78 @@ def wall_geometry(mean, segments, frames, half_widths, disc_centres, disc_radii,
     return (clearance, far_bounds, walls, discs, radius[:count][walls], distance[:count][walls],
             disc_radius, disc_distance, normals, offsets, risks, end_bounds, end_in_reach,
             away_normals)
+
+
+@jit(_FAILURE_SIGNATURE)
+def largest_failure(normals, mean0, std0, walk, horizon, velocity, mean, segments, radius,
+                    end_in_reach, end_bounds, centres, disc_radius, far_bounds, position_cov,
+                    walk_cov):
+    """
+    Return the largest failure bound over the obstacles at VELOCITY (0 without any).
+
+    Each condition fails at most with its crossing bound at the speed ``max(-n.v, 0)`` towards
+    its line. A near wall fails at most with the smaller of its support line's bound and the
+    decomposition's, the sum over its pieces of each piece's best condition's (an end out of
+    reach: its a-priori bound); a near disc with its best tangent's; moving, the tangents
+    parallel to the motion count for the ends and discs too. A shape out of reach fails at most
+    with its a-priori bound.
+
+    Parameters
+    ----------
+    normals, mean0, std0, walk : numpy.ndarray
+        The conditions (:class:`.walls.LinearConditions`), (C, 2), (C,), (C,), (C,).
+    horizon : float
+        ``tau`` in whole periods [s].
+    velocity, mean : numpy.ndarray
+        The command ``v`` and ``mu``, shape (2,) each.
+    segments, radius, end_in_reach, end_bounds : numpy.ndarray
+        The near walls (n, 2, 2), their grown radius (n,), and per end whether it is in reach
+        and the bound charged otherwise, (n, 2) each.
+    centres, disc_radius : numpy.ndarray
+        The near discs (q, 2) and their grown radius (q,).
+    far_bounds : numpy.ndarray
+        The a-priori bounds of the shapes out of reach, (F,).
+    position_cov, walk_cov : numpy.ndarray
+        ``S_p`` and ``T S_a``, shape (2, 2).
+
+    """
+    speed = math.hypot(velocity[0], velocity[1])
+    moving = speed > 0.0
+    e_x, e_y = (velocity[0] / speed, velocity[1] / speed) if moving else (0.0, 0.0)
+    failures = np.empty(mean0.size)
+    for index in range(mean0.size):
+        failures[index] = _crossing_bound(
+            mean0[index], std0[index], walk[index], horizon,
+            max(-(normals[index, 0] * velocity[0] + normals[index, 1] * velocity[1]), 0.0))
+    largest = 0.0
+    for bound in far_bounds:
+        largest = max(largest, bound)
+    for wall in range(radius.size):
+        first = wall * PER_WALL
+        rectangle = min(min(failures[first + 1], failures[first + 2]),
+                        min(failures[first + 3], failures[first + 4]))
+        ends = np.empty(2)
+        for end in range(2):
+            if not end_in_reach[wall, end]:
+                ends[end] = end_bounds[wall, end]
+                continue
+            best = 1.0
+            for index in range(first + 5 + end * FAN, first + 5 + (end + 1) * FAN):
+                best = min(best, failures[index])
+            if moving:
+                best = min(best, _parallel_failure(
+                    mean, segments[wall, end, 0], segments[wall, end, 1], radius[wall], e_x,
+                    e_y, position_cov, walk_cov, horizon))
+            ends[end] = best
+        largest = max(largest, min(failures[first], rectangle + (ends[0] + ends[1])))
+    for disc in range(disc_radius.size):
+        first = radius.size * PER_WALL + disc * FAN
+        best = 1.0
+        for index in range(first, first + FAN):
+            best = min(best, failures[index])
+        if moving:
+            best = min(best, _parallel_failure(mean, centres[disc, 0], centres[disc, 1],
+                                               disc_radius[disc], e_x, e_y, position_cov,
+                                               walk_cov, horizon))
+        largest = max(largest, best)
+    return largest

@@ -26,7 +26,7 @@ half the risk and at the risk; regula falsi from there, ``wall_kernels.line_spee
 condition whose bound standing still exceeds its risk accepts nothing. Several conditions
 certify a piece when any one of them holds (each with the piece's whole risk); their normals
 depend on the beliefs and, for a disc's tangent parallel to a ray
-(``wall_kernels.parallel_failures``), on the ray's direction.
+(``wall_kernels._parallel_failure``), on the ray's direction.
 
 Per wall (``delta = 1 - eta``) a velocity is accepted if either
 
@@ -39,7 +39,7 @@ Per wall (``delta = 1 - eta``) a velocity is accepted if either
   no covariance of its own) when one of its tangent half-planes holds, the normals a fan of
   ``FAN`` directions within ``arccos(R / d)`` of the direction from its centre to ``mu`` (``d``
   the distance), which are the tangents that can hold ``mu``, and on each ray the tangent
-  parallel to it (``wall_kernels.parallel_failures``), which a straight path through a door
+  parallel to it (``wall_kernels._parallel_failure``), which a straight path through a door
   keeps to.
 
 The risk of the decomposition is split by a rule fixed in advance: an end disc the ego cannot
@@ -162,12 +162,6 @@ class LinearConditions:
         return cls(normals=normals, mean0=mean0, std0=std0, walk=walk, horizon=horizon,
                    still_risk=still, risks=risks, approach=approach)
 
-    def failures(self, velocity):
-        """Return the bound on each condition failing at VELOCITY (``crossing_bounds``), (K,)."""
-        from .wall_kernels import crossing_bounds
-        return crossing_bounds(self.mean0, self.std0, self.walk, self.horizon,
-                               np.maximum(-(self.normals @ velocity), 0.0))
-
 
 @dataclass(frozen=True)
 class WallModel:
@@ -245,7 +239,7 @@ def certifiable_width(ego, config):
     Return the clear width of a passage below which nothing certifies EGO's way through [m].
 
     Beside a wall moving along it, the best condition is a line parallel to the motion (the support
-    line of the wall beside it, or an end's parallel tangent, ``wall_kernels.parallel_failures``)
+    line of the wall beside it, or an end's parallel tangent, ``wall_kernels._parallel_failure``)
     at most at the whole risk ``delta``: its margin ``m`` on each side must bring
     ``crossing_bounds(m, s0, T s_a^2, tau, 0)`` down to ``delta``, with ``s0`` and ``s_a`` the
     largest position and execution stds (any direction). The width is ``2 (R + m)``, ``R`` the
@@ -489,23 +483,11 @@ def obstacle_probability(model, velocity):
     [0, 1]; 1 without obstacles.
 
     """
-    failure = model.conditions.failures(velocity)
-    count = len(model.segments)
-    walls = failure[:count * PER_WALL].reshape(count, PER_WALL)
-    ends = np.stack([walls[:, _START_FAN].min(axis=1), walls[:, _END_FAN].min(axis=1)], axis=1)
-    discs = failure[count * PER_WALL:].reshape(-1, FAN).min(axis=1, initial=1.0)
-    speed = math.hypot(velocity[0], velocity[1])
-    if speed > 0.0:
-        from .wall_kernels import parallel_failures
-        # Moving, the tangents parallel to the motion certify too.
-        direction = (np.asarray(velocity, dtype=float) / speed)[None]
-        arguments = model.position_cov, model.walk_cov, model.conditions.horizon
-        ends = np.minimum(ends, parallel_failures(
-            model.mean_position, model.segments.reshape(-1, 2), np.repeat(model.radius, 2),
-            direction, *arguments).reshape(count, 2))
-        discs = np.minimum(discs, parallel_failures(
-            model.mean_position, model.centres, model.disc_radius, direction, *arguments)[:, 0])
-    ends = np.where(model.end_in_reach, ends, model.end_bounds)
-    decomposition = walls[:, _RECTANGLE].min(axis=1) + ends.sum(axis=1)
-    risks = np.concatenate([np.minimum(walls[:, 0], decomposition), discs, model.far_bounds])
-    return float(np.clip(1.0 - np.max(risks, initial=0.0), 0.0, 1.0))
+    from .wall_kernels import largest_failure
+    conditions = model.conditions
+    failure = largest_failure(
+        conditions.normals, conditions.mean0, conditions.std0, conditions.walk,
+        conditions.horizon, np.ascontiguousarray(velocity, dtype=float), model.mean_position,
+        model.segments, model.radius, model.end_in_reach, model.end_bounds, model.centres,
+        model.disc_radius, model.far_bounds, model.position_cov, model.walk_cov)
+    return min(max(1.0 - failure, 0.0), 1.0)
