@@ -22,3 +22,25 @@ def test_the_warm_up_loads_the_ray_search_and_the_certificate(python_executable)
                             check=True).stdout
     assert output.strip() == str(['prvo_planner.core.certificate_kernels',
                                   'prvo_planner.core.ray_search'])
+
+
+# A fresh planner node (the node's defaults, no map yet), warmed up as `warmed_up_planner` does:
+# its warm-up loads the walls' kernels too, since a map can come at any time.
+NODE_PROBE = """
+import sys
+import rclpy
+from prvo_planner.planner_node import PlannerNode
+rclpy.init(args=['--ros-args', '-r', '__ns:=/robot_0', '-p', 'neighbors:=[""]'])
+node = PlannerNode()
+before = 'prvo_planner.core.wall_kernels' in sys.modules
+node.warm_up()
+print(before, 'prvo_planner.core.wall_kernels' in sys.modules)
+node.destroy_node()
+rclpy.try_shutdown()
+"""
+
+
+def test_the_planner_node_s_warm_up_loads_the_walls_kernels(python_executable, ros_env):
+    output = subprocess.run([python_executable, '-c', NODE_PROBE], capture_output=True,
+                            text=True, check=True, env=ros_env).stdout
+    assert output.strip().splitlines()[-1] == 'False True'
