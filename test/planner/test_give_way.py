@@ -49,10 +49,62 @@ def test_with_little_room_the_robot_steps_as_far_as_it_can_down_to_the_two_radii
     # Room down to y = -0.55: between the two radii (0.5) and the needed distance (0.6).
     spot = spot_beside(ROUTE, goal, RADIUS, RADIUS, lambda start, end: end[1] >= -0.55)
     assert -0.55 <= spot[1] < -0.5
-    # No room on its side below the two radii: the other side.
-    spot = spot_beside(ROUTE, goal, RADIUS, RADIUS, lambda start, end: end[1] >= -0.45)
-    assert spot[1] == pytest.approx(NEEDED)
+    # Walls on both sides, and no room on its side down to the two radii: the other side.
+    spot = spot_beside(ROUTE, goal, RADIUS, RADIUS, lambda start, end: -0.45 <= end[1] <= 0.55)
+    assert spot[1] == pytest.approx(0.55)
     assert spot_beside(ROUTE, goal, RADIUS, RADIUS, lambda start, end: False) is None
+
+
+def between(low, high):
+    """Return a room test that lets a robot go only where LOW <= y <= HIGH."""
+    return lambda start, end: low - 1e-12 <= end[1] <= high + 1e-12
+
+
+@pytest.mark.parametrize('goal_y', [0.02, 0.0, -0.02, -0.2])
+def test_a_goal_on_the_route_steps_toward_a_near_wall_and_leaves_the_open_side_whole(goal_y):
+    # A wall 0.3 below the route, open above: against the wall, though the goal lies above the
+    # route or on it (where the route's right would be the wall's side by chance).
+    spot = spot_beside(ROUTE, np.array([1.0, goal_y]), RADIUS, RADIUS, between(-0.3, 5.0))
+    np.testing.assert_allclose(spot, [1.0, -0.3], atol=1e-9)
+    # The same with the wall above: the side is the wall's, not the route's right.
+    spot = spot_beside(ROUTE, np.array([1.0, -goal_y]), RADIUS, RADIUS, between(-5.0, 0.3))
+    np.testing.assert_allclose(spot, [1.0, 0.3], atol=1e-9)
+
+
+def test_a_goal_clearly_on_the_open_side_does_not_cross_the_route_to_a_wall():
+    # 0.3 above the route, a wall 0.3 below it: away from the route on its own side, as without
+    # a wall (crossing, it would stand in the passer's way on the other side).
+    spot = spot_beside(ROUTE, np.array([1.0, 0.3]), RADIUS, RADIUS, between(-0.3, 5.0))
+    np.testing.assert_allclose(spot, [1.0, NEEDED], atol=1e-9)
+
+
+def test_a_goal_against_its_wall_already_stays():
+    assert spot_beside(ROUTE, np.array([1.0, -0.3]), RADIUS, RADIUS, between(-0.3, 5.0)) is None
+
+
+def test_a_goal_beyond_the_needed_distance_steps_away_for_one_going_round_a_robot_on_the_route():
+    # The passer may go round a robot standing on its route, up to NEEDED off it, and then
+    # needs NEEDED and GAP from this one: a goal within 2 NEEDED and GAP of the route steps away
+    # to that distance, as far as walls and other robots let it.
+    beyond = 2 * NEEDED + GAP
+    goal = np.array([1.0, -(NEEDED + 0.3)])
+    spot = spot_beside(ROUTE, goal, RADIUS, RADIUS, between(-5.0, 5.0))
+    np.testing.assert_allclose(spot, [1.0, -beyond], atol=1e-9)
+    spot = spot_beside(ROUTE, goal, RADIUS, RADIUS, between(-(NEEDED + 0.5), 5.0))
+    np.testing.assert_allclose(spot, [1.0, -(NEEDED + 0.5)], atol=1e-9)
+    # Another robot below it: the two radii and GAP from it.
+    other = np.array([1.0, -(beyond + 0.4)])
+    spot = spot_beside(ROUTE, goal, RADIUS, RADIUS, between(-5.0, 5.0), [(other, RADIUS)])
+    assert np.hypot(*(spot - other)) >= NEEDED - 1e-9
+    assert spot[1] == pytest.approx(other[1] + NEEDED, abs=0.05)
+    # A way that ends beside the goal (a neighbour going back to its own goal) has nobody to
+    # pass: two robots stepped aside would otherwise keep each other aside for good.
+    ending = np.array([[-3.0, 0.0], [1.0, 0.0]])
+    assert spot_beside(ending, goal, RADIUS, RADIUS, between(-5.0, 5.0)) is None
+    # Without a map, or farther off: it stays.
+    assert spot_beside(ROUTE, goal, RADIUS, RADIUS, None) is None
+    far = np.array([1.0, -(beyond + 0.01)])
+    assert spot_beside(ROUTE, far, RADIUS, RADIUS, between(-5.0, 5.0)) is None
 
 
 def test_the_nearest_neighbour_whose_way_passes_by_the_goal_decides():

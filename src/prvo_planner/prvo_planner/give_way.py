@@ -19,6 +19,16 @@ map, always), down to the two radii; with no room on that side, on the other. Th
 neighbour decides. Once no route passes by its goal (the neighbour went by, arrived, or went
 silent) it returns to its goal.
 
+With a map it stands against a wall rather than in the open (`_against_wall`): where its room
+toward one side of the route ends within the two radii and `GAP` of it (a wall) and the other
+side is open, it steps toward the wall, as far as its room allows, and leaves the passer the
+open side whole; it crosses the route for that only from a goal on it (within `GAP`), where the
+side was chance. Stepping into a corridor's middle, a robot at a goal near the corridor's end
+stood in the way of those going to the goals behind it (`corridor8`). And a robot whose goal is
+farther from the route, but within twice that distance and `GAP`, steps away from it to that
+distance, as far as its room and the other neighbours allow: the passer, going round a robot
+on its route, passes between the two.
+
 A robot held short of its goal (`held_short`: stalled, or near its goal and hardly gaining on it)
 gives way likewise to a neighbour whose way passes by where it stands, ahead of the neighbour,
 and that has farther to go than it has (`yields_to`; within `TIE` the names decide). Two robots
@@ -103,26 +113,37 @@ def way_ahead(route, position):
     return np.vstack([nearest, route[index + 1:]])
 
 
-def spot_beside(route, goal, radius, other_radius, room):
+def spot_beside(route, goal, radius, other_radius, room, others=()):
     """
     Return where a robot of RADIUS standing at GOAL lets a neighbour of OTHER_RADIUS pass.
 
-    None when ROUTE (K, 2) passes GOAL at least the two radii and GAP away (nothing to do), or
-    when no point beside it is within reach (ROOM(start (2,), end (2,)) -> bool; None: open
-    space). Otherwise the point at the largest offset from the route, from the two radii and GAP
-    down to the two radii, on the side of the goal, else on the other.
+    None when ROUTE (K, 2) passes GOAL at least the two radii and GAP away and no wall is near
+    (nothing to do), or when no point beside it is within reach (ROOM(start (2,), end (2,)) ->
+    bool; None: open space). Otherwise, with a map, against the wall (`_against_wall`) where
+    one side of the route has a wall within reach and the other is open; else the point at the
+    largest offset from the route, from the two radii and GAP down to the two radii, on the side
+    of the goal, else on the other. OTHERS (a sequence of (position (2,), radius) of the other
+    neighbours) bound how far it steps where the route passes beyond NEEDED (`_against_wall`).
     """
     nearest, direction, _ = closest_on_route(route, goal)
     offset = goal - nearest
     distance = math.hypot(*offset)
     needed = radius + other_radius + GAP
-    if distance >= needed:
+    if distance >= 2 * needed + GAP:
         return None
     if distance > 1e-9:
         side = offset / distance
     elif direction.any():
         side = np.array([direction[1], -direction[0]])
     else:
+        return None
+    if room is not None and (distance < needed or not np.array_equal(nearest, route[-1])):
+        # Beyond NEEDED only for a way that goes on past the goal: one that ends beside it (a
+        # neighbour's way back to its own goal) has nobody to pass.
+        spot = _against_wall(nearest, goal, side, distance, needed, other_radius, room, others)
+        if spot is not None:
+            return None if math.hypot(*(spot - goal)) < STEP / 2 else spot
+    if distance >= needed:
         return None
     least = radius + other_radius
     offsets = needed - STEP * np.arange(int(math.floor((needed - least) / STEP + 1e-9)) + 1)
@@ -131,6 +152,57 @@ def spot_beside(route, goal, radius, other_radius, room):
             spot = nearest + amount * way
             if room is None or room(goal, spot):
                 return spot
+    return None
+
+
+def _against_wall(nearest, goal, side, distance, needed, other_radius, room, others):
+    """
+    Return the spot against the wall on one side of a passing route, None for none.
+
+    A robot at GOAL, DISTANCE [m] from the route's NEAREST point (2,) on the unit SIDE (2,) of
+    it, steps toward a wall rather than into the open: out of the way, it leaves the passer the
+    free space on the other side whole. In `corridor8` the robots at the goals nearer the end
+    stand 1.1 m apart across the corridor, on the way of those going to the goals behind them;
+    stepping to the side its goal lay from a route through it, decided by centimetres, one
+    stepped into the middle as often as not and stood in the way (docs/results.md, 3.18 and
+    3.19). Where the route passes within NEEDED [m] (the two radii and GAP): toward the side on
+    which ROOM ends within NEEDED of the route (a wall) while the other has NEEDED, the goal's
+    side, or either where the goal is within GAP of the route (on it, give or take); where it
+    passes farther, but within 2 NEEDED and GAP (the passer may go round a robot standing on its
+    route, up to NEEDED off it, between that one and this, and then needs NEEDED and GAP from
+    this one), away from the route on the goal's side to that distance, keeping the two radii
+    and GAP from OTHERS (a sequence of (position (2,), radius)). As far as the room allows, and
+    never back toward the route.
+    """
+    if distance < needed:
+        reaches = [_reach(nearest, goal, way, needed, room) for way in (side, -side)]
+        # Across the route only from a goal on it (within GAP), where its side is chance.
+        sides = ((side, *reaches), (-side, *reaches[::-1]))[:2 if distance < GAP else 1]
+        for way, reach, other in sides:
+            if (reach is not None and reach < needed - 1e-9
+                    and other is not None and other >= needed - 1e-9):
+                return nearest + max(reach, float((goal - nearest) @ way)) * way
+        return None
+    radius = needed - other_radius - GAP
+    beyond = 2 * needed + GAP - distance
+    for amount in beyond - STEP * np.arange(int(math.floor(beyond / STEP + 1e-9)) + 1):
+        spot = goal + amount * side
+        if room(goal, spot) and all(math.hypot(*(spot - position)) >= radius + size + GAP
+                                    for position, size in others):
+            return spot
+    return None
+
+
+def _reach(start, goal, way, top, room):
+    """
+    Return the largest offset [m] along a line that a robot at GOAL (2,) can reach.
+
+    The points tried are START (2,) plus TOP down to 0 by STEP times the unit WAY (2,); ROOM as
+    in `spot_beside`. None when it reaches none of them.
+    """
+    for amount in top - STEP * np.arange(int(math.floor(top / STEP + 1e-9)) + 1):
+        if room(goal, start + amount * way):
+            return float(amount)
     return None
 
 
@@ -221,13 +293,15 @@ def give_way_spot(goal, radius, neighbours, room):
     way ahead (`way_ahead`) passes by the goal decides.
     """
     spots = []
-    for position, other_radius, route in neighbours:
-        position = np.asarray(position, dtype=float)
+    neighbours = [(np.asarray(position, dtype=float), other_radius, route)
+                  for position, other_radius, route in neighbours]
+    for index, (position, other_radius, route) in enumerate(neighbours):
         distance = math.hypot(*(position - goal))
         ahead = _claimed_way(route, position, distance)
         if ahead is None:
             continue
-        spot = spot_beside(ahead, goal, radius, other_radius, room)
+        others = [(where, size) for where, size, _ in neighbours[:index] + neighbours[index + 1:]]
+        spot = spot_beside(ahead, goal, radius, other_radius, room, others)
         if spot is not None:
             spots.append((distance, spot))
     return min(spots, key=lambda item: item[0])[1] if spots else None
