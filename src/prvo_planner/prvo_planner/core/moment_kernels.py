@@ -49,7 +49,7 @@ _MOMENTS_SIGNATURE = types.Tuple((_CUBE, _CUBE))(
     _FIXED_VECTOR, types.boolean, types.boolean)
 
 
-@jit(inline='always')
+@jit()
 def _product(left, right, out):
     """Write the 4 x 4 product ``left @ right`` into ``out``, each sum in index order."""
     for row in range(4):
@@ -60,7 +60,15 @@ def _product(left, right, out):
             out[row, column] = total
 
 
-@jit(inline='always')
+@jit()
+def _copy(source, out):
+    """Write the 4 x 4 matrix ``source`` into ``out``."""
+    for row in range(4):
+        for column in range(4):
+            out[row, column] = source[row, column]
+
+
+@jit()
 def _trace_product(left, right):
     """Return ``tr(left @ right) = sum_ij left_ij right_ji`` of two 4 x 4 matrices."""
     total = 0.0
@@ -70,15 +78,13 @@ def _trace_product(left, right):
     return total
 
 
-@jit(inline='always')
+@jit()
 def _form(matrix, m0, m1, m2, m3):
-    """Return the quadratic form ``mu' X mu`` of ``mu = (m0, m1, m2, m3)``."""
-    total = 0.0
-    mean = (m0, m1, m2, m3)
-    for row in range(4):
-        inner = matrix[row, 0] * m0 + matrix[row, 1] * m1 + matrix[row, 2] * m2 \
-            + matrix[row, 3] * m3
-        total += mean[row] * inner
+    """Return the quadratic form ``mu' X mu`` of ``mu = (m0, m1, m2, m3)``, row by row."""
+    total = m0 * (matrix[0, 0] * m0 + matrix[0, 1] * m1 + matrix[0, 2] * m2 + matrix[0, 3] * m3)
+    total += m1 * (matrix[1, 0] * m0 + matrix[1, 1] * m1 + matrix[1, 2] * m2 + matrix[1, 3] * m3)
+    total += m2 * (matrix[2, 0] * m0 + matrix[2, 1] * m1 + matrix[2, 2] * m2 + matrix[2, 3] * m3)
+    total += m3 * (matrix[3, 0] * m0 + matrix[3, 1] * m1 + matrix[3, 2] * m2 + matrix[3, 3] * m3)
     return total
 
 
@@ -136,11 +142,12 @@ def condition_moments(origin, cov, radius, velocities, horizon, weights, lead, g
     traces = np.empty(_RVO_TRACES)
     form_traces = np.empty(_EXTRA_CONDITIONS + 2)
     squared_traces = np.empty(_EXTRA_CONDITIONS + 2)
-    left[0], left[1] = _CROSS, _SPEED
+    _copy(_CROSS, left[0])
+    _copy(_SPEED, left[1])
     # Rows of `left` in use: A and B, then g's G, then h1's, h2's and h3's.
     first = 2 if gate else 3
     last = 6 if finite else 3
-    left[2] = _DOT
+    _copy(_DOT, left[2])
     for neighbour in range(count):
         if finite:
             tau = horizon[neighbour]
@@ -163,15 +170,15 @@ def condition_moments(origin, cov, radius, velocities, horizon, weights, lead, g
         cross_cov, speed_cov = form_cov[0], form_cov[1]
         _product(cross_cov, cross_cov, cross_cov_2)
         _product(cross_cov, speed_cov, cross_speed)
-        rvo[0] = _CROSS
-        rvo[1] = sandwich[0]
+        _copy(_CROSS, rvo[0])
+        _copy(sandwich[0], rvo[1])
         _product(cross_cov_2, _CROSS, rvo[2])
         _product(cross_cov_2, sandwich[0], rvo[3])
         _product(cross_cov, _SPEED, rvo[4])
         _product(cross_cov_2, _SPEED, rvo[5])
         _product(cross_speed, _CROSS, rvo[6])
-        rvo[7] = _SPEED
-        rvo[8] = sandwich[1]
+        _copy(_SPEED, rvo[7])
+        _copy(sandwich[1], rvo[8])
         traces[0] = form_traces[0]
         traces[1] = squared_traces[0]
         traces[2] = _trace_product(cross_cov_2, cross_cov)
