@@ -144,7 +144,8 @@ def condition_moments(origin, cov, radius, velocities, horizon, weights, lead, g
     squared_traces = np.empty(_EXTRA_CONDITIONS + 2)
     _copy(_CROSS, left[0])
     _copy(_SPEED, left[1])
-    # Rows of `left` in use: A and B, then g's G, then h1's, h2's and h3's.
+    # Rows of `left`: A and B (always used), G, H1, H2, H3; the conditions are rows first to
+    # last - 1 (G only with the gate, the H's only with a finite horizon).
     first = 2 if gate else 3
     last = 6 if finite else 3
     _copy(_DOT, left[2])
