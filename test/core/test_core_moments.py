@@ -5,7 +5,7 @@ import numpy as np
 from prvo_core_testing import random_covariance
 
 from prvo_planner.core import rvo_moments
-from prvo_planner.core.moments import condition_moments, ray_polynomials
+from prvo_planner.core.moments import condition_moments, ray_polynomials, reach_weights
 
 # Probabilists' Gauss-Hermite rule: 5 nodes integrate polynomials of degree <= 9 exactly.
 _NODES, _WEIGHTS = np.polynomial.hermite_e.hermegauss(5)
@@ -89,6 +89,51 @@ def test_horizon_condition_moments_match_quadrature():
             second = np.sum(_GRID_WEIGHTS * values ** 2)
             assert abs(means[0, 0, column] - first) <= 1e-9 * np.sqrt(second)
             assert abs(variances[0, 0, column] - (second - first ** 2)) <= 1e-9 * second
+
+
+def test_batched_condition_moments_match_quadrature_per_neighbour_and_command():
+    # One call for neighbours of their own horizon, lead and commands, with and without the
+    # gate: the compiled moments reuse their work arrays neighbour after neighbour, and each
+    # (neighbour, command, condition) must be that neighbour's own integral.
+    rng = np.random.default_rng(15)
+    count, points = 7, 3
+    cases = [random_case(rng) for _ in range(count)]
+    origin = np.array([np.r_[mean[:2], 0.5 * mean[2:]] for mean, _, _ in cases])
+    cov = np.array([case[1] for case in cases])
+    radius = np.array([case[2] for case in cases])
+    horizon = rng.uniform(0.5, 4.0, size=count)
+    lead = rng.uniform(1.0, 2.0, size=count)
+    commands = rng.normal(0.0, 1.0, size=(count, points, 2))
+    weights = reach_weights(origin, radius)
+    for gate in (True, False):
+        means, variances = condition_moments(origin, cov, radius, commands, horizon, gate, lead)
+        assert means.shape == variances.shape == (count, points, 4 + gate)
+        for neighbour in range(count):
+            tau, eps, big_r = horizon[neighbour], weights[neighbour], radius[neighbour]
+            conditions = [
+                lambda z, big_r=big_r: rvo_f(z[..., :2], z[..., 2:], big_r),
+                lambda z: np.sum(z[:, :2] * z[:, 2:], axis=1),
+                lambda z, tau=tau: (-np.sum(z[:, :2] * z[:, 2:], axis=1)
+                                    - tau * np.sum(z[:, 2:] ** 2, axis=1)),
+                lambda z, tau=tau, big_r=big_r: (np.sum((z[:, :2] + tau * z[:, 2:]) ** 2, axis=1)
+                                                 - big_r ** 2),
+                lambda z, tau=tau, eps=eps, big_r=big_r: (
+                    (1.0 - eps) * (np.sum(z[:, :2] ** 2, axis=1)
+                                   - tau ** 2 / eps * np.sum(z[:, 2:] ** 2, axis=1))
+                    - big_r ** 2),
+            ]
+            if not gate:
+                del conditions[1]
+            for point in range(points):
+                mean = origin[neighbour].copy()
+                mean[2:] += lead[neighbour] * commands[neighbour, point]
+                for column, condition in enumerate(conditions):
+                    values = quadrature_values(condition, mean, cov[neighbour])
+                    first = np.sum(_GRID_WEIGHTS * values)
+                    second = np.sum(_GRID_WEIGHTS * values ** 2)
+                    assert abs(means[neighbour, point, column] - first) <= 1e-9 * np.sqrt(second)
+                    assert (abs(variances[neighbour, point, column] - (second - first ** 2))
+                            <= 1e-9 * second)
 
 
 def test_ray_polynomials_reproduce_moments_along_rays():

@@ -53,14 +53,14 @@ bounded from below by two normal tails per half-plane (:func:`horizon_certificat
 
 Steps 1 to 5 and the horizon bound are compiled by numba
 (:mod:`prvo_planner.core.certificate_kernels`, loaded on the first bound); the rest of this
-module (the arguments, the exact cases, Cantelli's bound and the choice among the bounds) is
-numpy. Rounding is made to go the safe way where it is cheap: the ranges of ``m`` and ``s^2``
-are widened by a relative 1e-9 of their scales, the density bound is shrunk by a relative 1e-9,
-and ``SLACK = 1e-9`` is subtracted from every bound, which covers the error of ``Phi`` (scipy's
-``ndtr`` in the exact cases, the compiled one in the kernels, each below 2e-14 per call, checked
-against ``math.erfc`` and mpmath) summed over up to ``MAX_WEDGES`` wedges and the rounding of
-the sums. This holds for covariances that are not ill
-conditioned; the bound is not computed in interval arithmetic.
+module (the arguments, the exact cases, Cantelli's bound from the moments of :mod:`.moments`,
+themselves compiled, and the choice among the bounds) is numpy. Rounding is made to go the safe
+way where it is cheap: the ranges of ``m`` and ``s^2`` are widened by a relative 1e-9 of their
+scales, the density bound is shrunk by a relative 1e-9, and ``SLACK = 1e-9`` is subtracted from
+every bound, which covers the error of ``Phi`` (scipy's ``ndtr`` in the exact cases, the
+compiled one in the kernels, each below 2e-14 per call, checked against ``math.erfc`` and
+mpmath) summed over up to ``MAX_WEDGES`` wedges and the rounding of the sums. This holds for
+covariances that are not ill conditioned; the bound is not computed in interval arithmetic.
 """
 
 from dataclasses import dataclass
@@ -68,7 +68,7 @@ import math
 
 import numpy as np
 
-from .moments import rvo_moments
+from .moments import condition_moments, rvo_moments
 from .special import ndtr, ndtri
 
 DEFAULT_WEDGES = 64
@@ -96,8 +96,6 @@ WIDENING = 1e-9
 # Below this beta the direct form of psi(beta) cancels; its polynomial bound is used instead
 # (:func:`prvo_planner.core.certificate_kernels.cut_wedges`).
 PSI_SWITCH = -3.0
-# g = z' G z with G = [[0, I], [I, 0]] / 2.
-_HALF_SWAP = np.block([[np.zeros((2, 2)), 0.5 * np.eye(2)], [0.5 * np.eye(2), np.zeros((2, 2))]])
 # Even directions of the half-planes :func:`horizon_certificate` tries, besides the means'.
 HORIZON_DIRECTIONS = 64
 
@@ -393,7 +391,7 @@ def _receding(mean, cov, wedge_probability, usable, shape):
     (N,) each.
     """
     mu_r, mu_w = mean[:, :2], mean[:, 2:]
-    cov_rr, cov_rw, cov_ww = cov[:, :2, :2], cov[:, :2, 2:], cov[:, 2:, 2:]
+    cov_rr, cov_ww = cov[:, :2, :2], cov[:, 2:, 2:]
     deterministic = ~cov.any(axis=(1, 2))
     closing = np.sum(mu_r * mu_w, axis=1)
     known = ~deterministic & ~cov_ww.any(axis=(1, 2))
@@ -403,14 +401,12 @@ def _receding(mean, cov, wedge_probability, usable, shape):
         spread = np.sqrt(np.maximum(np.einsum('ni,nij,nj->n', mu_w, cov_rr, mu_w), 0.0))
         known_probability = np.where(mu_w.any(axis=1),
                                      ndtr(_ratio(closing, spread, np.inf)) - SLACK, 1.0)
-    # E[g] = tr S_rw + mu_r . mu_w; Var[g] = 2 tr(G S G S) + 4 mu' G S G mu, G = [[0, I], [I, 0]]
-    # / 2 (docs/method.md, section 7).
-    product = _HALF_SWAP @ cov
-    variance = (2.0 * np.einsum('nij,nji->n', product, product)
-                + 4.0 * np.einsum('ni,nij,nj->n', mean, product @ _HALF_SWAP, mean))
+    # E[g] and Var[g] are condition_moments' second column at a zero command (lead 0: the mean
+    # of z is MEAN itself; the radius does not enter g).
+    means, variances = condition_moments(mean, cov, np.zeros(mean.shape[0]), np.zeros((1, 2)),
+                                         math.inf, True, 0.0)
     return _assemble(shape, deterministic, known, known_probability, wedge_probability, usable,
-                     _cantelli(cov_rw[:, 0, 0] + cov_rw[:, 1, 1] + closing, variance),
-                     closing >= 0.0)
+                     _cantelli(means[:, 0, 1], variances[:, 0, 1]), closing >= 0.0)
 
 
 def condition_bound(mean, cov, radius, required, gated, horizon=None, wedges=DEFAULT_WEDGES):

@@ -23,26 +23,16 @@ Vandermonde matrix (a well-conditioned, full-rank 25 x 15 system); restricted to
 ``v_c = t v_max e`` they become polynomials in ``t`` by one matrix product with the direction
 monomials. This costs a few
 hundred closed-form evaluations per plan, independent of the number of directions.
+
+The closed forms themselves are compiled by numba (:mod:`.moment_kernels`, loaded on the first
+call of :func:`condition_moments`, which :func:`rvo_moments` calls too); the fit and the
+restriction to rays are matrix products here.
 """
 
-import functools
 import math
 
 import numpy as np
 
-# q = r x u = z'Az, p = |u|^2 = z'Bz, g = r . u = z'Gz.
-_CROSS = np.array([[0.0, 0.0, 0.0, 0.5],
-                   [0.0, 0.0, -0.5, 0.0],
-                   [0.0, -0.5, 0.0, 0.0],
-                   [0.5, 0.0, 0.0, 0.0]])
-_SPEED = np.diag([0.0, 0.0, 1.0, 1.0])
-_DOT = np.array([[0.0, 0.0, 0.5, 0.0],
-                 [0.0, 0.0, 0.0, 0.5],
-                 [0.5, 0.0, 0.0, 0.0],
-                 [0.0, 0.5, 0.0, 0.0]])
-_POSITION = np.diag([1.0, 1.0, 0.0, 0.0])
-
-NUM_RVO_FORMS = 9
 # The reach condition h3 (docs/method.md, section 7) trades |r|^2 against tau^2 |w|^2 by a
 # weight eps in (0, 1), chosen per neighbour from its mean distance d as 1 - R / d (where h3
 # is exact), within these bounds.
@@ -72,28 +62,6 @@ def poly_eval(poly, t):
     return value
 
 
-@functools.lru_cache(maxsize=8)
-def _form_lefts(time_horizon):
-    """Return ``A, B, G`` and, with a finite horizon, ``H1, H2``: shape (3 or 5, 4, 4)."""
-    left = [_CROSS, _SPEED, _DOT]
-    if math.isfinite(time_horizon):
-        tau = time_horizon
-        left += [-_DOT - tau * _SPEED, _POSITION + 2.0 * tau * _DOT + tau ** 2 * _SPEED]
-    left = np.stack(left)
-    # Shared between calls: read-only so that no caller can alter the cached value.
-    left.flags.writeable = False
-    return left
-
-
-def _horizon_lefts(time_horizon):
-    """Return :func:`_form_lefts` of one horizon, or stacked per horizon of an array."""
-    if np.ndim(time_horizon) == 0:
-        return _form_lefts(time_horizon)
-    horizons, inverse = np.unique(time_horizon, return_inverse=True)
-    return np.stack([_form_lefts(float(horizon)) for horizon in horizons])[
-        inverse.reshape(np.shape(time_horizon))]
-
-
 def reach_weights(origin, combined_radius):
     """Return the weight ``eps`` of each neighbour's reach condition ``h3``, shape (N,).
 
@@ -104,118 +72,6 @@ def reach_weights(origin, combined_radius):
     with np.errstate(divide='ignore', invalid='ignore'):
         weight = 1.0 - combined_radius / distance
     return np.clip(np.nan_to_num(weight, nan=REACH_WEIGHT_BOUNDS[0]), *REACH_WEIGHT_BOUNDS)
-
-
-def _reach_lefts(time_horizon, weights):
-    """Return ``H3 = (1 - eps) P - (1 - eps) / eps tau^2 B`` per weight: shape (N, 4, 4)."""
-    weights = np.asarray(weights, dtype=float)[:, None, None]
-    horizon = np.reshape(time_horizon, (-1, 1, 1))
-    return (1.0 - weights) * (_POSITION - horizon ** 2 / weights * _SPEED)
-
-
-def form_matrices(cov, time_horizon=math.inf, weights=None):
-    """
-    Quadratic-form matrices and traces that the moments of every condition need.
-
-    Only quadratic forms ``mu'X mu`` are taken of the matrices, so they are not symmetrised.
-
-    Parameters
-    ----------
-    cov : numpy.ndarray
-        Covariance ``S`` of ``z``, shape (N, 4, 4) (or (..., 4, 4) with an infinite horizon).
-    time_horizon : float or numpy.ndarray
-        ``tau``, or one per covariance, shape (N,), all finite or all infinite; ``h1``, ``h2``
-        and ``h3`` are included only when it is finite.
-    weights : numpy.ndarray
-        With a finite horizon, ``h3``'s ``eps`` per covariance, shape (N,)
-        (:func:`reach_weights`).
-
-    Returns
-    -------
-    matrices : numpy.ndarray
-        Shape (..., F, 4, 4): the nine of ``f``, ``A, ASA, (AS)^2 A, (AS)^3 A, ASB, (AS)^2 B,
-        ASBSA, B, BSB``, then ``X, XSX`` for ``X`` = ``G`` (of ``g``) and, with a finite
-        horizon, ``H1``, ``H2`` and ``H3``.
-    traces : numpy.ndarray
-        Shape (..., T): the eight of ``f``, ``tr AS, tr (AS)^2, tr (AS)^3, tr (AS)^4,
-        tr ASBS, tr (AS)^2 BS, tr BS, tr (BS)^2``, then ``tr XS, tr XSXS`` per ``X`` as above.
-
-    """
-    left = _horizon_lefts(time_horizon)
-    if np.isfinite(time_horizon).all():
-        # H3 is each neighbour's own: the shared forms, then its.
-        left = np.concatenate([np.broadcast_to(left, cov.shape[:1] + left.shape[-3:]),
-                               _reach_lefts(time_horizon, weights)[:, None]], axis=1)
-    # X S and X S X for every X at once: (..., K, 4, 4).
-    form_cov = left @ cov[..., None, :, :]
-    sandwich = form_cov @ left
-    cross_cov, speed_cov = form_cov[..., 0, :, :], form_cov[..., 1, :, :]
-    cross_cov_2 = cross_cov @ cross_cov
-    cross_speed = cross_cov @ speed_cov
-    extras = left.shape[-3] - 2
-    matrices = np.empty(cov.shape[:-2] + (NUM_RVO_FORMS + 2 * extras, 4, 4))
-    matrices[..., 0, :, :] = _CROSS
-    matrices[..., 1, :, :] = sandwich[..., 0, :, :]
-    matrices[..., 2, :, :] = cross_cov_2 @ _CROSS
-    matrices[..., 3, :, :] = cross_cov_2 @ sandwich[..., 0, :, :]
-    matrices[..., 4, :, :] = cross_cov @ _SPEED
-    matrices[..., 5, :, :] = cross_cov_2 @ _SPEED
-    matrices[..., 6, :, :] = cross_speed @ _CROSS
-    matrices[..., 7, :, :] = _SPEED
-    matrices[..., 8, :, :] = sandwich[..., 1, :, :]
-    matrices[..., NUM_RVO_FORMS::2, :, :] = left[..., 2:, :, :]
-    matrices[..., NUM_RVO_FORMS + 1::2, :, :] = sandwich[..., 2:, :, :]
-    # tr XY = sum_ij X_ij Y_ji.
-    form_traces = np.einsum('...kii->...k', form_cov)
-    squared_traces = np.einsum('...kij,...kji->...k', form_cov, form_cov)
-    rvo_traces = np.einsum('...kij,...kji->...k', cross_cov_2[..., None, :, :],
-                           np.stack([cross_cov, cross_cov_2, speed_cov], axis=-3))
-    traces = np.empty(cov.shape[:-2] + (8 + 2 * extras,))
-    traces[..., 0] = form_traces[..., 0]
-    traces[..., 1] = squared_traces[..., 0]
-    traces[..., 2:4] = rvo_traces[..., :2]
-    traces[..., 4] = np.einsum('...ii->...', cross_speed)
-    traces[..., 5] = rvo_traces[..., 2]
-    traces[..., 6] = form_traces[..., 1]
-    traces[..., 7] = squared_traces[..., 1]
-    traces[..., 8::2] = form_traces[..., 2:]
-    traces[..., 9::2] = squared_traces[..., 2:]
-    return matrices, traces
-
-
-def rvo_moments_from_forms(forms, traces, combined_radius):
-    """
-    Assemble ``E[f]`` and ``Var[f]`` from quadratic forms of the mean and traces.
-
-    Parameters
-    ----------
-    forms : numpy.ndarray
-        ``mu'X mu`` for the nine matrices of :func:`rvo_form_matrices`, shape (..., 9).
-    traces : numpy.ndarray
-        The eight traces of :func:`rvo_form_matrices`, broadcastable to shape (..., 8).
-    combined_radius : numpy.ndarray
-        ``R``, broadcastable to shape (...).
-
-    Returns
-    -------
-    expectation, variance : numpy.ndarray
-        ``E[f]`` and ``Var[f]``, shape (...).
-
-    """
-    radius_sq = np.asarray(combined_radius, dtype=float) ** 2
-    k1 = traces[..., 0] + forms[..., 0]
-    k2 = 2.0 * traces[..., 1] + 4.0 * forms[..., 1]
-    k3 = 8.0 * traces[..., 2] + 24.0 * forms[..., 2]
-    k4 = 48.0 * traces[..., 3] + 192.0 * forms[..., 3]
-    k_qp = 2.0 * traces[..., 4] + 4.0 * forms[..., 4]
-    k_qqp = 8.0 * traces[..., 5] + 16.0 * forms[..., 5] + 8.0 * forms[..., 6]
-    mean_p = traces[..., 6] + forms[..., 7]
-    var_p = 2.0 * traces[..., 7] + 4.0 * forms[..., 8]
-    k1_sq = k1 * k1
-    expectation = k2 + k1_sq - radius_sq * mean_p
-    variance = (k4 + 4.0 * k3 * k1 + 2.0 * k2 * k2 + 4.0 * k2 * k1_sq
-                - 2.0 * radius_sq * (k_qqp + 2.0 * k1 * k_qp) + radius_sq * radius_sq * var_p)
-    return expectation, variance
 
 
 def rvo_moments(mean, cov, radius):
@@ -244,9 +100,16 @@ def rvo_moments(mean, cov, radius):
     if mean.shape[-1:] != (4,) or cov.shape[-2:] != (4, 4):
         raise ValueError(f'mean must have shape (..., 4) and cov (..., 4, 4), got '
                          f'{mean.shape} and {cov.shape}')
-    matrices, traces = form_matrices(cov)
-    forms = np.einsum('...i,...kij,...j->...k', mean, matrices[..., :NUM_RVO_FORMS, :, :], mean)
-    return rvo_moments_from_forms(forms, traces[..., :8], radius)
+    shape = np.broadcast_shapes(mean.shape[:-1], cov.shape[:-2])
+    count = math.prod(shape)
+    # f's moments are condition_moments' first column at a zero command (lead 0: the mean of
+    # z is MEAN itself).
+    means, variances = condition_moments(
+        np.broadcast_to(mean, shape + (4,)).reshape(count, 4),
+        np.broadcast_to(cov, shape + (4, 4)).reshape(count, 4, 4),
+        np.broadcast_to(np.asarray(radius, dtype=float), shape).reshape(count),
+        np.zeros((1, 2)), math.inf, False, 0.0)
+    return means[:, 0, 0].reshape(shape), variances[:, 0, 0].reshape(shape)
 
 
 def condition_moments(origin, cov, combined_radius, velocities, time_horizon, receding_gate,
@@ -282,45 +145,22 @@ def condition_moments(origin, cov, combined_radius, velocities, time_horizon, re
         Shape (N, P, C) each.
 
     """
-    finite = np.isfinite(time_horizon).all()
-    matrices, traces = form_matrices(
-        cov, time_horizon, reach_weights(origin, combined_radius) if finite else None)
-    rvo_traces, extra_traces = traces[:, :8], traces[:, 8:]
-    # The mean of z at every point, points last: (N, 4, P).
-    velocities = np.asarray(velocities, dtype=float)
-    mean_t = np.empty((origin.shape[0], 4, velocities.shape[-2]))
-    mean_t[:, :2] = origin[:, :2, None]
-    mean_t[:, 2:] = origin[:, 2:, None] + np.reshape(lead, (-1, 1, 1)) * velocities.swapaxes(
-        -1, -2)
-    # mu'X mu as (X mu) . mu with the points last: one (F 4, 4) x (4, P) product per neighbour,
-    # contiguous reductions.
-    count, forms_count = matrices.shape[:2]
-    products = np.matmul(matrices.reshape(count, forms_count * 4, 4), mean_t).reshape(
-        count, forms_count, 4, -1)
-    products *= mean_t[:, None]
-    # The sum over the four components, in the order a reduction over that axis takes.
-    forms = products[:, :, 0] + products[:, :, 1]
-    forms += products[:, :, 2]
-    forms += products[:, :, 3]
-    forms = forms.swapaxes(-1, -2)
-    f_mean, f_variance = rvo_moments_from_forms(forms[..., :NUM_RVO_FORMS],
-                                                rvo_traces[:, None, :], combined_radius[:, None])
-    # The quadratic-form conditions (g, h1, h2, h3) from their (mu'X mu, mu'XSX mu) pairs, with g's
-    # pair skipped when it is not a condition.
-    first = 0 if receding_gate else 2
-    extra_forms = forms[..., NUM_RVO_FORMS + first:]
-    extra_traces = extra_traces[:, None, first:]
-    conditions = 1 + extra_forms.shape[-1] // 2
-    means = np.empty(f_mean.shape + (conditions,))
-    variances = np.empty(f_mean.shape + (conditions,))
-    means[..., 0], variances[..., 0] = f_mean, f_variance
-    np.add(extra_traces[..., 0::2], extra_forms[..., 0::2], out=means[..., 1:])
-    if finite:
-        # h2 = |r + tau u|^2 - R^2, h3 = (1 - eps) (|r|^2 - tau^2 |u|^2 / eps) - R^2.
-        means[..., -2:] -= combined_radius[:, None, None] ** 2
-    np.multiply(extra_forms[..., 1::2], 4.0, out=variances[..., 1:])
-    variances[..., 1:] += 2.0 * extra_traces[..., 1::2]
-    return means, variances
+    from .moment_kernels import condition_moments as moments
+
+    count = origin.shape[0]
+    horizon = np.ascontiguousarray(np.broadcast_to(np.asarray(time_horizon, dtype=np.float64),
+                                                   (count,)))
+    finite = bool(np.isfinite(horizon).all())
+    velocities = np.asarray(velocities, dtype=np.float64)
+    # Compiled (moment_kernels): the matrices and traces per neighbour, the cumulants per point.
+    return moments(
+        np.ascontiguousarray(origin, dtype=np.float64),
+        np.ascontiguousarray(cov, dtype=np.float64),
+        np.ascontiguousarray(combined_radius, dtype=np.float64),
+        np.ascontiguousarray(np.broadcast_to(velocities, (count,) + velocities.shape[-2:])),
+        horizon, reach_weights(origin, combined_radius) if finite else horizon,
+        np.ascontiguousarray(np.broadcast_to(np.asarray(lead, dtype=np.float64), (count,))),
+        bool(receding_gate), finite)
 
 
 def _monomial_exponents():
