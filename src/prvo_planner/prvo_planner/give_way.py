@@ -290,7 +290,8 @@ def give_way_spot(goal, radius, neighbours, room):
     NEIGHBOURS is a sequence of (position (2,), radius, route (K, 2) or None): their estimated
     positions, their radii and the routes they follow (None or fewer than two points: none).
     ROOM as in `spot_beside`. The neighbour nearest the goal among those within RANGE whose
-    way ahead (`way_ahead`) passes by the goal decides.
+    way ahead (`way_ahead`) passes by the goal decides; the others bound how far the robot steps
+    away from a way that passes farther off (`_against_wall`).
     """
     spots = []
     neighbours = [(np.asarray(position, dtype=float), other_radius, route)
