@@ -109,14 +109,15 @@ setup() {
     rm -rf "$ROOT/src/$package/build" "$ROOT/src/$package/$package.egg-info"
   done
   link_ros2_run_executables || die 'could not link the executables under .venv/lib/<package>/'
-  # The ray search, the moments, the certificate and the walls' bounds are compiled by numba on
-  # their first import; compiled here once, into the installed package's __pycache__, every
+  # The ray search, the moments, the certificate, the walls' bounds and the choice are compiled by
+  # numba on their first import; compiled here once, into the installed package's __pycache__, every
   # planner process after this only loads them.
-  echo 'prvo setup: compiling the ray search, the moments, the certificate and the walls (numba, once per install, about 20 s)'
-  "$VENV/bin/python" -I -c 'import prvo_planner.core.ray_search, prvo_planner.core.moment_kernels, prvo_planner.core.certificate_kernels, prvo_planner.core.wall_kernels' \
-    || die 'could not compile the ray search, the moments, the certificate and the walls' \
-      '(prvo_planner.core.ray_search, prvo_planner.core.moment_kernels,' \
-      'prvo_planner.core.certificate_kernels, prvo_planner.core.wall_kernels) with numba'
+  echo 'prvo setup: compiling the ray search, the moments, the certificate, the walls and the choice (numba, once per install, about 20 s)'
+  "$VENV/bin/python" -I -c 'import prvo_planner.core.ray_search, prvo_planner.core.moment_kernels, prvo_planner.core.certificate_kernels, prvo_planner.core.wall_kernels, prvo_planner.core.choice_kernels' \
+    || die 'could not compile the ray search, the moments, the certificate, the walls and the' \
+      'choice (prvo_planner.core.ray_search, prvo_planner.core.moment_kernels,' \
+      'prvo_planner.core.certificate_kernels, prvo_planner.core.wall_kernels,' \
+      'prvo_planner.core.choice_kernels) with numba'
   echo "$wanted" >"$STAMP"
   echo 'prvo setup: done'
 }

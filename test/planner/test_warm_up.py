@@ -12,15 +12,17 @@ from prvo_planner.parameters import DEFAULTS, planner_config_from
 agent = PlannerAgent('self', planner_config_from({}), AgentSettings.from_parameters(DEFAULTS))
 before = sorted(m for m in sys.modules if m.startswith('prvo_planner.core.'))
 agent.warm_up()
-kernels = ('prvo_planner.core.ray_search', 'prvo_planner.core.certificate_kernels')
+kernels = ('prvo_planner.core.ray_search', 'prvo_planner.core.certificate_kernels',
+           'prvo_planner.core.choice_kernels')
 print(sorted(m for m in kernels if m in sys.modules and m not in before))
 """
 
 
-def test_the_warm_up_loads_the_ray_search_and_the_certificate(python_executable):
+def test_the_warm_up_loads_the_ray_search_the_certificate_and_the_choice(python_executable):
     output = subprocess.run([python_executable, '-c', PROBE], capture_output=True, text=True,
                             check=True).stdout
     assert output.strip() == str(['prvo_planner.core.certificate_kernels',
+                                  'prvo_planner.core.choice_kernels',
                                   'prvo_planner.core.ray_search'])
 
 

@@ -20,55 +20,31 @@ from .probability import confidence_ellipse_scale
 # Speeds, as fractions of v_max, tried on every direction when no direction is feasible (and by
 # the Monte Carlo baseline), besides the preferred speed on the direction.
 _SPEED_GRID = np.linspace(0.0, 1.0, 9)
-# The best speed on a ray under the inertia / passing-bias cost: a grid of 17 points over the
-# interval, zoomed 5 times onto the best point's two cells (1/8 of the span each time): to
-# 8^-5 (3e-5) of the interval.
-_ZOOM_GRID = np.linspace(0.0, 1.0, 17)
-_ZOOM_LEVELS = 5
-_TERM_NAMES = ('v_pref', 'previous', 'inertia', 'bias', 'progress', 'norm', 'extra')
 # Chosen speeds stay this far (in t) inside a feasible interval so that rounding in the roots
 # cannot put them on the rejected side.
 INTERIOR = 1e-9
 
 
-def _distances(points, point):
-    """Euclidean distances of POINTS (..., 2) from POINT (2,), shape (...)."""
-    offset = points - point
-    # sqrt of a sum, not np.linalg.norm: a fraction of the cost on the small arrays of a plan.
-    return np.sqrt(offset[..., 0] * offset[..., 0] + offset[..., 1] * offset[..., 1])
-
-
 @dataclass(frozen=True)
 class CostTerms:
     """
-    The terms of the choice cost of one or several plans, broadcastable against velocities.
+    The terms of the choice cost of one plan, or of one plan per row of velocities.
 
     Attributes
     ----------
-    v_pref : numpy.ndarray
-        Preferred velocity, shape (..., 2).
-    previous : numpy.ndarray
-        Previous command, shape (..., 2) (any value where ``inertia`` is 0).
-    inertia : numpy.ndarray or float
-        Weight of ``|v - previous|``: 0 without a previous command.
-    bias : numpy.ndarray or float
-        Weight of ``max(0, left(v))``: 0 when ``v_pref`` has no direction.
-    progress : numpy.ndarray or float
-        Share ``p`` of the goal term given to ``| |v_pref| - along(v) |``: 0 when ``v_pref``
+    table : numpy.ndarray
+        Shape (R, 8), R = 1 for one plan: per row ``v_pref`` (2), the previous command (2; any
+        value where ``inertia`` is 0), ``inertia`` (the weight of ``|v - previous|``, 0 without a
+        previous command), ``bias`` (the weight of ``max(0, left(v))``), ``progress`` (the share
+        ``p`` of the goal term given to ``| |v_pref| - along(v) |``) and ``norm`` (``|v_pref|``,
+        1 where ``bias`` and ``progress`` are 0); ``bias`` and ``progress`` are 0 when ``v_pref``
         has no direction.
-    norm : numpy.ndarray or float
-        ``|v_pref|`` (1 where ``bias`` and ``progress`` are 0).
-    extra : numpy.ndarray or bool
-        Whether any term besides ``|v - v_pref|`` is on.
+    extra : numpy.ndarray
+        Shape (R,): whether any term besides ``|v - v_pref|`` is on.
 
     """
 
-    v_pref: np.ndarray
-    previous: np.ndarray
-    inertia: np.ndarray
-    bias: np.ndarray
-    progress: np.ndarray
-    norm: np.ndarray
+    table: np.ndarray
     extra: np.ndarray
 
     @classmethod
@@ -78,28 +54,21 @@ class CostTerms:
         norm = math.hypot(v_pref[0], v_pref[1])
         bias = config.passing_bias if norm > 1e-9 else 0.0
         progress = config.progress_weight if norm > 1e-9 else 0.0
-        return cls(v_pref=v_pref, previous=v_pref if previous is None else previous,
-                   inertia=inertia, bias=bias, progress=progress,
-                   norm=norm if bias > 0.0 or progress > 0.0 else 1.0,
-                   extra=inertia > 0.0 or bias > 0.0 or progress > 0.0)
+        previous = v_pref if previous is None else previous
+        return cls(table=np.array([[v_pref[0], v_pref[1], previous[0], previous[1], inertia, bias,
+                                    progress, norm if bias > 0.0 or progress > 0.0 else 1.0]],
+                                  dtype=np.float64),
+                   extra=np.array([inertia > 0.0 or bias > 0.0 or progress > 0.0]))
 
     @classmethod
     def stacked(cls, terms, index):
         """Return per-row terms: row ``r`` is ``terms[index[r]]`` (a sequence of CostTerms)."""
-        return cls(*(np.array([getattr(term, name) for term in terms])[index]
-                     for name in _TERM_NAMES))
-
-    def take(self, index):
-        """Return the terms of rows ``index`` (of per-row terms), one row per index."""
-        return CostTerms(*(np.asarray(getattr(self, name))[index] for name in _TERM_NAMES))
-
-    def rows(self):
-        """Return per-row terms with a trailing axis, to broadcast against a grid per row."""
-        return CostTerms(*(np.asarray(getattr(self, name))[:, None] for name in _TERM_NAMES))
+        return cls(table=np.concatenate([term.table for term in terms])[index],
+                   extra=np.concatenate([term.extra for term in terms])[index])
 
     def costs(self, velocities):
         """
-        Cost of commanded velocities, shape (..., 2) -> (...): smaller is better.
+        Cost of commanded velocities, shape (R, ..., 2) or, for one plan, (..., 2) -> (...).
 
         ``(1 - progress) |v - v_pref| + progress | |v_pref| - along(v) |`` (docs/method.md,
         section 7), plus ``inertia |v - previous|`` and ``bias max(0, left(v))``, with
@@ -107,18 +76,13 @@ class CostTerms:
         direction. The progress share charges only the speed lost towards the goal, not the
         speed sideways: it prefers passing a crowd at speed to slowing down behind it. Every
         term is convex in ``v`` and only ranks velocities; which ones are acceptable is decided
-        by the constraints alone. A term of weight 0 adds exactly 0.
+        by the constraints alone. A term of weight 0 adds exactly 0. Compiled
+        (:func:`.choice_kernels.choice_costs`).
         """
-        costs = _distances(velocities, self.v_pref)
-        costs *= 1.0 - self.progress
-        costs += self.inertia * _distances(velocities, self.previous)
-        left = (self.v_pref[..., 0] * velocities[..., 1]
-                - self.v_pref[..., 1] * velocities[..., 0]) / self.norm
-        costs += self.bias * np.maximum(left, 0.0)
-        along = (self.v_pref[..., 0] * velocities[..., 0]
-                 + self.v_pref[..., 1] * velocities[..., 1]) / self.norm
-        costs += self.progress * np.abs(self.norm - along)
-        return costs
+        from .choice_kernels import choice_costs as compiled
+
+        velocities = np.ascontiguousarray(velocities, dtype=np.float64)
+        return compiled(velocities.reshape(-1, 2), self.table).reshape(velocities.shape[:-1])
 
 
 def choice_costs(velocities, v_pref, previous, config):
@@ -135,7 +99,8 @@ def best_speeds(directions, lower, upper, preferred, terms, max_speed, robot):
     cell of the best point of a grid; zooming a grid onto those two cells a few times finds it
     (the interval ends and the plain optimum are candidates too: a flat or kinked minimum).
     Only intervals that can hold their plan's optimum are searched; the others keep the
-    projected ``t``, whose cost cannot be the smallest.
+    projected ``t``, whose cost cannot be the smallest. Compiled
+    (:func:`.choice_kernels.best_speeds`).
 
     Parameters
     ----------
@@ -144,48 +109,21 @@ def best_speeds(directions, lower, upper, preferred, terms, max_speed, robot):
     lower, upper, preferred : numpy.ndarray
         Interval ends and preferred ``t``, shape (G,).
     terms : CostTerms
-        Per interval, shape (G, ...).
+        One row per interval (G rows).
     max_speed : numpy.ndarray
         ``v_max`` per interval, shape (G,).
     robot : numpy.ndarray
         Plan of each interval, non-decreasing, shape (G,).
 
     """
-    projected = np.clip(preferred, lower, upper)
-    extra = np.broadcast_to(terms.extra, projected.shape)
-    if not extra.any():
-        return projected
-    # The plain term alone (its share of the cost), smallest at the projected t, bounds an
-    # interval's cost from below (the other terms are >= 0); the full cost at a projected t
-    # bounds the plan's optimum from above.
-    at_projected = max_speed[:, None] * projected[:, None] * directions
-    plain = _distances(at_projected, terms.v_pref) * (1.0 - terms.progress)
-    full = terms.costs(at_projected)
-    starts = np.flatnonzero(np.diff(robot, prepend=-1))
-    bound = np.repeat(np.minimum.reduceat(full, starts), np.diff(np.append(starts, robot.size)))
-    searched = (extra & (plain <= bound)).nonzero()[0]
-    best = projected.copy()
-    best[searched] = _zoomed_speeds(directions[searched], lower[searched], upper[searched],
-                                    projected[searched], terms.take(searched),
-                                    max_speed[searched])
-    return best
+    from .choice_kernels import best_speeds as compiled
 
-
-def _zoomed_speeds(directions, lower, upper, projected, terms, max_speed):
-    """Minimise the cost on each ray's interval by a zoomed grid, shape (G,)."""
-    velocity_directions = max_speed[:, None, None] * directions[:, None, :]
-    row_terms = terms.rows()
-    low, high = lower, upper
-    for _ in range(_ZOOM_LEVELS):
-        grid = low[:, None] + (high - low)[:, None] * _ZOOM_GRID
-        best = np.argmin(row_terms.costs(grid[..., None] * velocity_directions), axis=1)
-        rows = np.arange(grid.shape[0])
-        # The minimum of a convex function lies within one cell of the best grid point.
-        low = grid[rows, np.maximum(best - 1, 0)]
-        high = grid[rows, np.minimum(best + 1, _ZOOM_GRID.size - 1)]
-    options = np.stack([0.5 * (low + high), projected, lower, upper], axis=1)
-    option_costs = row_terms.costs(options[..., None] * velocity_directions)
-    return options[np.arange(options.shape[0]), np.argmin(option_costs, axis=1)]
+    return compiled(np.ascontiguousarray(directions, dtype=np.float64),
+                    *(np.ascontiguousarray(values, dtype=np.float64)
+                      for values in (lower, upper, preferred)),
+                    terms.table, terms.extra,
+                    np.ascontiguousarray(max_speed, dtype=np.float64),
+                    np.ascontiguousarray(robot, dtype=np.int64))
 
 
 def speed_grid(directions, preferred, v_pref, previous, config):
