@@ -13,16 +13,18 @@ agent = PlannerAgent('self', planner_config_from({}), AgentSettings.from_paramet
 before = sorted(m for m in sys.modules if m.startswith('prvo_planner.core.'))
 agent.warm_up()
 kernels = ('prvo_planner.core.ray_search', 'prvo_planner.core.certificate_kernels',
-           'prvo_planner.core.choice_kernels')
+           'prvo_planner.core.choice_kernels', 'prvo_planner.core.moment_kernels')
 print(sorted(m for m in kernels if m in sys.modules and m not in before))
 """
 
 
-def test_the_warm_up_loads_the_ray_search_the_certificate_and_the_choice(python_executable):
+def test_the_warm_up_loads_the_ray_search_the_moments_the_certificate_and_the_choice(
+        python_executable):
     output = subprocess.run([python_executable, '-c', PROBE], capture_output=True, text=True,
                             check=True).stdout
     assert output.strip() == str(['prvo_planner.core.certificate_kernels',
                                   'prvo_planner.core.choice_kernels',
+                                  'prvo_planner.core.moment_kernels',
                                   'prvo_planner.core.ray_search'])
 
 
