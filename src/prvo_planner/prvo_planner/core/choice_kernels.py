@@ -20,7 +20,7 @@ whatever G.
 from numba import types
 import numpy as np
 
-from .ray_solver import jit
+from .ray_solver import READ_ONLY_FLAGS, READ_ONLY_INDICES, READ_ONLY_ROWS, READ_ONLY_VECTOR, jit
 
 # The columns of a row of cost terms.
 TERM_COLUMNS = 8
@@ -29,16 +29,10 @@ TERM_COLUMNS = 8
 _ZOOM_POINTS = 17
 _ZOOM_LEVELS = 5
 
-# Arrays handed in by callers may be read-only (broadcast views, a cached grid); the kernels only
-# read them.
-_FIXED_VECTOR = types.Array(types.float64, 1, 'C', readonly=True)
-_FIXED_ROWS = types.Array(types.float64, 2, 'C', readonly=True)
-_FIXED_FLAGS = types.Array(types.boolean, 1, 'C', readonly=True)
-_FIXED_INDICES = types.Array(types.int64, 1, 'C', readonly=True)
-_COSTS_SIGNATURE = types.float64[::1](_FIXED_ROWS, _FIXED_ROWS)
+_COSTS_SIGNATURE = types.float64[::1](READ_ONLY_ROWS, READ_ONLY_ROWS)
 _BEST_SIGNATURE = types.float64[::1](
-    _FIXED_ROWS, _FIXED_VECTOR, _FIXED_VECTOR, _FIXED_VECTOR, _FIXED_ROWS, _FIXED_FLAGS,
-    _FIXED_VECTOR, _FIXED_INDICES)
+    READ_ONLY_ROWS, READ_ONLY_VECTOR, READ_ONLY_VECTOR, READ_ONLY_VECTOR, READ_ONLY_ROWS,
+    READ_ONLY_FLAGS, READ_ONLY_VECTOR, READ_ONLY_INDICES)
 
 
 @jit(inline='always')

@@ -19,7 +19,7 @@ the certificate).
 from numba import types
 import numpy as np
 
-from .ray_solver import jit
+from .ray_solver import READ_ONLY_CUBE, READ_ONLY_ROWS, READ_ONLY_VECTOR, jit
 
 # q = r x u = z'Az, p = |u|^2 = z'Bz, g = r . u = z'Gz, |r|^2 = z'Pz.
 _CROSS = np.array([[0.0, 0.0, 0.0, 0.5],
@@ -38,15 +38,10 @@ _RVO_FORMS = 9
 _RVO_TRACES = 8
 _EXTRA_CONDITIONS = 4
 
-# Arrays handed in by callers may be read-only (a belief's mean, a cached grid); the kernel
-# only reads them.
-_FIXED_VECTOR = types.Array(types.float64, 1, 'C', readonly=True)
-_FIXED_ROWS = types.Array(types.float64, 2, 'C', readonly=True)
-_FIXED_CUBE = types.Array(types.float64, 3, 'C', readonly=True)
 _CUBE = types.float64[:, :, ::1]
 _MOMENTS_SIGNATURE = types.Tuple((_CUBE, _CUBE))(
-    _FIXED_ROWS, _FIXED_CUBE, _FIXED_VECTOR, _FIXED_CUBE, _FIXED_VECTOR, _FIXED_VECTOR,
-    _FIXED_VECTOR, types.boolean, types.boolean)
+    READ_ONLY_ROWS, READ_ONLY_CUBE, READ_ONLY_VECTOR, READ_ONLY_CUBE, READ_ONLY_VECTOR,
+    READ_ONLY_VECTOR, READ_ONLY_VECTOR, types.boolean, types.boolean)
 
 
 @jit()

@@ -22,6 +22,14 @@ from numba import njit, types
 from numba.extending import intrinsic
 import numpy as np
 
+# Argument types of the kernels' signatures: arrays handed in by callers may be read-only (a
+# belief's mean, broadcast views, a cached grid), and the kernels only read them.
+READ_ONLY_VECTOR = types.Array(types.float64, 1, 'C', readonly=True)
+READ_ONLY_ROWS = types.Array(types.float64, 2, 'C', readonly=True)
+READ_ONLY_CUBE = types.Array(types.float64, 3, 'C', readonly=True)
+READ_ONLY_FLAGS = types.Array(types.boolean, 1, 'C', readonly=True)
+READ_ONLY_INDICES = types.Array(types.int64, 1, 'C', readonly=True)
+
 
 def jit(*signature, inline='never'):
     """

@@ -26,7 +26,7 @@ import math
 from numba import types
 import numpy as np
 
-from .ray_solver import jit
+from .ray_solver import READ_ONLY_CUBE, READ_ONLY_ROWS, READ_ONLY_VECTOR, jit
 from .special_kernels import erfcx, ndtr
 from .walls import FAN, FAN_HALF, PER_WALL, REACH_SHARE
 
@@ -46,13 +46,11 @@ _FAILURE_SIGNATURE = types.float64(
     _VECTOR, types.boolean[:, ::1], _ROWS, _ROWS, _VECTOR, _VECTOR, _ROWS, _ROWS)
 _INDICES = types.int64[::1]
 # The obstacles' arrays are read-only (``StaticObstacles``), as is a belief's mean.
-_FIXED_VECTOR = types.Array(types.float64, 1, 'C', readonly=True)
-_FIXED_ROWS = types.Array(types.float64, 2, 'C', readonly=True)
 _GEOMETRY_SIGNATURE = types.Tuple((
     types.float64, _VECTOR, _INDICES, _INDICES, _VECTOR, _VECTOR, _VECTOR, _VECTOR, _ROWS,
     _VECTOR, _VECTOR, _ROWS, types.boolean[:, ::1], _ROWS))(
-    _FIXED_VECTOR, types.Array(types.float64, 3, 'C', readonly=True), _FIXED_ROWS, _FIXED_VECTOR,
-    _FIXED_ROWS, _FIXED_VECTOR, types.float64, types.float64, types.float64, types.float64,
+    READ_ONLY_VECTOR, READ_ONLY_CUBE, READ_ONLY_ROWS, READ_ONLY_VECTOR,
+    READ_ONLY_ROWS, READ_ONLY_VECTOR, types.float64, types.float64, types.float64, types.float64,
     types.float64, types.float64)
 _REJECTED_SIGNATURE = types.Tuple((_ROWS, _ROWS))(
     _ROWS, _VECTOR, _VECTOR, _ROWS, types.float64, _VECTOR, types.float64[:, :, ::1], _VECTOR,
