@@ -79,61 +79,27 @@ def build_encounter(ego, neighbours, config):
         The selected neighbours (possibly none), then their guard rows.
 
     """
-    positions = np.array([belief.position for belief in neighbours]).reshape(-1, 2)
-    velocities = np.array([belief.velocity for belief in neighbours]).reshape(-1, 2)
-    covariances = np.array([belief.covariance for belief in neighbours]).reshape(-1, 4, 4)
-    radii = np.array([belief.radius for belief in neighbours])
-    shares = np.array([belief.avoidance_share for belief in neighbours])
-    relative_position = ego.position - positions
-    distance = np.hypot(relative_position[:, 0], relative_position[:, 1])
-    gap = distance - ego.radius - radii
-    rows = np.flatnonzero(gap <= config.neighbor_distance)
-    shares = shares[rows]
-    guarded = np.zeros(0, dtype=int)
-    if config.guard_time > 0.0:
-        # Within reach of the guard time, each going at most as fast as it may (the ego) or
-        # as it goes (the neighbour).
-        reach = config.guard_time * (config.max_speed + np.hypot(velocities[rows, 0],
-                                                                velocities[rows, 1]))
-        guarded = rows[(gap[rows] < reach) & (shares > 0.0)]
-        rows = np.concatenate([rows, guarded])
-        shares = np.concatenate([shares, np.zeros(guarded.shape[0])])
-    count = rows.shape[0]
+    from .ray_search import relative_gaussians
+
+    # Compiled (ray_search.relative_gaussians): the selection, the guard rows, the Gaussians.
+    origin, cov, lead, combined_radius, overlapping, _ = relative_gaussians(
+        ego.position, ego.velocity, ego.covariance, float(ego.radius),
+        np.array([belief.position for belief in neighbours]).reshape(-1, 2),
+        np.array([belief.velocity for belief in neighbours]).reshape(-1, 2),
+        np.array([belief.covariance for belief in neighbours]).reshape(-1, 4, 4),
+        np.array([belief.radius for belief in neighbours], dtype=np.float64),
+        np.array([belief.avoidance_share for belief in neighbours], dtype=np.float64),
+        config.actuation_cov, float(config.neighbor_distance), float(config.guard_time),
+        float(config.max_speed), float(config.time_horizon), float(config.safety_margin))
+    count = origin.shape[0]
     margin = config.effective_k
     if config.risk == 'joint' and count > 0:
         # 1 - eta_j = (1 - eta) / n with 1 - eta = 1 / (1 + k^2), written in k to stay finite;
         # a guard row is one more condition to share the risk with.
         margin = math.sqrt((1.0 + margin ** 2) * count - 1.0)
-    # rho = 1 - a_j; w = lead v_x - ego_weight v_i - v_j. At a_j = 1/2 both factors are exact
-    # (2 and 1), so the reciprocal case is computed bit for bit as with u = 2 v_x - v_i - v_j.
-    rho = 1.0 - shares
-    lead = 1.0 / rho
-    ego_weight = (1.0 - rho) / rho
-    cov = np.zeros((count, 4, 4))
-    cov[:, :2, :2] = ego.covariance[:2, :2] + covariances[rows, :2, :2]
-    cov[:, 2:, 2:] = ((lead ** 2)[:, None, None] * config.actuation_cov
-                      + (ego_weight ** 2)[:, None, None] * ego.covariance[2:, 2:]
-                      + covariances[rows, 2:, 2:])
-    cross = -ego_weight[:, None, None] * ego.covariance[:2, 2:] + covariances[rows, :2, 2:]
-    cov[:, :2, 2:] = cross
-    cov[:, 2:, :2] = cross.swapaxes(-1, -2)
-    origin = np.concatenate([relative_position[rows],
-                             -ego_weight[:, None] * ego.velocity - velocities[rows]], axis=1)
-    if guarded.size and config.guard_time < config.time_horizon:
-        # Contact within the guard time along w is contact within the horizon along w scaled by
-        # guard_time / time_horizon: every condition is of the scaled row, its probabilities
-        # those of the guard's horizon (the f and g conditions do not change with the scale).
-        scale = config.guard_time / config.time_horizon
-        tail = slice(count - guarded.shape[0], count)
-        origin[tail, 2:] *= scale
-        cov[tail, 2:, 2:] *= scale ** 2
-        cov[tail, :2, 2:] *= scale
-        cov[tail, 2:, :2] *= scale
-        lead[tail] *= scale
-    combined_radius = ego.radius + radii[rows] + config.safety_margin
     return Encounter(
         origin=origin, cov=cov, lead=lead, combined_radius=combined_radius,
-        overlapping=distance[rows] < combined_radius, margin=margin,
+        overlapping=overlapping, margin=margin,
         # k' = sqrt((1 + eta) / (1 - eta)) with eta = k^2 / (1 + k^2).
         horizon_margin=math.sqrt(1.0 + 2.0 * margin ** 2), eta=eta_from_k(margin))
 

@@ -9,6 +9,7 @@ sorted sweep over the rejected pieces. ``achieved_margins`` gives the ``k`` a ve
 """
 
 from dataclasses import dataclass
+import math
 
 import numpy as np
 
@@ -56,7 +57,7 @@ def achieved_margins(means, variances, layout, receding_enabled):
     pair ``h1 and h2`` meets ``k' = min(k_h1, k_h2)``, which is reported as the pairwise ``k``
     with that ``k'``: ``sqrt((k'^2 - 1) / 2)`` (and ``k' - 1 < 0`` below ``k' = 1``, where the
     pair bounds nothing); ``h3`` alone meets its own. The largest over the accepted
-    alternatives is returned.
+    alternatives is returned. Compiled (:func:`prvo_planner.core.ray_search.achieved_margins`).
 
     Parameters
     ----------
@@ -73,26 +74,18 @@ def achieved_margins(means, variances, layout, receding_enabled):
         Shape (...).
 
     """
-    sigma = np.maximum(variances, 0.0)
-    np.sqrt(sigma, out=sigma)
-    with np.errstate(divide='ignore', invalid='ignore'):
-        # mean / 0 is +-inf as it should be; 0 / 0 (a zero mean known exactly) meets any k.
-        margins = np.divide(means, sigma, out=sigma)
-    margins[np.isnan(margins)] = np.inf
-    result = margins[..., 0]
-    if layout.has_receding:
-        result = np.maximum(result, np.where(receding_enabled, margins[..., 1], -np.inf))
-    if layout.has_horizon:
-        joint = np.minimum(margins[..., -3], margins[..., -2])
-        # sqrt((k'^2 - 1) / 2) for k' >= 1, else k' - 1, in place.
-        pairwise = np.multiply(joint, joint)
-        pairwise -= 1.0
-        pairwise *= 0.5
-        np.sqrt(pairwise, out=pairwise, where=joint >= 1.0)
-        np.subtract(joint, 1.0, out=pairwise, where=joint < 1.0)
-        result = np.maximum(result, pairwise)
-        result = np.maximum(result, margins[..., -1])
-    return result
+    from .ray_search import achieved_margins as margins
+
+    conditions = means.shape[-1]
+    shape = np.broadcast_shapes(means.shape[:-1], variances.shape[:-1],
+                                np.shape(receding_enabled))
+    count = math.prod(shape)
+    return margins(*(np.ascontiguousarray(np.broadcast_to(values, shape + (conditions,)),
+                                          dtype=np.float64).reshape(count, conditions)
+                     for values in (means, variances)),
+                   np.ascontiguousarray(np.broadcast_to(receding_enabled, shape),
+                                        dtype=np.bool_).reshape(count),
+                   bool(layout.has_receding), bool(layout.has_horizon)).reshape(shape)
 
 
 def ray_gaps(means, variances, margins, layout, method, deterministic, preferred):

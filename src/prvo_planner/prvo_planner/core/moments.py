@@ -20,13 +20,13 @@ velocity ``v_c`` (``mu_w = v_c / rho + mu_w(0)``, ``1 / rho = 2`` for RVO). Thei
 are recovered exactly (to rounding) by evaluating the closed form on a 5 x 5 Chebyshev grid over
 ``[-v_max, v_max]^2`` and applying a fixed least-squares inverse of the bivariate quartic
 Vandermonde matrix (a well-conditioned, full-rank 25 x 15 system); restricted to a ray
-``v_c = t v_max e`` they become polynomials in ``t`` by one matrix product with the direction
-monomials. This costs a few
-hundred closed-form evaluations per plan, independent of the number of directions.
+``v_c = t v_max e`` they become polynomials in ``t``, sums of their coefficients times the
+direction's monomials (compiled: :func:`.ray_search.ray_links`). This costs a few hundred
+closed-form evaluations per plan, independent of the number of directions.
 
 The closed forms themselves are compiled by numba (:mod:`.moment_kernels`, loaded on the first
-call of :func:`condition_moments`, which :func:`rvo_moments` calls too); the fit and the
-restriction to rays are matrix products here.
+call of :func:`condition_moments`, which :func:`rvo_moments` calls too); the fit is a matrix
+product here.
 """
 
 import math
@@ -37,29 +37,6 @@ import numpy as np
 # weight eps in (0, 1), chosen per neighbour from its mean distance d as 1 - R / d (where h3
 # is exact), within these bounds.
 REACH_WEIGHT_BOUNDS = (0.05, 0.95)
-
-
-def poly_eval(poly, t):
-    """
-    Evaluate polynomials at points by Horner's rule.
-
-    Parameters
-    ----------
-    poly : numpy.ndarray
-        Coefficients, shape (..., L), ascending powers.
-    t : numpy.ndarray
-        Points, broadcastable against shape (...).
-
-    Returns
-    -------
-    numpy.ndarray
-        Values, broadcast shape of (...) and ``t``.
-
-    """
-    value = poly[..., -1]
-    for power in range(poly.shape[-1] - 2, -1, -1):
-        value = value * t + poly[..., power]
-    return value
 
 
 def reach_weights(origin, combined_radius):
@@ -173,11 +150,8 @@ _EXPONENTS = _monomial_exponents()
 NODES_1D = np.cos(np.pi * np.arange(5) / 4.0)
 NODES = np.stack(np.meshgrid(NODES_1D, NODES_1D, indexing='ij'), axis=-1).reshape(-1, 2)
 _FIT = np.linalg.pinv(np.prod(NODES[:, None, :] ** _EXPONENTS[None, :, :], axis=-1))
-# Total degree of each monomial of _EXPONENTS; the first six have degree <= 2.
-_DEGREES = _EXPONENTS.sum(axis=1)
+# The first six monomials of _EXPONENTS have degree <= 2.
 _QUADRATIC_TERMS = 6
-# _DEGREE_MASK[k, l]: monomial k contributes to the ray coefficient of t^l, shape (15, 5).
-_DEGREE_MASK = (_DEGREES[:, None] == np.arange(5)).astype(float)
 
 
 def ray_polynomials(origin, cov, combined_radius, directions, scale, time_horizon,
@@ -204,13 +178,20 @@ def ray_polynomials(origin, cov, combined_radius, directions, scale, time_horizo
         Shape (N, M, C, 5), laid out coefficient-major in memory.
 
     """
+    from .ray_search import ray_links
+
     mean_fit, variance_fit = bivariate_polynomials(origin, cov, combined_radius,
                                                    scale * NODES, time_horizon, receding_gate,
                                                    lead)
     count, conditions = mean_fit.shape[:2]
-    return tuple(_coefficient_major(rows.reshape(count, conditions, -1, length))
-                 for rows, length in zip(ray_rows(mean_fit[None], variance_fit[None],
-                                                  directions[None]), (3, 5), strict=True))
+    rays = directions.shape[0]
+    # Compiled (ray_search.ray_links): (L, N M, C) per polynomial, viewed as (N, M, C, L).
+    means, variances = ray_links(
+        mean_fit.swapaxes(1, 2), variance_fit.swapaxes(1, 2),
+        np.ascontiguousarray(directions, dtype=np.float64), np.array([count]), np.array([rays]),
+        np.zeros((1, conditions)), np.zeros(count, dtype=bool))[:2]
+    return tuple(polynomials.reshape(length, count, rays, conditions).transpose(1, 2, 3, 0)
+                 for polynomials, length in ((means, 3), (variances, 5)))
 
 
 def bivariate_polynomials(origin, cov, combined_radius, node_velocities, time_horizon,
@@ -241,49 +222,3 @@ def bivariate_polynomials(origin, cov, combined_radius, node_velocities, time_ho
                                          time_horizon, receding_gate, lead)
     return ((_FIT[:_QUADRATIC_TERMS] @ means).swapaxes(-1, -2),
             (_FIT @ variances).swapaxes(-1, -2))
-
-
-def ray_rows(mean_fit, variance_fit, directions):
-    """
-    Restrict bivariate polynomials to rays, for a stack of plans of one shape.
-
-    Parameters
-    ----------
-    mean_fit, variance_fit : numpy.ndarray
-        As :func:`bivariate_polynomials` returns them, per plan: shapes (B, N, C, 6) and
-        (B, N, C, 15).
-    directions : numpy.ndarray
-        Unit directions ``e`` per plan, shape (B, M, 2).
-
-    Returns
-    -------
-    mean_rows, variance_rows : numpy.ndarray
-        Shapes (B, N C, M 3) and (B, N C, M 5): per (neighbour, condition) row, the ascending
-        coefficients in ``t`` on each ray. Each plan's are one matrix product of its own.
-
-    """
-    # Bivariate coefficient k multiplies t^(i+j) e_x^i e_y^j along the ray: a (15, 5 M) map
-    # per plan from bivariate to ray coefficients, applied in one product to every
-    # (neighbour, condition).
-    robots, rays = directions.shape[:2]
-    powers = directions[..., None] ** np.arange(5)
-    direction_monomials = (powers[:, :, 0, _EXPONENTS[:, 0]]
-                           * powers[:, :, 1, _EXPONENTS[:, 1]])
-    to_ray = (direction_monomials.swapaxes(1, 2)[..., None] * _DEGREE_MASK[:, None, :]).reshape(
-        robots, _EXPONENTS.shape[0], -1)
-    mean_rows = mean_fit.reshape(robots, -1, _QUADRATIC_TERMS) @ to_ray.reshape(
-        robots, -1, rays, 5)[:, :_QUADRATIC_TERMS, :, :3].reshape(robots, _QUADRATIC_TERMS, -1)
-    variance_rows = variance_fit.reshape(robots, -1, _EXPONENTS.shape[0]) @ to_ray
-    return mean_rows, variance_rows
-
-
-def _coefficient_major(polynomials):
-    """
-    Lay polynomials of shape (N, C, M, L) out as (L, N, M, C) in memory, viewed as (N, M, C, L).
-
-    Coefficient-major memory suits the ray solver: one coefficient of every row is contiguous.
-    """
-    layout = np.empty((polynomials.shape[3], polynomials.shape[0], polynomials.shape[2],
-                       polynomials.shape[1]))
-    layout[...] = polynomials.transpose(3, 0, 2, 1)
-    return layout.transpose(1, 2, 3, 0)

@@ -53,8 +53,6 @@ from .moments import (
     NODES,
     bivariate_polynomials,
     condition_moments,
-    poly_eval,
-    ray_rows,
 )
 from .obstacles import StaticObstacles
 from .probability import eta_from_k
@@ -379,32 +377,12 @@ def _wall_gaps(plans, ray_starts, gap_ray, lower, upper):
     return tuple(np.concatenate(values) for values in zip(*pieces, strict=True))
 
 
-def _solve_group(plans):
-    """Plan robots of one structure together; return their results in order.
-
-    Robots may differ in their numbers of neighbours and directions: their (neighbour,
-    direction) links are laid end to end. Only the restriction to rays is a matrix product
-    whose shape depends on the robot's, so it is done per run of robots of the same shape.
-    """
-    order = sorted(range(len(plans)), key=lambda index: _shape(plans[index]))
-    solved = _solve_sorted([plans[index] for index in order])
-    results = [None] * len(plans)
-    for index, result in zip(order, solved, strict=True):
-        results[index] = result
-    return results
-
-
 def _pair_horizons(plans, pair_counts):
     """Return the plans' common time horizon, or each neighbour's plan's, shape (N,)."""
     horizons = [plan.config.time_horizon for plan in plans]
     if all(horizon == horizons[0] for horizon in horizons):
         return horizons[0]
     return np.repeat(horizons, pair_counts)
-
-
-def _shape(plan):
-    """Return (neighbours, directions) of PLAN."""
-    return plan.encounter.origin.shape[0], plan.directions.shape[0]
 
 
 @dataclass(frozen=True)
@@ -445,8 +423,13 @@ def _certifies(plan):
             and not plan.deterministic)
 
 
-def _solve_sorted(plans):
-    """Plan robots of one structure, sorted by shape; return their results in order."""
+def _solve_group(plans):
+    """
+    Plan robots of one structure together; return their results in order.
+
+    Robots may differ in their numbers of neighbours and directions: their (neighbour,
+    direction) links are laid end to end.
+    """
     search = _ray_search(plans)
     choice = (_certified_choice(search) if _certifies(plans[0])
               else _choose(search, search.rows.margins))
@@ -457,65 +440,44 @@ def _solve_sorted(plans):
             for robot, plan in enumerate(plans)]
 
 
+def _joined(arrays):
+    """Concatenate ARRAYS along their first axis; one array is returned as it is."""
+    return arrays[0] if len(arrays) == 1 else np.concatenate(arrays)
+
+
 def _ray_search(plans):
-    """Build the ray polynomials and links of PLANS (one structure, sorted by shape)."""
+    """
+    Build the ray polynomials and links of PLANS (one structure).
+
+    The bivariate fit is one call for every neighbour; the restriction to rays and the links'
+    layout one compiled call (:func:`.ray_search.ray_links`).
+    """
+    from .ray_search import ray_links
+
     layout = plans[0].layout
-    robots = len(plans)
     pair_counts = np.array([plan.encounter.origin.shape[0] for plan in plans])
     ray_counts = np.array([plan.directions.shape[0] for plan in plans])
-    link_counts = pair_counts * ray_counts
     pair_horizons = _pair_horizons(plans, pair_counts)
-    nodes = np.stack([plan.config.max_speed * NODES for plan in plans])
+    nodes = (plans[0].config.max_speed * NODES if len(plans) == 1 else np.repeat(
+        np.stack([plan.config.max_speed * NODES for plan in plans]), pair_counts, axis=0))
     mean_fit, variance_fit = bivariate_polynomials(
-        np.concatenate([plan.encounter.origin for plan in plans]),
-        np.concatenate([plan.cov for plan in plans]),
-        np.concatenate([plan.radius for plan in plans]), np.repeat(nodes, pair_counts, axis=0),
-        pair_horizons, layout.has_receding,
-        np.concatenate([plan.encounter.lead for plan in plans]))
-    conditions = mean_fit.shape[1]
-    directions = np.concatenate([plan.directions for plan in plans])
-    # Polynomials (L, P, C): every link's coefficients, coefficient-major, robot after robot.
-    links = int(link_counts.sum())
-    means, variances = np.empty((3, links, conditions)), np.empty((5, links, conditions))
-    pair_ends, ray_ends, link_ends = (np.cumsum(counts) for counts in (
-        pair_counts, ray_counts, link_counts))
-    pair_starts, ray_starts, link_starts = (ends - counts for ends, counts in (
-        (pair_ends, pair_counts), (ray_ends, ray_counts), (link_ends, link_counts)))
-    run_starts = np.flatnonzero(np.diff(pair_counts, prepend=-1)
-                                | np.diff(ray_counts, prepend=-1))
-    for first_robot, last_robot in zip(run_starts, [*run_starts[1:], robots], strict=True):
-        batch, pairs, rays = last_robot - first_robot, pair_counts[first_robot], ray_counts[
-            first_robot]
-        pair_slice = slice(pair_starts[first_robot], pair_ends[last_robot - 1])
-        link_slice = slice(link_starts[first_robot], link_ends[last_robot - 1])
-        for rows, length, target in zip(
-                ray_rows(mean_fit[pair_slice].reshape(batch, pairs, conditions, -1),
-                         variance_fit[pair_slice].reshape(batch, pairs, conditions, -1),
-                         directions[ray_starts[first_robot]:ray_ends[last_robot - 1]].reshape(
-                             batch, rays, 2)),
-                (3, 5), (means, variances), strict=True):
-            target[:, link_slice].reshape(length, batch, pairs, rays, conditions)[...] = (
-                rows.reshape(batch, pairs, conditions, rays, length).transpose(4, 0, 1, 3, 2))
-    link_robot = np.repeat(np.arange(robots), link_counts)
-    # Each link's index among its robot's, (neighbour, direction) order.
-    link_local = np.arange(links) - link_starts[link_robot]
-    margins = np.stack([plan.layout.margins(plan.encounter) for plan in plans])
-    enabled = np.concatenate([plan.layout.receding_enabled for plan in plans])
-    ray_robot = np.repeat(np.arange(robots), ray_counts)
+        _joined([plan.encounter.origin for plan in plans]),
+        _joined([plan.cov for plan in plans]), _joined([plan.radius for plan in plans]), nodes,
+        pair_horizons, layout.has_receding, _joined([plan.encounter.lead for plan in plans]))
+    directions = _joined([plan.directions for plan in plans])
+    (means, variances, margins, link_ray, link_pair, link_enabled, (pair_starts, ray_starts,
+     link_starts), ray_local, ray_robot, pair_robot) = ray_links(
+        mean_fit.swapaxes(1, 2), variance_fit.swapaxes(1, 2), directions, pair_counts,
+        ray_counts, np.array([plan.layout.margins(plan.encounter) for plan in plans]),
+        _joined([plan.layout.receding_enabled for plan in plans]))
     rows = RayRows(
         means=means.transpose(1, 2, 0), variances=variances.transpose(1, 2, 0),
-        margins=margins[link_robot],
-        link_ray=ray_starts[link_robot] + link_local % ray_counts[link_robot],
-        link_enabled=np.repeat(enabled, np.repeat(ray_counts, pair_counts)),
-        ray_local=np.arange(directions.shape[0]) - ray_starts[ray_robot],
-        ray_robot=ray_robot,
-        preferred=np.concatenate([plan.preferred for plan in plans]))
+        margins=margins, link_ray=link_ray, link_enabled=link_enabled, ray_local=ray_local,
+        ray_robot=ray_robot, preferred=_joined([plan.preferred for plan in plans]))
     return _Search(plans=plans, rows=rows, means=means, variances=variances,
                    directions=directions, pair_counts=pair_counts, pair_starts=pair_starts,
                    ray_starts=ray_starts, ray_counts=ray_counts, link_starts=link_starts,
-                   link_pair=pair_starts[link_robot] + link_local // ray_counts[link_robot],
-                   pair_robot=np.repeat(np.arange(robots), pair_counts),
-                   pair_horizons=pair_horizons)
+                   link_pair=link_pair, pair_robot=pair_robot, pair_horizons=pair_horizons)
 
 
 def _choose(search, margins):
@@ -644,9 +606,11 @@ class _Anchors:
 
 def _anchors(search):
     """Per robot its :class:`_Anchors`, none certified yet."""
+    from .ray_search import achieved_margins as margins
+
     anchors = []
     for plan in search.plans:
-        config, encounter = plan.config, plan.encounter
+        config, encounter, layout = plan.config, plan.encounter, plan.layout
         velocities = np.zeros((0, 2))
         if plan.allowed is None and plan.walls is None:
             velocities = np.array([_clip_speed(anchor, config.max_speed) for anchor in (
@@ -654,12 +618,14 @@ def _anchors(search):
         shape = (velocities.shape[0], encounter.origin.shape[0])
         achieved = np.zeros(shape)
         if shape[0]:
-            moments = condition_moments(encounter.origin, plan.cov, plan.radius, velocities,
-                                        config.time_horizon, plan.layout.has_receding,
-                                        encounter.lead)
-            # Every anchor against every neighbour in one call: (n, A), transposed.
-            achieved = achieved_margins(*moments, plan.layout,
-                                        plan.layout.receding_enabled[:, None]).T
+            means, variances = condition_moments(encounter.origin, plan.cov, plan.radius,
+                                                 velocities, config.time_horizon,
+                                                 layout.has_receding, encounter.lead)
+            # Every anchor against every neighbour in one compiled call: (n, A), transposed.
+            conditions = means.shape[-1]
+            achieved = margins(means.reshape(-1, conditions), variances.reshape(-1, conditions),
+                               np.repeat(layout.receding_enabled, shape[0]),
+                               layout.has_receding, layout.has_horizon).reshape(shape[::-1]).T
         terms = CostTerms.of_plan(plan.v_pref, plan.previous, config)
         anchors.append(_Anchors(terms=terms, velocities=velocities,
                                 costs=terms.costs(velocities), achieved=achieved,
@@ -862,18 +828,18 @@ def _achieved(plans, means, variances, chosen_links, pair_robot, chosen_t, veloc
     ``_pair_horizons`` gives them).
     """
     first = plans[0]
-    enabled = np.concatenate([plan.layout.receding_enabled for plan in plans])
+    enabled = _joined([plan.layout.receding_enabled for plan in plans])
     if first.config.model == 'prvo':
-        # The planning moments are the beliefs' own: evaluate the ray polynomials, (P, C).
-        at_velocity = [poly_eval(np.take(polynomial, chosen_links, axis=1).transpose(1, 2, 0),
-                                 chosen_t[pair_robot, None])
-                       for polynomial in (means, variances)]
-    else:
-        at_velocity = [moment[:, 0] for moment in condition_moments(
-            np.concatenate([plan.encounter.origin for plan in plans]),
-            np.concatenate([plan.encounter.cov for plan in plans]),
-            np.concatenate([plan.encounter.combined_radius for plan in plans]),
-            velocities[pair_robot][:, None, :], pair_horizons,
-            first.layout.has_receding,
-            np.concatenate([plan.encounter.lead for plan in plans]))]
+        from .ray_search import link_margins
+
+        # The planning moments are the beliefs' own: evaluate the ray polynomials (compiled).
+        return link_margins(means, variances, chosen_links, chosen_t[pair_robot], enabled,
+                            first.layout.has_receding, first.layout.has_horizon)
+    at_velocity = [moment[:, 0] for moment in condition_moments(
+        np.concatenate([plan.encounter.origin for plan in plans]),
+        np.concatenate([plan.encounter.cov for plan in plans]),
+        np.concatenate([plan.encounter.combined_radius for plan in plans]),
+        velocities[pair_robot][:, None, :], pair_horizons,
+        first.layout.has_receding,
+        np.concatenate([plan.encounter.lead for plan in plans]))]
     return achieved_margins(*at_velocity, first.layout, enabled)

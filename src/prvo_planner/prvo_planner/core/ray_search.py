@@ -8,11 +8,21 @@ user's cache directory where that cannot be written. ``./run.sh setup`` compiles
 installing, so a planner process only loads it (about 0.4 s of CPU; compiling takes 6-7 s).
 """
 
+import math
+
 from numba import types
 import numpy as np
 
 from .ray_solver import (
+    READ_ONLY_CUBE,
+    READ_ONLY_FLAGS,
+    READ_ONLY_INDICES,
+    READ_ONLY_ROWS,
+    READ_ONLY_VECTOR,
     SEGMENTS,
+    _fma,
+    _maximum,
+    _minimum,
     bernstein_may_vanish,
     jit,
     polynomial_roots,
@@ -366,3 +376,368 @@ def team_gaps(means, variances, margins, link_ray, link_enabled, ray_local, pref
                 gaps += 1
             reach = max(reach, ray_ends[order[index]])
     return gap_ray[:gaps].copy(), gap_lower[:gaps].copy(), gap_upper[:gaps].copy()
+
+
+# The monomials x^i y^j of a bivariate quartic, grouped by degree (:mod:`.moments`' order):
+# their exponents (the quadratics' six are the first six).
+_EXPONENT_X = np.array([0, 1, 0, 2, 1, 0, 3, 2, 1, 0, 4, 3, 2, 1, 0])
+_EXPONENT_Y = np.array([0, 0, 1, 0, 1, 2, 0, 1, 2, 3, 0, 1, 2, 3, 4])
+@jit(inline='always')
+def _restricted(mean_fit, variance_fit, pair, condition, e, ray_start, rays, first_link,
+                v, means, variances):
+    """
+    Write one neighbour's condition restricted to RAYS rays into MEANS and VARIANCES.
+
+    E holds every ray's monomials ``e_x^i e_y^j``, (R, 15).
+    The coefficient of ``t^l`` is the monomials of degree ``l`` in order, each times its
+    coefficient: a product, then fused multiply-adds. V (15,) is scratch.
+    """
+    m0, m1, m2, m3, m4, m5 = (mean_fit[pair, 0, condition], mean_fit[pair, 1, condition],
+                              mean_fit[pair, 2, condition], mean_fit[pair, 3, condition],
+                              mean_fit[pair, 4, condition], mean_fit[pair, 5, condition])
+    for index in range(15):
+        v[index] = variance_fit[pair, index, condition]
+    for ray in range(rays):
+        r = ray_start + ray
+        link = first_link + ray
+        means[0, link, condition] = m0 * e[r, 0]
+        means[1, link, condition] = _fma(m2, e[r, 2], m1 * e[r, 1])
+        means[2, link, condition] = _fma(m5, e[r, 5], _fma(m4, e[r, 4], m3 * e[r, 3]))
+        variances[0, link, condition] = v[0] * e[r, 0]
+        variances[1, link, condition] = _fma(v[2], e[r, 2], v[1] * e[r, 1])
+        variances[2, link, condition] = _fma(v[5], e[r, 5], _fma(v[4], e[r, 4],
+                                                                 v[3] * e[r, 3]))
+        variances[3, link, condition] = _fma(v[9], e[r, 9], _fma(v[8], e[r, 8], _fma(
+            v[7], e[r, 7], v[6] * e[r, 6])))
+        variances[4, link, condition] = _fma(v[14], e[r, 14], _fma(v[13], e[r, 13], _fma(
+            v[12], e[r, 12], _fma(v[11], e[r, 11], v[10] * e[r, 10]))))
+
+
+_INTS = types.int64[::1]
+_LINKS_SIGNATURE = types.Tuple((
+    types.float64[:, :, ::1], types.float64[:, :, ::1], _FLOATS, _INTS, _INTS, types.boolean[::1],
+    types.int64[:, ::1], _INTS, _INTS, _INTS))(
+    READ_ONLY_CUBE, READ_ONLY_CUBE, READ_ONLY_ROWS, READ_ONLY_INDICES, READ_ONLY_INDICES,
+    READ_ONLY_ROWS, READ_ONLY_FLAGS)
+
+
+@jit(_LINKS_SIGNATURE)
+def ray_links(mean_fit, variance_fit, directions, pair_counts, ray_counts, robot_margins,
+              enabled):
+    """
+    Restrict every neighbour's bivariate polynomials to its robot's rays: the links of a search.
+
+    Along the ray ``v_c = t v_max e`` the monomial ``(v_x / v_max)^i (v_y / v_max)^j`` is
+    ``t^(i+j) e_x^i e_y^j``, so the coefficient of ``t^l`` is the sum over the monomials of
+    degree ``l`` of their coefficients times ``e_x^i e_y^j``: summed in the monomials' order by
+    fused multiply-adds, as OpenBLAS's matrix product with the (15, 5 M) map of every ray did,
+    with ``e^i`` as ``pow``.
+
+    Parameters
+    ----------
+    mean_fit, variance_fit : numpy.ndarray
+        Bivariate coefficients per neighbour of the robots, robot after robot, shapes (N, 6, C)
+        and (N, 15, C) (:func:`.moments.bivariate_polynomials`, its last two axes swapped).
+    directions : numpy.ndarray
+        Unit directions of every robot's rays, robot after robot, shape (R, 2).
+    pair_counts, ray_counts : numpy.ndarray
+        Neighbours and rays per robot, shape (B,).
+    robot_margins : numpy.ndarray
+        ``k`` per robot and condition column, shape (B, C).
+    enabled : numpy.ndarray
+        Whether ``g`` counts, per neighbour, shape (N,).
+
+    Returns
+    -------
+    means, variances : numpy.ndarray
+        Coefficients in ``t`` of every link (a robot's in (neighbour, direction) order, robot
+        after robot) and condition, coefficient-major: shapes (3, P, C) and (5, P, C).
+    margins : numpy.ndarray
+        ``k`` per link and condition column, shape (P, C).
+    link_ray, link_pair : numpy.ndarray
+        Ray and neighbour of each link, shape (P,).
+    link_enabled : numpy.ndarray
+        Whether ``g`` counts for each link, shape (P,).
+    starts : numpy.ndarray
+        The first neighbour, ray and link of each robot, shape (3, B).
+    ray_local, ray_robot : numpy.ndarray
+        Each ray's index among its robot's, and its robot, shape (R,).
+    pair_robot : numpy.ndarray
+        Each neighbour's robot, shape (N,).
+
+    """
+    robots = pair_counts.shape[0]
+    conditions = mean_fit.shape[2]
+    starts = np.zeros((3, robots), dtype=np.int64)
+    links = 0
+    for robot in range(robots):
+        if robot > 0:
+            starts[0, robot] = starts[0, robot - 1] + pair_counts[robot - 1]
+            starts[1, robot] = starts[1, robot - 1] + ray_counts[robot - 1]
+            starts[2, robot] = starts[2, robot - 1] + pair_counts[robot - 1] * ray_counts[
+                robot - 1]
+        links += pair_counts[robot] * ray_counts[robot]
+    means = np.empty((3, links, conditions))
+    variances = np.empty((5, links, conditions))
+    margins = np.empty((links, conditions))
+    link_ray = np.empty(links, dtype=np.int64)
+    link_pair = np.empty(links, dtype=np.int64)
+    link_enabled = np.empty(links, dtype=np.bool_)
+    ray_local = np.empty(directions.shape[0], dtype=np.int64)
+    ray_robot = np.empty(directions.shape[0], dtype=np.int64)
+    pair_robot = np.empty(mean_fit.shape[0], dtype=np.int64)
+    # Every ray's monomials e_x^i e_y^j, (R, 15).
+    monomials = np.empty((directions.shape[0], 15))
+    scratch = np.empty(15)
+    for ray in range(directions.shape[0]):
+        for index in range(15):
+            monomials[ray, index] = (math.pow(directions[ray, 0], float(_EXPONENT_X[index]))
+                                     * math.pow(directions[ray, 1], float(_EXPONENT_Y[index])))
+    for robot in range(robots):
+        pair_start, ray_start, rays = starts[0, robot], starts[1, robot], ray_counts[robot]
+        for ray in range(rays):
+            ray_local[ray_start + ray] = ray
+            ray_robot[ray_start + ray] = robot
+        link = starts[2, robot]
+        for pair in range(pair_start, pair_start + pair_counts[robot]):
+            pair_robot[pair] = robot
+            for ray in range(ray_start, ray_start + rays):
+                link_ray[link] = ray
+                link_pair[link] = pair
+                link_enabled[link] = enabled[pair]
+                for condition in range(conditions):
+                    margins[link, condition] = robot_margins[robot, condition]
+                link += 1
+        for pair in range(pair_start, pair_start + pair_counts[robot]):
+            first_link = starts[2, robot] + (pair - pair_start) * rays
+            for condition in range(conditions):
+                _restricted(mean_fit, variance_fit, pair, condition, monomials, ray_start, rays,
+                            first_link, scratch, means, variances)
+    return (means, variances, margins, link_ray, link_pair, link_enabled, starts, ray_local,
+            ray_robot, pair_robot)
+
+
+@jit(inline='always')
+def _margin(mean, variance):
+    """Return the ``k`` a condition meets: ``mean / sigma``, ``+-inf`` at ``sigma = 0``."""
+    margin = mean / math.sqrt(_maximum(variance, 0.0))
+    return np.inf if margin != margin else margin
+
+
+@jit(inline='always')
+def _combined_margin(margins, conditions, has_receding, has_horizon, enabled):
+    """
+    Return the largest ``k`` met by an accepted alternative, from each condition's MARGINS.
+
+    The pair ``h1 and h2`` meets ``k' = min(k_h1, k_h2)``, reported as the pairwise ``k`` with
+    that ``k'``: ``sqrt((k'^2 - 1) / 2)``, and ``k' - 1 < 0`` below ``k' = 1``.
+    """
+    result = margins[0]
+    if has_receding:
+        result = _maximum(result, margins[1] if enabled else -np.inf)
+    if has_horizon:
+        joint = _minimum(margins[conditions - 3], margins[conditions - 2])
+        pairwise = joint * joint
+        pairwise -= 1.0
+        pairwise *= 0.5
+        pairwise = math.sqrt(pairwise) if joint >= 1.0 else joint - 1.0
+        result = _maximum(_maximum(result, pairwise), margins[conditions - 1])
+    return result
+
+
+_MARGINS_SIGNATURE = types.float64[::1](READ_ONLY_ROWS, READ_ONLY_ROWS, READ_ONLY_FLAGS,
+                                         types.boolean, types.boolean)
+_LINK_MARGINS_SIGNATURE = types.float64[::1](
+    READ_ONLY_CUBE, READ_ONLY_CUBE, READ_ONLY_INDICES, READ_ONLY_VECTOR, READ_ONLY_FLAGS,
+    types.boolean, types.boolean)
+
+
+@jit(_MARGINS_SIGNATURE)
+def achieved_margins(means, variances, enabled, has_receding, has_horizon):
+    """
+    Return the ``k`` met at given points (docs/method.md, section 7: no accepted velocity).
+
+    Per condition ``mean / sigma`` (``+-inf`` at ``sigma = 0``, and any ``k`` for a zero mean
+    known exactly); the largest over the accepted alternatives (:func:`_combined_margin`).
+
+    Parameters
+    ----------
+    means, variances : numpy.ndarray
+        Condition values at the points, shape (K, C).
+    enabled : numpy.ndarray
+        Whether ``g`` counts at each point, shape (K,).
+    has_receding, has_horizon : bool
+        The layout: ``f``, then ``g`` if ``has_receding``, then ``h1, h2, h3``.
+
+    Returns
+    -------
+    numpy.ndarray
+        Shape (K,).
+
+    """
+    count, conditions = means.shape
+    result = np.empty(count)
+    margins = np.empty(conditions)
+    for row in range(count):
+        for condition in range(conditions):
+            margins[condition] = _margin(means[row, condition], variances[row, condition])
+        result[row] = _combined_margin(margins, conditions, has_receding, has_horizon,
+                                       enabled[row])
+    return result
+
+
+@jit(_LINK_MARGINS_SIGNATURE)
+def link_margins(means, variances, links, t, enabled, has_receding, has_horizon):
+    """
+    Return the ``k`` met on given links at given ``t``, from their ray polynomials.
+
+    Parameters
+    ----------
+    means, variances : numpy.ndarray
+        Coefficients in ``t`` of every link and condition, coefficient-major: shapes (3, P, C)
+        and (5, P, C) (:func:`ray_links`).
+    links : numpy.ndarray
+        The links, shape (K,).
+    t : numpy.ndarray
+        Where on each link's ray, shape (K,).
+    enabled : numpy.ndarray
+        Whether ``g`` counts on each link, shape (K,).
+    has_receding, has_horizon : bool
+        The layout.
+
+    Returns
+    -------
+    numpy.ndarray
+        Shape (K,), as :func:`achieved_margins` of the polynomials' values by Horner's rule.
+
+    """
+    conditions = means.shape[2]
+    result = np.empty(links.shape[0])
+    margins = np.empty(conditions)
+    for index in range(links.shape[0]):
+        link, point = links[index], t[index]
+        for condition in range(conditions):
+            mean = means[2, link, condition]
+            for power in range(1, -1, -1):
+                mean = mean * point + means[power, link, condition]
+            variance = variances[4, link, condition]
+            for power in range(3, -1, -1):
+                variance = variance * point + variances[power, link, condition]
+            margins[condition] = _margin(mean, variance)
+        result[index] = _combined_margin(margins, conditions, has_receding, has_horizon,
+                                         enabled[index])
+    return result
+
+
+_ENCOUNTER_SIGNATURE = types.Tuple((_FLOATS, types.float64[:, :, ::1], types.float64[::1],
+                                    types.float64[::1], types.boolean[::1], types.int64))(
+    READ_ONLY_VECTOR, READ_ONLY_VECTOR, READ_ONLY_ROWS, types.float64, READ_ONLY_ROWS,
+    READ_ONLY_ROWS, READ_ONLY_CUBE, READ_ONLY_VECTOR, READ_ONLY_VECTOR, READ_ONLY_ROWS,
+    types.float64, types.float64, types.float64, types.float64, types.float64)
+
+
+@jit(_ENCOUNTER_SIGNATURE)
+def relative_gaussians(ego_position, ego_velocity, ego_cov, ego_radius, positions, velocities,
+                       covariances, radii, shares, actuation_cov, neighbor_distance, guard_time,
+                       max_speed, time_horizon, safety_margin):
+    """
+    Return the neighbours within reach as relative Gaussians (:func:`.encounter.build_encounter`).
+
+    A neighbour is kept if the gap between the mean disks is at most ``neighbor_distance``; one
+    that takes a share of the avoidance and could touch the ego within ``guard_time`` has a
+    second row after all the others, of share 0, its velocity terms scaled by ``guard_time /
+    time_horizon`` where that is below 1. With ``rho = 1 - share``, ``lead = 1 / rho`` and the
+    ego's weight ``(1 - rho) / rho``, the mean of ``z = (r, w)`` at zero command is ``(p_ego -
+    p_j, -weight v_ego - v_j)`` and its covariance sums the ego's, the neighbour's and the
+    actuation noise's (``lead^2 S_a``) blocks.
+
+    Parameters
+    ----------
+    ego_position, ego_velocity : numpy.ndarray
+        The ego's mean position and velocity, shape (2,).
+    ego_cov : numpy.ndarray
+        The ego's covariance of (position, velocity), shape (4, 4).
+    ego_radius : float
+        The ego's radius.
+    positions, velocities : numpy.ndarray
+        The neighbours' means, shape (n, 2).
+    covariances : numpy.ndarray
+        The neighbours' covariances, shape (n, 4, 4).
+    radii, shares : numpy.ndarray
+        The neighbours' radii and avoidance shares, shape (n,).
+    actuation_cov : numpy.ndarray
+        The actuation noise's covariance, shape (2, 2).
+    neighbor_distance, guard_time, max_speed, time_horizon, safety_margin : float
+        As in :class:`.config.PlannerConfig`.
+
+    Returns
+    -------
+    origin, cov, lead, combined_radius, overlapping : numpy.ndarray
+        Shapes (N, 4), (N, 4, 4), (N,), (N,) and (N,): the kept neighbours in order, then their
+        guard rows.
+    guarded : int
+        How many guard rows there are.
+
+    """
+    count = positions.shape[0]
+    distance = np.empty(count)
+    gap = np.empty(count)
+    kept = np.empty(count, dtype=np.int64)
+    guard = np.empty(count, dtype=np.int64)
+    selected = guarded = 0
+    for neighbour in range(count):
+        distance[neighbour] = math.hypot(ego_position[0] - positions[neighbour, 0],
+                                         ego_position[1] - positions[neighbour, 1])
+        gap[neighbour] = distance[neighbour] - ego_radius - radii[neighbour]
+        if gap[neighbour] <= neighbor_distance:
+            kept[selected] = neighbour
+            selected += 1
+    if guard_time > 0.0:
+        for index in range(selected):
+            neighbour = kept[index]
+            # Within reach of the guard time, each going at most as fast as it may (the ego)
+            # or as it goes (the neighbour).
+            reach = guard_time * (max_speed + math.hypot(velocities[neighbour, 0],
+                                                         velocities[neighbour, 1]))
+            if gap[neighbour] < reach and shares[neighbour] > 0.0:
+                guard[guarded] = neighbour
+                guarded += 1
+    rows = selected + guarded
+    origin = np.empty((rows, 4))
+    cov = np.empty((rows, 4, 4))
+    lead = np.empty(rows)
+    combined_radius = np.empty(rows)
+    overlapping = np.empty(rows, dtype=np.bool_)
+    scale = guard_time / time_horizon
+    scaled = guarded > 0 and guard_time < time_horizon
+    for row in range(rows):
+        neighbour = kept[row] if row < selected else guard[row - selected]
+        share = shares[neighbour] if row < selected else 0.0
+        rho = 1.0 - share
+        lead[row] = 1.0 / rho
+        weight = (1.0 - rho) / rho
+        lead_sq, weight_sq = lead[row] * lead[row], weight * weight
+        for i in range(2):
+            for j in range(2):
+                cov[row, i, j] = ego_cov[i, j] + covariances[neighbour, i, j]
+                cov[row, 2 + i, 2 + j] = (lead_sq * actuation_cov[i, j]
+                                          + weight_sq * ego_cov[2 + i, 2 + j]
+                                          + covariances[neighbour, 2 + i, 2 + j])
+                cross = -weight * ego_cov[i, 2 + j] + covariances[neighbour, i, 2 + j]
+                cov[row, i, 2 + j] = cross
+                cov[row, 2 + j, i] = cross
+            origin[row, i] = ego_position[i] - positions[neighbour, i]
+            origin[row, 2 + i] = -weight * ego_velocity[i] - velocities[neighbour, i]
+        if scaled and row >= selected:
+            # Contact within the guard time along w is contact within the horizon along w
+            # scaled by guard_time / time_horizon.
+            for i in range(2):
+                origin[row, 2 + i] *= scale
+                for j in range(2):
+                    cov[row, 2 + i, 2 + j] *= math.pow(scale, 2.0)
+                    cov[row, i, 2 + j] *= scale
+                    cov[row, 2 + i, j] *= scale
+            lead[row] *= scale
+        combined_radius[row] = ego_radius + radii[neighbour] + safety_margin
+        overlapping[row] = distance[neighbour] < combined_radius[row]
+    return origin, cov, lead, combined_radius, overlapping, guarded
