@@ -10,6 +10,7 @@ import pytest
 from prvo_planner.core import PlannerConfig
 from prvo_planner.core.feasibility import ray_gaps
 from prvo_planner.core.moments import condition_moments
+from prvo_planner.core.ray_search import achieved_margins, link_margins, ray_links
 from prvo_planner.core.ray_solver import polynomial_roots, quadratic_roots
 
 
@@ -155,3 +156,104 @@ def test_noise_free_intervals_match_dense_evaluation_of_the_means(receding_gate,
             pair_accepted = pair_accepted | (meets[..., -3] & meets[..., -2]) | meets[..., -1]
         accepted = np.all(pair_accepted, axis=0).reshape(directions.shape[0], t.size)
         assert_gaps_match(gap_direction, lower, upper, t, accepted)
+
+
+def bivariate_value(coefficients, x, y):
+    """Evaluate ``sum c_k x^i y^j``, the monomials by degree (x^d, x^(d-1) y, ..., y^d)."""
+    value, index = 0.0, 0
+    for degree in range(5):
+        for power_y in range(degree + 1):
+            if index == len(coefficients):
+                return value
+            value += coefficients[index] * x ** (degree - power_y) * y ** power_y
+            index += 1
+    return value
+
+
+def test_ray_links_restrict_every_neighbour_to_its_robots_rays():
+    rng = np.random.default_rng(71)
+    pair_counts, ray_counts, conditions = np.array([2, 3, 1]), np.array([4, 2, 5]), 5
+    pairs, rays = int(pair_counts.sum()), int(ray_counts.sum())
+    mean_fit = rng.normal(size=(pairs, 6, conditions))
+    variance_fit = rng.normal(size=(pairs, 15, conditions))
+    angles = rng.uniform(0.0, 2.0 * np.pi, rays)
+    directions = np.stack([np.cos(angles), np.sin(angles)], axis=1)
+    robot_margins = rng.uniform(0.5, 3.0, size=(3, conditions))
+    enabled = rng.uniform(size=pairs) < 0.5
+    (means, variances, margins, link_ray, link_pair, link_enabled, starts, ray_local, ray_robot,
+     pair_robot) = ray_links(mean_fit, variance_fit, directions, pair_counts, ray_counts,
+                             robot_margins, enabled)
+    assert starts.tolist() == [[0, 2, 5], [0, 4, 6], [0, 8, 14]]
+    assert ray_local.tolist() == [0, 1, 2, 3, 0, 1, 0, 1, 2, 3, 4]
+    assert ray_robot.tolist() == [0] * 4 + [1] * 2 + [2] * 5
+    assert pair_robot.tolist() == [0, 0, 1, 1, 1, 2]
+    link = 0
+    t = np.linspace(0.0, 1.0, 7)
+    for robot in range(3):
+        for pair in range(starts[0, robot], starts[0, robot] + pair_counts[robot]):
+            for ray in range(starts[1, robot], starts[1, robot] + ray_counts[robot]):
+                assert (link_ray[link], link_pair[link]) == (ray, pair)
+                assert link_enabled[link] == enabled[pair]
+                np.testing.assert_array_equal(margins[link], robot_margins[robot])
+                for condition in range(conditions):
+                    for fit, polynomials in ((mean_fit, means), (variance_fit, variances)):
+                        expected = [bivariate_value(fit[pair, :, condition], *(point * directions[
+                            ray])) for point in t]
+                        np.testing.assert_allclose(
+                            polynomial.polyval(t, polynomials[:, link, condition]), expected,
+                            rtol=0.0, atol=1e-12)
+                link += 1
+    assert link == means.shape[1] == 19
+
+
+def combined_margin(means, variances, enabled, has_receding, has_horizon):
+    """Return the k one point's conditions meet (docs/method.md, section 7), one by one."""
+    def margin(mean, variance):
+        sigma = math.sqrt(max(variance, 0.0))
+        if sigma == 0.0:
+            return math.inf if mean >= 0.0 else -math.inf
+        return mean / sigma
+
+    margins = [margin(mean, variance) for mean, variance in zip(means, variances, strict=True)]
+    best = margins[0]
+    if has_receding and enabled:
+        best = max(best, margins[1])
+    if has_horizon:
+        joint = min(margins[-3], margins[-2])
+        best = max(best, math.sqrt((joint * joint - 1.0) / 2.0) if joint >= 1.0 else joint - 1.0,
+                   margins[-1])
+    return best
+
+
+@pytest.mark.parametrize('has_receding, has_horizon', [(False, False), (True, False),
+                                                       (False, True), (True, True)])
+def test_achieved_margins_and_link_margins_meet_the_closed_form(has_receding, has_horizon):
+    rng = np.random.default_rng(81 + 2 * has_receding + has_horizon)
+    conditions = 1 + has_receding + 3 * has_horizon
+    count = 400
+    means = rng.normal(size=(count, conditions)) * rng.uniform(0.0, 3.0, size=(count, 1))
+    variances = rng.uniform(-0.1, 1.0, size=(count, conditions)) ** 2
+    # Some conditions known exactly (sigma = 0), some zero means among them.
+    variances[rng.uniform(size=variances.shape) < 0.1] = 0.0
+    means[rng.uniform(size=means.shape) < 0.05] = 0.0
+    enabled = rng.uniform(size=count) < 0.5
+    found = achieved_margins(means, variances, enabled, has_receding, has_horizon)
+    expected = [combined_margin(means[row], variances[row], enabled[row], has_receding,
+                                has_horizon) for row in range(count)]
+    np.testing.assert_allclose(found, expected, rtol=1e-14, atol=0.0)
+    # From ray polynomials: the same at each link's t, the polynomials evaluated by numpy.
+    links = 60
+    mean_rows = rng.normal(size=(3, links, conditions))
+    variance_rows = rng.normal(size=(5, links, conditions))
+    variance_rows[0] = np.abs(variance_rows[0]) + 1.0
+    chosen = rng.integers(0, links, size=25)
+    t = rng.uniform(0.0, 1.0, size=25)
+    found = link_margins(mean_rows, variance_rows, chosen, t, enabled[:25], has_receding,
+                         has_horizon)
+    expected = [combined_margin(
+        [polynomial.polyval(t[index], mean_rows[:, link, condition])
+         for condition in range(conditions)],
+        [polynomial.polyval(t[index], variance_rows[:, link, condition])
+         for condition in range(conditions)], enabled[index], has_receding, has_horizon)
+        for index, link in enumerate(chosen)]
+    np.testing.assert_allclose(found, expected, rtol=1e-12, atol=0.0)

@@ -261,3 +261,32 @@ def test_near_contact_the_guard_holds_eta_if_the_neighbour_keeps_its_velocity(
 def test_a_guard_time_that_is_not_finite_and_positive_is_refused_naming_the_field(guard):
     with pytest.raises(ValueError, match=r'^PlannerConfig\.guard_time must be'):
         PlannerConfig(guard_time=guard)
+
+
+def test_the_encounter_keeps_the_neighbours_within_reach_as_their_relative_gaussians():
+    rng = np.random.default_rng(61)
+    actuation_cov = random_covariance(rng, 2, 0.2)
+    config = PlannerConfig(actuation_cov=actuation_cov, neighbor_distance=3.0,
+                           safety_margin=0.05)
+    ego = AgentBelief(rng.normal(size=2), rng.normal(size=2), random_covariance(rng, 4, 0.3),
+                      0.3)
+    neighbours = [AgentBelief(ego.position + rng.uniform(-6.0, 6.0, size=2), rng.normal(size=2),
+                              random_covariance(rng, 4, rng.uniform(0.05, 0.4)),
+                              rng.uniform(0.2, 0.5), rng.choice(SHARES)) for _ in range(12)]
+    encounter = build_encounter(ego, neighbours, config)
+    # Kept: the gap between the mean disks at most neighbor_distance, in order.
+    kept = [neighbour for neighbour in neighbours if np.hypot(*(
+        ego.position - neighbour.position)) - ego.radius - neighbour.radius <= 3.0]
+    assert 0 < len(kept) < len(neighbours)
+    assert encounter.origin.shape == (len(kept), 4)
+    for row, neighbour in enumerate(kept):
+        mean_z, cov_z = relative_gaussian(ego, neighbour, np.zeros(2), actuation_cov)
+        np.testing.assert_allclose(encounter.origin[row], mean_z, rtol=0.0, atol=1e-12)
+        np.testing.assert_allclose(encounter.cov[row], cov_z, rtol=0.0, atol=1e-12)
+        assert encounter.lead[row] == pytest.approx(1.0 / (1.0 - neighbour.avoidance_share),
+                                                    rel=1e-15)
+        radius = ego.radius + neighbour.radius + 0.05
+        assert encounter.combined_radius[row] == pytest.approx(radius, rel=1e-15)
+        assert encounter.overlapping[row] == (np.hypot(*mean_z[:2]) < radius)
+    empty = build_encounter(ego, [], config)
+    assert empty.origin.shape == (0, 4) and empty.cov.shape == (0, 4, 4)

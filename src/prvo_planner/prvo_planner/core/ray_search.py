@@ -1,11 +1,19 @@
 """
-The ray search compiled: feasible speed intervals on every ray (``feasibility.team_ray_gaps``).
+The ray search compiled: feasible speed intervals on every ray, and what a search is built from.
 
-One numba function, :func:`team_gaps`, with the helpers of :mod:`.ray_solver`. It is compiled
-for one signature when this module is first imported (``feasibility.team_ray_gaps`` imports it
-on its first call) and kept in numba's on-disk cache: ``__pycache__`` beside this file, or the
-user's cache directory where that cannot be written. ``./run.sh setup`` compiles it once after
-installing, so a planner process only loads it (about 0.4 s of CPU; compiling takes 6-7 s).
+numba functions, each compiled for one signature when this module is first imported (the
+planner imports it on its first plan) and kept in numba's on-disk cache: ``__pycache__`` beside
+this file, or the user's cache directory where that cannot be written. ``./run.sh setup``
+compiles them once after installing, so a planner process only loads them.
+
+* :func:`relative_gaussians`, the neighbours of a plan as relative Gaussians
+  (``encounter.build_encounter``);
+* :func:`ray_links`, every neighbour's bivariate polynomials restricted to its robot's rays,
+  laid out as the search's links (the planner's ``_ray_search``);
+* :func:`team_gaps`, the feasible intervals on every ray (``feasibility.team_ray_gaps``), with
+  the helpers of :mod:`.ray_solver`;
+* :func:`link_margins` and :func:`achieved_margins`, the ``k`` met at chosen points, from the
+  ray polynomials or from the conditions' moments (``feasibility.achieved_margins``).
 """
 
 import math
