@@ -214,31 +214,21 @@ def team_gaps(means, variances, margins, link_ray, link_enabled, ray_local, pref
             reject[segment, row] = counts[0, segment, row] == 0
             if tests == 2:
                 reject[segment, row] |= counts[1, segment, row] == 0
-    # A segment of a ray is open unless some neighbour rejects all of it: (S, R). (One loop
-    # per result: storing both in one loop took ten times as long.)
-    accept_pair = np.empty((SEGMENTS, links), dtype=np.bool_)
-    for segment in range(SEGMENTS):
-        for link in range(links):
-            accept_pair[segment, link] = _some_accepted(
-                accept, segment, link * conditions, conditions, has_receding, has_horizon,
-                link_enabled[link])
-    reject_pair = np.empty((SEGMENTS, links), dtype=np.bool_)
-    for segment in range(SEGMENTS):
-        for link in range(links):
-            reject_pair[segment, link] = _all_rejected(
-                reject, segment, link * conditions, conditions, has_receding, has_horizon,
-                link_enabled[link])
+    # A segment of a ray is open unless some neighbour rejects all of it: (S, R).
     open_segments = np.ones((SEGMENTS, rays), dtype=np.bool_)
-    for segment in range(SEGMENTS):
-        for link in range(links):
-            if reject_pair[segment, link]:
+    for link in range(links):
+        base, enabled = link * conditions, link_enabled[link]
+        for segment in range(SEGMENTS):
+            if _all_rejected(reject, segment, base, conditions, has_receding, has_horizon,
+                             enabled):
                 open_segments[segment, link_ray[link]] = False
     # Units: (segment, link) on an open segment, not certified accepted there.
     open_unit = np.empty((SEGMENTS, links), dtype=np.bool_)
-    for segment in range(SEGMENTS):
-        for link in range(links):
-            open_unit[segment, link] = ((not accept_pair[segment, link])
-                                        & open_segments[segment, link_ray[link]])
+    for link in range(links):
+        base, enabled, ray = link * conditions, link_enabled[link], link_ray[link]
+        for segment in range(SEGMENTS):
+            open_unit[segment, link] = open_segments[segment, ray] and not _some_accepted(
+                accept, segment, base, conditions, has_receding, has_horizon, enabled)
     # Only a condition undecided on a segment can split it, and only where its own test is;
     # each test's undecided rows need their roots.
     undecided = np.zeros((tests, SEGMENTS, count), dtype=np.bool_)
@@ -497,10 +487,14 @@ def ray_links(mean_fit, variance_fit, directions, pair_counts, ray_counts, robot
     # Every ray's monomials e_x^i e_y^j, (R, 15).
     monomials = np.empty((directions.shape[0], 15))
     scratch = np.empty(15)
+    powers = np.empty((2, 5))
     for ray in range(directions.shape[0]):
+        for axis in range(2):
+            powers[axis, 0], powers[axis, 1] = 1.0, directions[ray, axis]
+            for exponent in range(2, 5):
+                powers[axis, exponent] = math.pow(directions[ray, axis], float(exponent))
         for index in range(15):
-            monomials[ray, index] = (math.pow(directions[ray, 0], float(_EXPONENT_X[index]))
-                                     * math.pow(directions[ray, 1], float(_EXPONENT_Y[index])))
+            monomials[ray, index] = powers[0, _EXPONENT_X[index]] * powers[1, _EXPONENT_Y[index]]
     for robot in range(robots):
         pair_start, ray_start, rays = starts[0, robot], starts[1, robot], ray_counts[robot]
         for ray in range(rays):
