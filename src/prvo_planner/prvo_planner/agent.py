@@ -43,6 +43,7 @@ from prvo_planner.give_way import (
     give_way_spot,
     held_short,
     held_spot,
+    way_ahead,
     way_left,
 )
 from prvo_planner.lanes import KEEP_RIGHT, keep_right
@@ -58,6 +59,7 @@ from prvo_planner.maps import (
 )
 from prvo_planner.narrows import find_passages
 from prvo_planner.passages import narrow_passage
+from prvo_planner.passing import at_goal, pass_beside
 from prvo_planner.path_following import carrot, closest_on_path
 from prvo_planner.preferred import (
     GOAL,
@@ -1125,6 +1127,24 @@ class PlannerAgent:
         return preferred_velocity(position, self._give_way, self.config.max_speed,
                                   settings.approach_time, 0.0, settings.max_acceleration)[0]
 
+    def _passed_beside(self, position, v_pref, beliefs, announcements, standing):
+        """Return V_PREF, or beside a neighbour standing on the robot's way (`passing`).
+
+        For a robot on its way along a route to its goal, not giving way itself. STANDING: per
+        neighbour (in the order of BELIEFS and ANNOUNCEMENTS) whether it stands (`_standing`).
+        """
+        settings = self.settings
+        if (not settings.give_way or self.arrived or self._give_way is not None
+                or settings.preferred_source != GOAL or self._route_status != ROUTE_FOUND
+                or self._route is None or len(self._route) < 2 or not any(standing)):
+            return v_pref
+        room = None if self._route_map is None else self._route_map.in_sight
+        return pass_beside(position, v_pref, way_ahead(self._route, position),
+                           settings.planning_radius,
+                           [(belief.mean[:2], announcement.radius) for belief, announcement, still
+                            in zip(beliefs, announcements, standing, strict=True) if still],
+                           room)
+
     def _passage_uses(self, stamp, position, names, beliefs, routes):
         """Return (the robot's `PassageUse`, its neighbours' that claim), None: no passage ahead.
 
@@ -1221,10 +1241,16 @@ class PlannerAgent:
         self._detours.install(avoided, tree)
         return True
 
-    def _kept_right(self, problem, distance_to_goal, obstacles):
-        """Return PROBLEM with its preferred velocity leaning right (`prvo_planner.lanes`)."""
+    def _kept_right(self, problem, distance_to_goal, obstacles, standing):
+        """Return PROBLEM with its preferred velocity leaning right (`prvo_planner.lanes`).
+
+        The neighbours that stand (STANDING, per neighbour of PROBLEM) are not traffic to meet:
+        one stepping aside toward the robot would lean it into that one as it goes round.
+        """
         ego, neighbours, v_pref, config = problem[:4]
-        v_pref, _ = keep_right(v_pref, self.settings.keep_right, ego, neighbours,
+        moving = [neighbour for neighbour, still in zip(neighbours, standing, strict=True)
+                  if not still]
+        v_pref, _ = keep_right(v_pref, self.settings.keep_right, ego, moving,
                                distance_to_goal, obstacles, config)
         return (ego, neighbours, v_pref, *problem[3:])
 
@@ -1350,6 +1376,12 @@ class PlannerAgent:
         uses = self._passage_uses(stamp, own.mean[:2], names, neighbour_beliefs, routes)
         v_pref = self._given_way(own.mean[:2], v_pref, stall, distance_to_goal, names,
                                  neighbour_beliefs, announcements, routes, uses)
+        # Those that stand (at their goals, arriving, or aside): gone round, not met as traffic.
+        standing = [announcement.avoidance_share == 0.0 or at_goal(belief.mean[:2], route)
+                    for belief, announcement, route
+                    in zip(neighbour_beliefs, announcements, routes, strict=True)]
+        v_pref = self._passed_beside(own.mean[:2], v_pref, neighbour_beliefs, announcements,
+                                     standing)
         v_pref, passage_wall = self._passage_turn(own.mean[:2], v_pref, uses)
         self._take_way_round(stamp, own.mean[:2], distance_to_goal)
         if self._command_stamp is not None and 0.0 < stamp - self._command_stamp:
@@ -1389,7 +1421,7 @@ class PlannerAgent:
             if inside is None and self.passage_decision is None:
                 # At a passage its order leads: a lean would turn a robot off the passage's
                 # middle, or off its waiting spot.
-                problem = self._kept_right(problem, distance_to_goal, obstacles)
+                problem = self._kept_right(problem, distance_to_goal, obstacles, standing)
             if ((self.arrived and self._give_way is None or route_status == ROUTE_UNREACHABLE)
                     and nobody_comes(problem)):
                 problem = None

@@ -316,8 +316,9 @@ _SPECS = (
                   'neighbour within 3 m publishes on <robot>/plan, where that route passes '
                   'nearer than their two radii and 0.1 m, and returns once it went by; so does '
                   'a robot held short of its goal (stalled, or within 2.5 m of it and less '
-                  'than 0.3 m closer in 3 s) for a neighbour with farther to go. '
-                  'false = neither steps aside.'),
+                  'than 0.3 m closer in 3 s) for a neighbour with farther to go; and a robot '
+                  'on its way aims beside a neighbour standing on it. '
+                  'false = none of these.'),
     # Right of way (`prvo_planner.right_of_way`): at a passage too narrow for two, found on the
     # map, robots take turns by one rule from what all publish; off, they meet in it (ablation).
     ParameterSpec('right_of_way', BOOL, True, 'With a map, robots take turns at passages too '
