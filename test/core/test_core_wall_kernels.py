@@ -14,11 +14,16 @@ import numpy as np
 import pytest
 from scipy.stats import norm
 
-from prvo_planner.core import AgentBelief, PlannerConfig
+from prvo_planner.core import AgentBelief, PlannerConfig, wall_kernels
 from prvo_planner.core.obstacles import StaticObstacles
 from prvo_planner.core.special_kernels import erfcx
 from prvo_planner.core.wall_kernels import crossing_bounds, line_speeds
-from prvo_planner.core.walls import obstacle_probability, rejected_intervals, wall_model
+from prvo_planner.core.walls import (
+    cut_by_walls,
+    obstacle_probability,
+    rejected_intervals,
+    wall_model,
+)
 
 mpmath.mp.dps = 50
 
@@ -98,11 +103,9 @@ def test_the_largest_accepted_speed_is_the_bound_s_root(seed):
     mean0, std0, walk, horizon = conditions(rng, count)
     risks = rng.choice([0.2, 0.05, 1e-3, 1e-6], count)
     # The planner's bracket: the first term's thresholds at half the risk and at the risk.
-    spread = np.sqrt(std0 * std0 + walk * horizon)
     quantile = np.vectorize(lambda p: float(-mpmath.sqrt(2) * mpmath.erfinv(1 - 2 * p)))
-    low = np.maximum(mean0 + quantile(0.5 * risks) * spread, 0.0) / horizon
-    high = np.maximum(mean0 + quantile(risks) * spread, 0.0) / horizon
-    still, approach = line_speeds(mean0, std0, walk, horizon, risks, low, high)
+    still, approach = line_speeds(mean0, std0, walk, horizon, risks, quantile(0.5 * risks),
+                                  quantile(risks))
     for index in range(count):
         arguments = mean0[index], std0[index], walk[index], horizon
         exact_still = exact_bound(*arguments, 0.0)
@@ -344,3 +347,74 @@ def test_the_probability_certified_is_the_best_decomposition_of_every_shape(seed
                 risks.append(best)
             expected = min(max(1.0 - float(max(risks, default=0.0)), 0.0), 1.0)
             assert obstacle_probability(model, velocity) == pytest.approx(expected, abs=1e-12)
+
+
+def test_the_walls_cut_keeps_the_points_feasible_and_rejected_by_no_shape():
+    rng = np.random.default_rng(11)
+    rays, shapes, first_ray = 9, 7, 5
+    gap_ray, lower, upper = [], [], []
+    for ray in range(rays):
+        # 0-3 disjoint closed intervals of [0, 1], two of them touching on ray 0.
+        cuts = np.sort(rng.uniform(0.0, 1.0, 2 * rng.integers(0, 4)))
+        if ray == 0:
+            cuts = np.array([0.1, 0.4, 0.4, 0.7])
+        for start, stop in cuts.reshape(-1, 2):
+            gap_ray.append(first_ray + ray)
+            lower.append(start)
+            upper.append(stop)
+    gap_ray, lower, upper = np.array(gap_ray), np.array(lower), np.array(upper)
+    # Open intervals (upper, lower): some empty, some beyond [0, 1], some sharing an end.
+    wall_upper = rng.uniform(-0.5, 1.2, (shapes, rays))
+    wall_lower = wall_upper + rng.uniform(-0.2, 0.5, (shapes, rays))
+    wall_upper[0, 0], wall_lower[0, 0] = 0.4, 0.55
+    wall_upper[1, 0], wall_lower[1, 0] = 0.55, 0.6
+    wall_lower[2:, 0] = wall_upper[2:, 0] - 0.1
+    ray, kept_lower, kept_upper = cut_by_walls(gap_ray, lower, upper, first_ray,
+                                               (wall_upper, wall_lower))
+    assert np.all(kept_lower < kept_upper)
+    order = np.lexsort((kept_lower, ray))
+    assert np.array_equal(order, np.arange(ray.size))
+    points = np.linspace(0.0, 1.0, 4001) + 1e-7 * math.pi
+    for local in range(rays):
+        own = gap_ray == first_ray + local
+        feasible = np.any((lower[own, None] <= points) & (points <= upper[own, None]), axis=0)
+        rejected = np.any((wall_upper[:, local, None] < points)
+                          & (points < wall_lower[:, local, None]), axis=0)
+        mine = ray == first_ray + local
+        kept = np.any((kept_lower[mine, None] <= points) & (points <= kept_upper[mine, None]),
+                      axis=0)
+        assert np.array_equal(kept, feasible & ~rejected)
+        # Every end is a feasible interval's end or a rejected interval's end.
+        ends = np.concatenate([lower[own], upper[own], wall_upper[:, local],
+                               wall_lower[:, local]])
+        assert np.all(np.isin(np.concatenate([kept_lower[mine], kept_upper[mine]]), ends))
+    # Ray 0's touching intervals stay apart; two rejected intervals sharing an end leave no
+    # piece of no length between them.
+    assert np.array_equal(kept_lower[ray == first_ray], [0.1, 0.6])
+    assert np.array_equal(kept_upper[ray == first_ray], [0.4, 0.7])
+
+
+def test_the_line_spreads_are_the_quadratic_forms_of_their_normals():
+    rng = np.random.default_rng(3)
+    angles = rng.uniform(-math.pi, math.pi, 30)
+    normals = np.stack([np.cos(angles), np.sin(angles)], axis=1)
+    away = normals[:7][::-1].copy()
+    factor = rng.normal(size=(2, 2))
+    position_cov = factor @ factor.T
+    actuation_cov = np.diag([0.04, 0.01])
+    risks = np.concatenate([[0.0, 2.0], rng.uniform(0.0, 0.1, 28)])
+    std0, walk, solved, thresholds = wall_kernels.line_spreads(
+        normals, away, position_cov, actuation_cov, 0.1, risks, 1.6448536269514722)
+    for index, angle in enumerate(angles):
+        # n' S n as the variance of n . x, with n = (cos a, sin a).
+        c, s = math.cos(angle), math.sin(angle)
+        across = (c * c * position_cov[0, 0] + s * s * position_cov[1, 1]
+                  + 2.0 * c * s * position_cov[0, 1])
+        assert std0[index] == pytest.approx(math.sqrt(across), rel=1e-12)
+        assert walk[index] == pytest.approx(0.1 * (0.04 * c * c + 0.01 * s * s), rel=1e-12)
+    assert solved[0] == 1e-300 and solved[1] == 1.0
+    assert np.array_equal(solved[2:], risks[2:])
+    for index, normal in enumerate(away):
+        assert thresholds[index] == pytest.approx(
+            1.6448536269514722 * math.sqrt(0.04 * normal[0] ** 2 + 0.01 * normal[1] ** 2),
+            rel=1e-12)

@@ -90,40 +90,42 @@ def choice_costs(velocities, v_pref, previous, config):
     return CostTerms.of_plan(v_pref, previous, config).costs(velocities)
 
 
-def best_speeds(directions, lower, upper, preferred, terms, max_speed, robot):
+def cheapest_velocities(gap_ray, lower, upper, directions, rows, terms, max_speed):
     """
-    Best ``t`` in ``[lower, upper]`` on each ray ``t v_max e``, shape (G,).
+    Per plan the cheapest velocity over its feasible intervals, and its rays with one.
 
-    Under the plain cost it is the preferred ``t`` projected onto the interval. The extra terms
-    of :class:`CostTerms` keep the cost convex along the ray, so its minimum lies within a
-    cell of the best point of a grid; zooming a grid onto those two cells a few times finds it
-    (the interval ends and the plain optimum are candidates too: a flat or kinked minimum).
-    Only intervals that can hold their plan's optimum are searched; the others keep the
-    projected ``t``, whose cost cannot be the smallest. Compiled
-    (:func:`.choice_kernels.best_speeds`).
+    Each interval's best ``t`` (kept :data:`INTERIOR` inside it) is the preferred ``t``
+    projected onto it under the plain cost; the extra terms of :class:`CostTerms` keep the cost
+    convex along the ray, so a grid zoomed onto the best point's cells finds it (the interval
+    ends and the projection are candidates too), searched only on intervals that can hold their
+    plan's optimum. A plan takes its first interval of the smallest cost. Compiled
+    (:func:`.choice_kernels.cheapest_velocities`).
 
     Parameters
     ----------
+    gap_ray, lower, upper : numpy.ndarray
+        Feasible intervals (ray, lower, upper), shape (G,), grouped by plan.
     directions : numpy.ndarray
-        Ray directions, shape (G, 2).
-    lower, upper, preferred : numpy.ndarray
-        Interval ends and preferred ``t``, shape (G,).
+        Every ray's direction, shape (R, 2).
+    rows : RayRows
+        Each ray's plan (``ray_robot``), index among its plan's (``ray_local``) and preferred
+        ``t`` (``preferred``).
     terms : CostTerms
-        One row per interval (G rows).
+        One row per plan (P rows).
     max_speed : numpy.ndarray
-        ``v_max`` per interval, shape (G,).
-    robot : numpy.ndarray
-        Plan of each interval, non-decreasing, shape (G,).
+        ``v_max`` per plan, shape (P,).
+
+    Returns
+    -------
+    feasible_rays, direction, t : numpy.ndarray
+        Per plan its rays with a feasible interval, the chosen direction's index among its own
+        (-1: none) and ``t``, shape (P,) each.
 
     """
-    from .choice_kernels import best_speeds as compiled
+    from .choice_kernels import cheapest_velocities as compiled
 
-    return compiled(np.ascontiguousarray(directions, dtype=np.float64),
-                    *(np.ascontiguousarray(values, dtype=np.float64)
-                      for values in (lower, upper, preferred)),
-                    terms.table, terms.extra,
-                    np.ascontiguousarray(max_speed, dtype=np.float64),
-                    np.ascontiguousarray(robot, dtype=np.int64))
+    return compiled(gap_ray, lower, upper, directions, rows.ray_robot, rows.ray_local,
+                    rows.preferred, terms.table, terms.extra, max_speed, INTERIOR)
 
 
 def speed_grid(directions, preferred, v_pref, previous, config):

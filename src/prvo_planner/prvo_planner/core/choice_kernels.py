@@ -1,7 +1,7 @@
 """
 The choice cost and the best speed on each feasible interval, compiled (:mod:`.choice`).
 
-Two numba functions, each compiled for one signature when this module is first imported
+Four numba functions, each compiled for one signature when this module is first imported
 (:mod:`.choice` imports it on its first cost; the planner's warm-up makes that call before the
 node spins) and kept in numba's on-disk cache, as the ray search, the moments, the certificate
 and the walls are (``./run.sh setup`` compiles every kernel module once after installing):
@@ -9,7 +9,11 @@ and the walls are (``./run.sh setup`` compiles every kernel module once after in
 * :func:`choice_costs`, the cost of velocities, one row of cost terms per velocity;
 * :func:`best_speeds`, the cheapest ``t`` on each interval of a ray ``t v_max e``: the
   projection of the preferred ``t``, a bound per plan, and a zoomed grid on the intervals that
-  may hold their plan's optimum.
+  may hold their plan's optimum;
+* :func:`cheapest_velocities`, per plan the cheapest velocity over its feasible intervals
+  (:func:`best_speeds` on each, then the first of the smallest cost) and its number of rays
+  with a feasible interval;
+* :func:`search_margins`, the margins the certified plan searches each link with.
 
 Both use one formula, :func:`_cost`. A row of cost terms holds, in this order, ``v_pref``
 (2), ``previous`` (2), ``inertia``, ``bias``, ``progress`` and ``norm`` (:class:`.CostTerms`).
@@ -33,6 +37,13 @@ _COSTS_SIGNATURE = types.float64[::1](READ_ONLY_ROWS, READ_ONLY_ROWS)
 _BEST_SIGNATURE = types.float64[::1](
     READ_ONLY_ROWS, READ_ONLY_VECTOR, READ_ONLY_VECTOR, READ_ONLY_VECTOR, READ_ONLY_ROWS,
     READ_ONLY_FLAGS, READ_ONLY_VECTOR, READ_ONLY_INDICES)
+_CHEAPEST_SIGNATURE = types.Tuple((types.int64[::1], types.int64[::1], types.float64[::1]))(
+    READ_ONLY_INDICES, READ_ONLY_VECTOR, READ_ONLY_VECTOR, READ_ONLY_ROWS, READ_ONLY_INDICES,
+    READ_ONLY_INDICES, READ_ONLY_VECTOR, READ_ONLY_ROWS, READ_ONLY_FLAGS, READ_ONLY_VECTOR,
+    types.float64)
+_MARGINS_SIGNATURE = types.float64[:, ::1](
+    READ_ONLY_ROWS, READ_ONLY_INDICES, READ_ONLY_INDICES, READ_ONLY_ROWS, READ_ONLY_FLAGS,
+    types.int64, types.boolean)
 
 
 @jit(inline='always')
@@ -163,3 +174,109 @@ def best_speeds(directions, lower, upper, preferred, terms, extra, max_speed, ro
                     lower[row], upper[row], best[row], terms[row])
         start = stop
     return best
+
+
+@jit(_CHEAPEST_SIGNATURE)
+def cheapest_velocities(gap_ray, lower, upper, directions, ray_robot, ray_local, preferred,
+                        terms, extra, max_speed, interior):
+    """
+    Per plan, its cheapest velocity over its feasible intervals.
+
+    Each interval, shrunk by ``min(interior, half its length)`` at each end, gets its best
+    ``t`` (:func:`best_speeds`); a plan's choice is its first interval of the smallest cost
+    (NaN costs last).
+
+    Parameters
+    ----------
+    gap_ray, lower, upper : numpy.ndarray
+        Feasible intervals (ray, lower, upper), shape (G,), grouped by plan.
+    directions : numpy.ndarray
+        Every ray's direction, shape (R, 2).
+    ray_robot, ray_local : numpy.ndarray
+        Each ray's plan and index among its plan's directions, shape (R,).
+    preferred : numpy.ndarray
+        Preferred ``t`` per ray, shape (R,).
+    terms, extra, max_speed : numpy.ndarray
+        Per plan its cost terms (P, 8), whether any term besides ``|v - v_pref|`` is on (P,)
+        and ``v_max`` (P,).
+    interior : float
+        How far inside an interval a chosen ``t`` stays.
+
+    Returns
+    -------
+    feasible_rays : numpy.ndarray
+        Per plan, how many of its rays have a feasible interval, shape (P,).
+    direction, t : numpy.ndarray
+        Per plan the chosen direction's index among its own and ``t``, shape (P,) each
+        (-1 and NaN for a plan without an interval).
+
+    """
+    plans = terms.shape[0]
+    count = gap_ray.shape[0]
+    feasible_rays = np.zeros(plans, dtype=np.int64)
+    seen = np.zeros(ray_robot.shape[0], dtype=np.bool_)
+    gap_directions = np.empty((count, 2))
+    inner_lower = np.empty(count)
+    inner_upper = np.empty(count)
+    gap_preferred = np.empty(count)
+    gap_terms = np.empty((count, TERM_COLUMNS))
+    gap_extra = np.empty(count, dtype=np.bool_)
+    gap_speed = np.empty(count)
+    gap_robot = np.empty(count, dtype=np.int64)
+    for gap in range(count):
+        ray = gap_ray[gap]
+        robot = ray_robot[ray]
+        if not seen[ray]:
+            seen[ray] = True
+            feasible_rays[robot] += 1
+        inset = min(interior, 0.5 * (upper[gap] - lower[gap]))
+        inner_lower[gap] = lower[gap] + inset
+        inner_upper[gap] = upper[gap] - inset
+        gap_directions[gap, 0] = directions[ray, 0]
+        gap_directions[gap, 1] = directions[ray, 1]
+        gap_preferred[gap] = preferred[ray]
+        gap_terms[gap] = terms[robot]
+        gap_extra[gap] = extra[robot]
+        gap_speed[gap] = max_speed[robot]
+        gap_robot[gap] = robot
+    best_t = best_speeds(gap_directions, inner_lower, inner_upper, gap_preferred, gap_terms,
+                         gap_extra, gap_speed, gap_robot)
+    direction = np.full(plans, -1, dtype=np.int64)
+    chosen_t = np.full(plans, np.nan)
+    chosen_cost = np.full(plans, np.nan)
+    for gap in range(count):
+        robot = gap_robot[gap]
+        speed = gap_speed[gap] * best_t[gap]
+        cost = _cost(speed * gap_directions[gap, 0], speed * gap_directions[gap, 1],
+                     terms[robot])
+        best_cost = chosen_cost[robot]
+        if direction[robot] < 0 or cost < best_cost or (np.isnan(best_cost)
+                                                        and not np.isnan(cost)):
+            direction[robot] = ray_local[gap_ray[gap]]
+            chosen_t[robot] = best_t[gap]
+            chosen_cost[robot] = cost
+    return feasible_rays, direction, chosen_t
+
+
+@jit(_MARGINS_SIGNATURE)
+def search_margins(cantelli, link_pair, pair_robot, robot_margins, gated, columns, horizon):
+    """
+    Return the margins (L, C) a certified plan searches its links with, from CANTELLI's (L, C).
+
+    The first COLUMNS (``f``, and ``g`` with a receding condition) take their robot's search
+    margin, ``robot_margins[:, 0]``; with a HORIZON, the last three (``h1, h2, h3``) of the
+    neighbours whose gate counts (GATED, per pair) take its horizon search margin,
+    ``robot_margins[:, 1]``. LINK_PAIR is each link's neighbour, PAIR_ROBOT each neighbour's
+    robot.
+    """
+    margins = cantelli.copy()
+    last = cantelli.shape[1]
+    for link in range(cantelli.shape[0]):
+        pair = link_pair[link]
+        robot = pair_robot[pair]
+        for column in range(columns):
+            margins[link, column] = robot_margins[robot, 0]
+        if horizon and gated[pair]:
+            for column in range(last - 3, last):
+                margins[link, column] = robot_margins[robot, 1]
+    return margins

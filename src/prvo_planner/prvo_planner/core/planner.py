@@ -17,6 +17,7 @@ chosen velocity is certified per neighbour (``certificate``; docs/method.md, sec
 """
 
 from dataclasses import dataclass, replace
+from functools import lru_cache
 import math
 
 import numpy as np
@@ -24,9 +25,8 @@ import numpy as np
 from .beliefs import AgentBelief, as_finite_array
 from .certificate import condition_bound, horizon_search_margin, search_margin
 from .choice import (
-    INTERIOR,
     CostTerms,
-    best_speeds,
+    cheapest_velocities,
     fallback_index,
     fallback_measures,
     ranking_radius,
@@ -333,15 +333,19 @@ def _wall_only_plan(plan):
     rays = plan.directions.shape[0]
     lower, upper = (np.zeros(rays), np.ones(rays)) if plan.allowed is None else plan.allowed
     reachable = lower <= upper
-    gap_ray, lower, upper = _cut_by_walls(plan, 0, np.flatnonzero(reachable),
-                                          lower[reachable], upper[reachable])
+    gap_ray, lower, upper = cut_by_walls(np.flatnonzero(reachable), lower[reachable],
+                                         upper[reachable], 0, plan.wall_rejected)
     candidates_feasible = int(np.unique(gap_ray).size)
     if candidates_feasible:
         rows = RayRows(means=np.zeros((0, 1, 3)), variances=np.zeros((0, 1, 5)),
                        margins=np.zeros((0, 1)), link_ray=np.zeros(0, dtype=int),
                        link_enabled=np.zeros(0, dtype=bool), ray_local=np.arange(rays),
                        ray_robot=np.zeros(rays, dtype=int), preferred=plan.preferred)
-        direction_index, t = _choose_on_gaps([plan], rows, gap_ray, lower, upper)[0]
+        _, direction, chosen_t = cheapest_velocities(
+            gap_ray, lower, upper, plan.directions, rows,
+            CostTerms.of_plan(plan.v_pref, plan.previous, plan.config),
+            np.array([plan.config.max_speed]))
+        direction_index, t = int(direction[0]), chosen_t[0]
     else:
         speeds, costs = (speed_grid(plan.directions, plan.preferred, plan.v_pref, plan.previous,
                                     plan.config) if plan.allowed is None
@@ -353,27 +357,23 @@ def _wall_only_plan(plan):
                    candidates_feasible, empty, empty, np.zeros(0, dtype=bool))
 
 
-def _cut_by_walls(plan, first_ray, gap_ray, lower, upper):
-    """PLAN's feasible intervals (rays numbered from FIRST_RAY) minus its walls' rejections."""
-    wall_upper, wall_lower = plan.wall_rejected
-    wall_ray = np.broadcast_to(first_ray + np.arange(wall_upper.shape[1]), wall_upper.shape)
-    return cut_by_walls(gap_ray, lower, upper, wall_ray.ravel(), wall_upper.ravel(),
-                        wall_lower.ravel())
-
-
-def _wall_gaps(plans, ray_starts, gap_ray, lower, upper):
-    """Cut the feasible intervals of every robot with walls by them; keep the others'."""
+def _wall_gaps(search, gap_ray, lower, upper):
+    """Cut the feasible intervals (sorted by ray) of every robot with walls by its walls."""
+    plans = search.plans
+    if len(plans) == 1:
+        if plans[0].walls is None:
+            return gap_ray, lower, upper
+        return cut_by_walls(gap_ray, lower, upper, 0, plans[0].wall_rejected)
     if all(plan.walls is None for plan in plans):
         return gap_ray, lower, upper
-    robots = np.searchsorted(ray_starts, gap_ray, side='right') - 1
+    # Each robot's intervals are a run of the sorted rays.
+    bounds = np.searchsorted(gap_ray, np.append(search.ray_starts, search.directions.shape[0]))
     pieces = []
     for robot, plan in enumerate(plans):
-        own = robots == robot
-        if plan.walls is None:
-            pieces.append((gap_ray[own], lower[own], upper[own]))
-        else:
-            pieces.append(_cut_by_walls(plan, ray_starts[robot], gap_ray[own], lower[own],
-                                        upper[own]))
+        own = slice(bounds[robot], bounds[robot + 1])
+        pieces.append((gap_ray[own], lower[own], upper[own]) if plan.walls is None
+                      else cut_by_walls(gap_ray[own], lower[own], upper[own],
+                                        int(search.ray_starts[robot]), plan.wall_rejected))
     return tuple(np.concatenate(values) for values in zip(*pieces, strict=True))
 
 
@@ -404,6 +404,9 @@ class _Search:
     link_pair: np.ndarray
     pair_robot: np.ndarray
     pair_horizons: float | np.ndarray
+    # Each robot's choice cost (one row per robot) and v_max, (R,).
+    terms: CostTerms
+    max_speed: np.ndarray
 
 
 @dataclass(frozen=True)
@@ -474,10 +477,14 @@ def _ray_search(plans):
         means=means.transpose(1, 2, 0), variances=variances.transpose(1, 2, 0),
         margins=margins, link_ray=link_ray, link_enabled=link_enabled, ray_local=ray_local,
         ray_robot=ray_robot, preferred=_joined([plan.preferred for plan in plans]))
+    terms = [CostTerms.of_plan(plan.v_pref, plan.previous, plan.config) for plan in plans]
     return _Search(plans=plans, rows=rows, means=means, variances=variances,
                    directions=directions, pair_counts=pair_counts, pair_starts=pair_starts,
                    ray_starts=ray_starts, ray_counts=ray_counts, link_starts=link_starts,
-                   link_pair=link_pair, pair_robot=pair_robot, pair_horizons=pair_horizons)
+                   link_pair=link_pair, pair_robot=pair_robot, pair_horizons=pair_horizons,
+                   terms=terms[0] if len(terms) == 1 else CostTerms.stacked(
+                       terms, np.arange(len(terms))),
+                   max_speed=np.array([plan.config.max_speed for plan in plans]))
 
 
 def _choose(search, margins):
@@ -485,26 +492,20 @@ def _choose(search, margins):
     plans, directions, ray_starts = search.plans, search.directions, search.ray_starts
     first = plans[0]
     rows = replace(search.rows, margins=margins)
-    robots = len(plans)
-    gap_ray, lower, upper = _wall_gaps(plans, ray_starts, *_allowed_gaps(
+    gap_ray, lower, upper = _wall_gaps(search, *_allowed_gaps(
         plans, *team_ray_gaps(rows, first.layout, first.config.method, first.deterministic)))
-    feasible_rays = np.bincount(gap_ray, minlength=directions.shape[0]) > 0
-    candidates_feasible = np.add.reduceat(feasible_rays.astype(int), ray_starts)
-    chosen = _choose_on_gaps(plans, rows, gap_ray, lower, upper)
-    direction_index = np.empty(robots, dtype=int)
-    chosen_t = np.empty(robots)
-    for robot, plan in enumerate(plans):
-        if candidates_feasible[robot]:
-            direction_index[robot], chosen_t[robot] = chosen[robot]
-            continue
+    candidates_feasible, direction_index, chosen_t = cheapest_velocities(
+        gap_ray, lower, upper, directions, rows, search.terms, search.max_speed)
+    for robot in np.flatnonzero(candidates_feasible == 0):
+        plan = plans[robot]
         # Under limits only reachable (and trackable) speeds are candidates.
         speeds, costs = (speed_grid(plan.directions, plan.preferred, plan.v_pref, plan.previous,
                                     plan.config) if plan.allowed is None
                          else allowed_speed_grid(plan, *plan.allowed))
         direction_index[robot], speed_index = _fallback_choice(plan, speeds, costs)
         chosen_t[robot] = speeds[direction_index[robot], speed_index]
-    max_speed = np.array([plan.config.max_speed for plan in plans])
-    velocities = (max_speed * chosen_t)[:, None] * directions[ray_starts + direction_index]
+    velocities = (search.max_speed * chosen_t)[:, None] * directions[ray_starts
+                                                                     + direction_index]
     # Per neighbour of every robot: its link on the robot's chosen direction.
     pair_robot, ray_counts = search.pair_robot, search.ray_counts
     chosen_links = (search.link_starts[pair_robot] + direction_index[pair_robot]
@@ -669,6 +670,12 @@ def _certify(search, choice, required, robots, anchors=None):
     return replace(choice, bounds=bounds, certified=certified)
 
 
+@lru_cache(maxsize=64)
+def _search_margins(eta):
+    """Return the search margins of the f and g conditions and of the horizon pair for ETA."""
+    return float(search_margin(eta)), float(horizon_search_margin(eta))
+
+
 def _certified_choice(search):
     """
     Choose velocities that meet each neighbour's probability by a stated bound (section 13).
@@ -681,16 +688,18 @@ def _certified_choice(search):
     on those neighbours' links; after a second shortfall, with Cantelli's margins everywhere.
     A robot without a feasible velocity keeps its fallback: larger margins accept no more.
     """
+    from .choice_kernels import search_margins
+
     plans, pair_robot, link_pair = search.plans, search.pair_robot, search.link_pair
     cantelli = search.rows.margins
-    required = np.array([plan.encounter.eta for plan in plans])[pair_robot]
-    columns = 1 + plans[0].layout.has_receding
-    margins = cantelli.copy()
-    margins[:, :columns] = search_margin(required)[link_pair, None]
-    if plans[0].layout.has_horizon:
-        gated = np.concatenate([plan.layout.receding_enabled for plan in plans])[link_pair]
-        # The reach condition h3 implies the horizon certificate's event, which certifies it.
-        margins[gated, -3:] = horizon_search_margin(required)[link_pair[gated], None]
+    etas = [plan.encounter.eta for plan in plans]
+    required = np.array(etas)[pair_robot]
+    layout = plans[0].layout
+    # The reach condition h3 implies the horizon certificate's event, which certifies it.
+    margins = search_margins(cantelli, link_pair, pair_robot,
+                             np.array([_search_margins(eta) for eta in etas]),
+                             _joined([plan.layout.receding_enabled for plan in plans]),
+                             1 + layout.has_receding, layout.has_horizon)
     anchors = _anchors(search)
     choice = _certify(search, _choose(search, margins), required,
                       np.ones(len(plans), dtype=bool), anchors)
@@ -770,29 +779,6 @@ def _allowed_gaps(plans, gap_ray, lower, upper):
     upper = np.minimum(upper, allowed_upper[gap_ray])
     kept = lower <= upper
     return gap_ray[kept], lower[kept], upper[kept]
-
-
-def _choose_on_gaps(plans, rows, gap_ray, lower, upper):
-    """Per robot with a feasible interval: (direction index, t) of the cheapest velocity."""
-    if not gap_ray.size:
-        return {}
-    gap_robot = rows.ray_robot[gap_ray]
-    terms = [CostTerms.of_plan(plan.v_pref, plan.previous, plan.config) for plan in plans]
-    stacked = CostTerms.stacked(terms, gap_robot)
-    max_speed = np.array([plan.config.max_speed for plan in plans])[gap_robot]
-    directions = np.concatenate([plan.directions for plan in plans])[gap_ray]
-    # The best speed on a ray within one interval (the preferred one, projected, under the
-    # plain cost).
-    inset = np.minimum(INTERIOR, 0.5 * (upper - lower))
-    best_t = best_speeds(directions, lower + inset, upper - inset, rows.preferred[gap_ray],
-                         stacked, max_speed, gap_robot)
-    candidates = max_speed[:, None] * best_t[:, None] * directions
-    costs = stacked.costs(candidates)
-    # The first cheapest interval of each robot (argmin's tie rule).
-    order = np.lexsort((costs, gap_robot))
-    firsts = order[np.flatnonzero(np.diff(gap_robot[order], prepend=-1))]
-    return {int(gap_robot[best]): (int(rows.ray_local[gap_ray[best]]), best_t[best])
-            for best in firsts}
 
 
 def _fallback_choice(plan, speeds, costs):

@@ -32,10 +32,12 @@ def eta_from_k(k):
             raise ValueError(f'k must be >= 0, got {k!r}')
         return 1.0 if k >= _CERTAIN_K else k * k / (1.0 + k * k)
     k = np.asarray(k, dtype=float)
-    if np.any(np.isnan(k)) or np.any(k < 0.0):
+    if not np.all(k >= 0.0):
         raise ValueError(f'k must be >= 0, got {k.tolist()!r}')
-    with np.errstate(over='ignore', invalid='ignore'):
-        eta = np.where(k >= _CERTAIN_K, 1.0, k ** 2 / (1.0 + k ** 2))
+    # Below _CERTAIN_K the square cannot overflow: no floating-point state to save and restore.
+    square = np.minimum(k, _CERTAIN_K)
+    square = square * square
+    eta = np.where(k >= _CERTAIN_K, 1.0, square / (1.0 + square))
     return float(eta) if eta.ndim == 0 else eta
 
 

@@ -3,7 +3,7 @@ The walls' arithmetic compiled (:mod:`.walls`): geometry, crossing bounds, rejec
 
 Everything a plan beside walls computes per shape, per condition or per (condition, ray), which
 numpy did as tens of calls on arrays of a few to a few hundred elements, here in loops of
-scalars. Five functions, compiled for one signature each when this module is first imported
+scalars. Seven functions, compiled for one signature each when this module is first imported
 (:mod:`.walls` imports it on its first model; the planner node's warm-up imports it before
 the node spins) and kept in numba's on-disk cache, as the ray search and the certificate are
 (``./run.sh setup`` compiles all three modules once after installing):
@@ -11,11 +11,14 @@ the node spins) and kept in numba's on-disk cache, as the ray search and the cer
 * :func:`wall_geometry`: the shapes within reach of the horizon and their linear conditions
   (each near wall's support line, rectangle sides and end fans, each near disc's fan), with
   the risk each is planned with;
+* :func:`line_spreads`: each condition's spreads (of the position across its line now, of the
+  walk per period) and the risk it is solved at, with the thresholds of moving away;
 * :func:`line_speeds`: each condition's bound standing still and the largest speed towards its
   line it accepts (regula falsi on the reflection principle's bound);
 * :func:`crossing_bounds`: the reflection principle's bound of each condition at given speeds;
 * :func:`largest_failure`: the largest failure bound over the shapes at a velocity;
-* :func:`rejected_intervals`: the open intervals of each ray that each shape rejects.
+* :func:`rejected_intervals`: the open intervals of each ray that each shape rejects;
+* :func:`cut_by_walls`: the feasible intervals of a plan's rays minus those rejected ones.
 
 ``Phi`` and ``erfcx`` are :mod:`.special_kernels`' (scipy's ufuncs cannot be called from numba):
 ``Phi`` within 2e-14 of scipy's, ``erfcx`` within a few ulps, so a bound moves by rounding only.
@@ -26,7 +29,13 @@ import math
 from numba import types
 import numpy as np
 
-from .ray_solver import READ_ONLY_CUBE, READ_ONLY_ROWS, READ_ONLY_VECTOR, jit
+from .ray_solver import (
+    READ_ONLY_CUBE,
+    READ_ONLY_INDICES,
+    READ_ONLY_ROWS,
+    READ_ONLY_VECTOR,
+    jit,
+)
 from .special_kernels import erfcx, ndtr
 from .walls import FAN, FAN_HALF, PER_WALL, REACH_SHARE
 
@@ -41,6 +50,9 @@ _ROWS = types.float64[:, ::1]
 _BOUNDS_SIGNATURE = _VECTOR(_VECTOR, _VECTOR, _VECTOR, types.float64, _VECTOR)
 _SPEEDS_SIGNATURE = types.Tuple((_VECTOR, _VECTOR))(
     _VECTOR, _VECTOR, _VECTOR, types.float64, _VECTOR, _VECTOR, _VECTOR)
+_SPREADS_SIGNATURE = types.Tuple((_VECTOR, _VECTOR, _VECTOR, _VECTOR))(
+    READ_ONLY_ROWS, READ_ONLY_ROWS, READ_ONLY_ROWS, READ_ONLY_ROWS, types.float64,
+    READ_ONLY_VECTOR, types.float64)
 _FAILURE_SIGNATURE = types.float64(
     _ROWS, _VECTOR, _VECTOR, _VECTOR, types.float64, _VECTOR, _VECTOR, types.float64[:, :, ::1],
     _VECTOR, types.boolean[:, ::1], _ROWS, _ROWS, _VECTOR, _VECTOR, _ROWS, _ROWS)
@@ -56,6 +68,9 @@ _REJECTED_SIGNATURE = types.Tuple((_ROWS, _ROWS))(
     _ROWS, _VECTOR, _VECTOR, _ROWS, types.float64, _VECTOR, types.float64[:, :, ::1], _VECTOR,
     types.boolean[:, ::1], _ROWS, _VECTOR, types.boolean[::1], _ROWS, _VECTOR, _ROWS, _ROWS,
     types.float64)
+_CUT_SIGNATURE = types.Tuple((_INDICES, _VECTOR, _VECTOR))(
+    READ_ONLY_INDICES, READ_ONLY_VECTOR, READ_ONLY_VECTOR, types.int64, READ_ONLY_ROWS,
+    READ_ONLY_ROWS)
 
 
 @jit(inline='always')
@@ -126,17 +141,77 @@ def crossing_bounds(mean0, std0, walk, horizon, approach):
     return bounds
 
 
+@jit(inline='always')
+def _at_least_zero(value):
+    """``max(value, 0)`` as numpy's ``maximum``: NaN and -0.0 kept."""
+    return 0.0 if value < 0.0 else value
+
+
+@jit(_SPREADS_SIGNATURE)
+def line_spreads(normals, away_normals, position_cov, actuation_cov, period, risks, quantile):
+    """
+    Return each condition's spreads and solved risk, and the thresholds of moving away.
+
+    Parameters
+    ----------
+    normals : numpy.ndarray
+        The conditions' normals ``n``, shape (K, 2).
+    away_normals : numpy.ndarray
+        Per near shape the normal of moving away, shape (S, 2).
+    position_cov, actuation_cov : numpy.ndarray
+        ``S_p`` and ``S_a``, shape (2, 2).
+    period : float
+        The control period ``T`` [s].
+    risks : numpy.ndarray
+        The risk each condition is planned with, shape (K,).
+    quantile : float
+        ``Phi^-1(eta)``.
+
+    Returns
+    -------
+    std0, walk, solved : numpy.ndarray
+        ``sqrt(n' S_p n)``, ``T n' S_a n`` and the risk clipped to ``[1e-300, 1]``, shape (K,)
+        each.
+    away : numpy.ndarray
+        ``Phi^-1(eta) sqrt(n' S_a n)`` per away normal, shape (S,).
+
+    """
+    count = normals.shape[0]
+    std0, walk, solved = np.empty(count), np.empty(count), np.empty(count)
+    for index in range(count):
+        x, y = normals[index, 0], normals[index, 1]
+        std0[index] = np.sqrt(_at_least_zero(position_cov[0, 0] * x * x
+                                              + 2.0 * position_cov[0, 1] * x * y
+                                              + position_cov[1, 1] * y * y))
+        walk[index] = period * _at_least_zero(actuation_cov[0, 0] * x * x
+                                              + 2.0 * actuation_cov[0, 1] * x * y
+                                              + actuation_cov[1, 1] * y * y)
+        risk = risks[index]
+        risk = 1e-300 if risk < 1e-300 else risk
+        solved[index] = 1.0 if risk > 1.0 else risk
+    away = np.empty(away_normals.shape[0])
+    for index in range(away.shape[0]):
+        x, y = away_normals[index, 0], away_normals[index, 1]
+        away[index] = quantile * np.sqrt(_at_least_zero(actuation_cov[0, 0] * x * x
+                                                        + 2.0 * actuation_cov[0, 1] * x * y
+                                                        + actuation_cov[1, 1] * y * y))
+    return std0, walk, solved, away
+
+
 @jit(_SPEEDS_SIGNATURE)
-def line_speeds(mean0, std0, walk, horizon, risks, low, high):
+def line_speeds(mean0, std0, walk, horizon, risks, low_quantiles, high_quantiles):
     """
     Return each condition's bound standing still and the largest speed towards it accepted.
 
-    The bound rises with the speed towards the line. Where it stands still below the risk and
-    the bracket ``[low, high]`` is not empty (``bound(low) <= risk <= bound(high)``, from the
-    first term's thresholds), regula falsi with the Illinois rule narrows it for
-    ``_FALSI_STEPS`` steps, from below: the answer is always a speed where the bound holds
-    (``low`` at worst). The end kept twice in a row has its value halved, so that both ends
-    move.
+    The bound rises with the speed towards the line. The reflected term is at most the first
+    (Mills' ratio falls and ``u >= (m0 - a tau) / S``), so the bound lies between the first term
+    and twice it: the speed lies between the first term's thresholds at half the risk
+    (accepted) and at the risk (not), ``low, high = max(m0 + q S, 0) / tau`` with ``q`` the
+    normal quantiles of those risks and ``S = sqrt(s0^2 + walk tau)``. Where the bound standing
+    still is below the risk and the bracket ``[low, high]`` is not empty, regula falsi with the
+    Illinois rule narrows it for ``_FALSI_STEPS`` steps, from below: the answer is always a
+    speed where the bound holds (``low`` at worst). The end kept twice in a row has its value
+    halved, so that both ends move.
 
     Parameters
     ----------
@@ -146,8 +221,8 @@ def line_speeds(mean0, std0, walk, horizon, risks, low, high):
         ``tau`` [s].
     risks : numpy.ndarray
         The risk each condition is planned with, shape (K,).
-    low, high : numpy.ndarray
-        Speeds bracketing the answer, ``0 <= low``, shape (K,).
+    low_quantiles, high_quantiles : numpy.ndarray
+        ``Phi^-1`` of half the risk and of the risk (clipped to ``[1e-300, 1]``), shape (K,).
 
     Returns
     -------
@@ -157,14 +232,17 @@ def line_speeds(mean0, std0, walk, horizon, risks, low, high):
 
     """
     still = mean0.copy()
-    approach = low.copy()
+    approach = mean0.copy()
     for index in range(mean0.size):
         m0, s0, w, limit = mean0[index], std0[index], walk[index], risks[index]
+        spread = np.sqrt(s0 * s0 + w * horizon)
+        lower = _at_least_zero(m0 + low_quantiles[index] * spread) / horizon
+        upper = _at_least_zero(m0 + high_quantiles[index] * spread) / horizon
+        approach[index] = lower
         still[index] = _crossing_bound(m0, s0, w, horizon, 0.0)
         if not still[index] < limit:
             approach[index] = -math.inf
             continue
-        lower, upper = low[index], high[index]
         if not upper > lower:
             continue
         below = _crossing_bound(m0, s0, w, horizon, lower) - limit
@@ -583,3 +661,81 @@ def largest_failure(normals, mean0, std0, walk, horizon, velocity, mean, segment
                                                walk_cov, horizon))
         largest = max(largest, best)
     return largest
+
+
+@jit(_CUT_SIGNATURE)
+def cut_by_walls(gap_ray, lower, upper, first_ray, wall_upper, wall_lower):
+    """
+    Feasible intervals minus the walls' rejected open intervals, sorted by ray and position.
+
+    A point of a ray is kept when it lies in one of the ray's feasible intervals (disjoint,
+    closed) and in no rejected open interval; pieces of no length are dropped. A rejected
+    interval counts where it is not empty and meets ``(0, 1)``.
+
+    Parameters
+    ----------
+    gap_ray, lower, upper : numpy.ndarray
+        Feasible intervals (ray, lower, upper), shape (G,), sorted by ray and position.
+    first_ray : int
+        The ray of the rejected intervals' first column.
+    wall_upper, wall_lower : numpy.ndarray
+        Rejected open intervals ``(upper, lower)`` per shape and ray, shape (K, M): column
+        ``j`` is ray ``first_ray + j``.
+
+    Returns
+    -------
+    ray, lower, upper : numpy.ndarray
+        The remaining intervals, ``lower < upper``.
+
+    """
+    count = gap_ray.shape[0]
+    shapes = wall_upper.shape[0]
+    # Each rejected interval splits at most one piece in two.
+    capacity = count * (shapes + 1)
+    out_ray = np.empty(capacity, dtype=np.int64)
+    out_lower = np.empty(capacity)
+    out_upper = np.empty(capacity)
+    starts = np.empty(shapes)
+    ends = np.empty(shapes)
+    pieces = 0
+    first = 0
+    while first < count:
+        ray = gap_ray[first]
+        stop = first + 1
+        while stop < count and gap_ray[stop] == ray:
+            stop += 1
+        column = ray - first_ray
+        # The ray's rejected intervals that count, by their starts (insertion sort: a few).
+        rejected = 0
+        for shape in range(shapes):
+            start, end = wall_upper[shape, column], wall_lower[shape, column]
+            if start < end and end > 0.0 and start < 1.0:
+                start, end = max(start, -1.0), min(end, 2.0)
+                place = rejected
+                while place > 0 and starts[place - 1] > start:
+                    starts[place], ends[place] = starts[place - 1], ends[place - 1]
+                    place -= 1
+                starts[place], ends[place] = start, end
+                rejected += 1
+        for gap in range(first, stop):
+            position, end = lower[gap], upper[gap]
+            for index in range(rejected):
+                if starts[index] >= end:
+                    break
+                if ends[index] <= position:
+                    continue
+                if starts[index] > position:
+                    out_ray[pieces] = ray
+                    out_lower[pieces] = position
+                    out_upper[pieces] = starts[index]
+                    pieces += 1
+                position = ends[index]
+                if position >= end:
+                    break
+            if position < end:
+                out_ray[pieces] = ray
+                out_lower[pieces] = position
+                out_upper[pieces] = end
+                pieces += 1
+        first = stop
+    return out_ray[:pieces].copy(), out_lower[:pieces].copy(), out_upper[:pieces].copy()

@@ -70,6 +70,7 @@ sweep.
 """
 
 from dataclasses import dataclass
+from functools import lru_cache
 import math
 
 import numpy as np
@@ -87,12 +88,6 @@ PER_WALL = 5 + 2 * FAN
 _RECTANGLE = slice(1, 5)
 _START_FAN = slice(5, 5 + FAN)
 _END_FAN = slice(5 + FAN, 5 + 2 * FAN)
-
-
-def _quadratic_form(normals, cov):
-    """``n' S n`` for normals (..., 2) and a 2x2 covariance S."""
-    x, y = normals[..., 0], normals[..., 1]
-    return cov[0, 0] * x * x + 2.0 * cov[0, 1] * x * y + cov[1, 1] * y * y
 
 
 def _largest_std(cov):
@@ -143,22 +138,19 @@ class LinearConditions:
     approach: np.ndarray
 
     @classmethod
-    def of(cls, normals, offsets, risks, mean, position_cov, actuation_cov, horizon, period):
-        """Return the conditions of NORMALS and OFFSETS for the ego's belief."""
+    def of(cls, normals, offsets, risks, mean, spreads, horizon, period):
+        """
+        Return the conditions of NORMALS and OFFSETS for the ego's mean MEAN.
+
+        SPREADS are :func:`.wall_kernels.line_spreads`' ``std0``, ``walk`` and risks clipped.
+        """
         from .wall_kernels import line_speeds
         mean0 = normals @ mean - offsets
-        std0 = np.sqrt(np.maximum(_quadratic_form(normals, position_cov), 0.0))
-        walk = period * np.maximum(_quadratic_form(normals, actuation_cov), 0.0)
+        std0, walk, risk = spreads
         # A partial last period would move less than the walk: cover it whole.
         horizon = period * math.ceil(horizon / period - 1e-9)
-        # The reflected term is at most the first (Mills' ratio falls and u >= (m0 - a tau) / S),
-        # so the bound lies between the first term and twice it: the largest speed towards the
-        # line lies between first-term thresholds at delta / 2 (accepted) and delta (not).
-        spread = np.sqrt(std0 * std0 + walk * horizon)
-        risk = np.clip(risks, 1e-300, 1.0)
-        low = np.maximum(mean0 + ndtri(0.5 * risk) * spread, 0.0) / horizon
-        high = np.maximum(mean0 + ndtri(risk) * spread, 0.0) / horizon
-        still, approach = line_speeds(mean0, std0, walk, horizon, risks, low, high)
+        still, approach = line_speeds(mean0, std0, walk, horizon, risks, ndtri(0.5 * risk),
+                                      ndtri(risk))
         return cls(normals=normals, mean0=mean0, std0=std0, walk=walk, horizon=horizon,
                    still_risk=still, risks=risks, approach=approach)
 
@@ -221,6 +213,12 @@ class WallModel:
     max_speed: float
     position_cov: np.ndarray
     walk_cov: np.ndarray
+
+
+@lru_cache(maxsize=64)
+def _quantile(eta):
+    """``Phi^-1(eta)``, once per configuration's probability."""
+    return ndtri(eta)
 
 
 def _planning_covariances(ego, config):
@@ -289,12 +287,14 @@ def wall_model(obstacles, ego, config):
     WallModel
 
     """
-    from .wall_kernels import wall_geometry
+    from .wall_kernels import line_spreads, wall_geometry
     mean = ego.position
     eta = config.effective_eta
     delta = 1.0 - eta
     horizon, max_speed = config.obstacle_horizon, config.max_speed
     position_cov, actuation_cov, growth = _planning_covariances(ego, config)
+    position_cov = np.ascontiguousarray(position_cov)
+    actuation_cov = np.ascontiguousarray(actuation_cov)
     spread = _largest_std(position_cov) + horizon * _largest_std(actuation_cov)
     (clearance, far_bounds, walls, discs, wall_radius, wall_distance, disc_radius, disc_distance,
      normals, offsets, risks, end_bounds, in_reach, away_normals) = wall_geometry(
@@ -302,7 +302,10 @@ def wall_model(obstacles, ego, config):
         np.ascontiguousarray(obstacles.frames), obstacles.half_widths, obstacles.disc_centres,
         obstacles.disc_radii, ego.radius + config.safety_margin, growth, spread, horizon,
         max_speed, delta)
-    conditions = LinearConditions.of(normals, offsets, risks, mean, position_cov, actuation_cov,
+    std0, walk, solved, away_thresholds = line_spreads(
+        normals, away_normals, position_cov, actuation_cov, config.control_period, risks,
+        _quantile(eta))
+    conditions = LinearConditions.of(normals, offsets, risks, mean, (std0, walk, solved),
                                      horizon, config.control_period)
     count, still_risk = len(walls), conditions.still_risk
     close = np.concatenate([wall_distance, disc_distance]) <= np.concatenate(
@@ -314,9 +317,8 @@ def wall_model(obstacles, ego, config):
         segments=obstacles.segments[walls], radius=wall_radius, distance=wall_distance,
         centres=obstacles.disc_centres[discs], disc_radius=disc_radius, conditions=conditions,
         end_bounds=end_bounds, end_in_reach=in_reach, close=close, away_normals=away_normals,
-        away_thresholds=ndtri(eta) * np.sqrt(np.maximum(
-            _quadratic_form(away_normals, actuation_cov), 0.0)),
-        horizon=horizon, max_speed=max_speed, position_cov=np.ascontiguousarray(position_cov),
+        away_thresholds=away_thresholds,
+        horizon=horizon, max_speed=max_speed, position_cov=position_cov,
         walk_cov=config.control_period * actuation_cov)
 
 
@@ -353,20 +355,22 @@ def rejected_intervals(model, directions):
                     conditions.horizon)
 
 
-def cut_by_walls(gap_ray, lower, upper, wall_ray, wall_upper, wall_lower):
+def cut_by_walls(gap_ray, lower, upper, first_ray, rejected):
     """
-    Feasible intervals minus the walls' rejected open intervals, in one sorted sweep.
+    Feasible intervals minus the walls' rejected open intervals (compiled).
 
-    The feasible intervals of a ray are disjoint; a point is kept when it lies in one of them
-    and in no rejected interval: with weights 1 for feasible and 2 for rejected intervals, where
-    the running sum is 1.
+    A point is kept when it lies in one of its ray's feasible intervals and in no rejected
+    interval (:func:`.wall_kernels.cut_by_walls`).
 
     Parameters
     ----------
     gap_ray, lower, upper : numpy.ndarray
-        Feasible intervals (ray, lower, upper), shape (G,).
-    wall_ray, wall_upper, wall_lower : numpy.ndarray
-        Rejected intervals (ray, start, end), shape (W,).
+        Feasible intervals (ray, lower, upper), shape (G,), sorted by ray and position.
+    first_ray : int
+        The ray of the rejected intervals' first column.
+    rejected : tuple
+        ``(upper, lower)`` of :func:`rejected_intervals`, shape (K, M) each; column ``j`` is
+        ray ``first_ray + j``.
 
     Returns
     -------
@@ -374,18 +378,8 @@ def cut_by_walls(gap_ray, lower, upper, wall_ray, wall_upper, wall_lower):
         The remaining intervals, ``lower < upper``, sorted by ray and position.
 
     """
-    keep = (wall_upper < wall_lower) & (wall_lower > 0.0) & (wall_upper < 1.0)
-    wall_ray, wall_upper, wall_lower = wall_ray[keep], wall_upper[keep], wall_lower[keep]
-    rays = np.concatenate([gap_ray, gap_ray, wall_ray, wall_ray])
-    points = np.concatenate([lower, upper, np.maximum(wall_upper, -1.0),
-                             np.minimum(wall_lower, 2.0)])
-    steps = np.concatenate([np.ones(gap_ray.size), -np.ones(gap_ray.size),
-                            np.full(wall_ray.size, 2.0), np.full(wall_ray.size, -2.0)])
-    order = np.lexsort((steps, points, rays))
-    rays, points, level = rays[order], points[order], np.cumsum(steps[order])
-    kept = np.flatnonzero(level[:-1] == 1.0)
-    kept = kept[points[kept] < points[kept + 1]]
-    return rays[kept], points[kept], points[kept + 1]
+    from .wall_kernels import cut_by_walls as cut
+    return cut(gap_ray, lower, upper, first_ray, *rejected)
 
 
 def segment_distances(points, starts, ends):
