@@ -204,9 +204,12 @@ def _certificate(mean, cov, radius, across, wedges, shape):
     """Return the :class:`Certificate` of ``f`` (ACROSS) or of ``g`` (compiled)."""
     # Imported, and so loaded or compiled, on the first bound: a process that certifies
     # nothing does not import numba for it.
-    from .certificate_kernels import certificates
+    from .certificate_kernels import condition_bounds
 
-    probability, method = certificates(mean, cov, radius, across, wedges // 2)
+    count = mean.shape[0]
+    probability, method = condition_bounds(mean, cov, radius, np.ones(count),
+                                           np.full(count, not across), math.inf, wedges // 2,
+                                           across)
     return Certificate(probability=probability.reshape(shape),
                        method=np.array(METHODS)[method].reshape(shape))
 
@@ -317,7 +320,7 @@ def condition_bound(mean, cov, radius, required, gated, horizon=None, wedges=DEF
         np.ascontiguousarray(mean, dtype=np.float64), np.ascontiguousarray(cov, dtype=np.float64),
         np.ascontiguousarray(radius, dtype=np.float64),
         np.ascontiguousarray(required, dtype=np.float64), np.ascontiguousarray(gated, dtype=bool),
-        math.inf if horizon is None else float(horizon), wedges // 2)
+        math.inf if horizon is None else float(horizon), wedges // 2, True)[0]
 
 
 def horizon_certificate(mean, cov, radius, horizon):

@@ -1,19 +1,19 @@
 """
 The certificate compiled (:mod:`.certificate`): wedges, masses, the bounds and their choice.
 
-Four numba functions, compiled for one signature each when this module is first imported
+Three numba functions, compiled for one signature each when this module is first imported
 (:mod:`.certificate` imports it on its first bound) and kept in numba's on-disk cache, as the ray
 search is (:mod:`.ray_search`; ``./run.sh setup`` compiles every kernel module once after
 installing):
 
 * :func:`cut_wedges` cuts each entry's directions of ``w`` into wedges and bounds their masses
   from below (steps 4 and 5 of the proof in :mod:`.certificate`'s docstring);
-* :func:`certificates` bounds ``P(f >= 0)`` or ``P(g >= 0)`` of each entry: the exact cases
-  (zero covariance, ``S_ww = 0``), else the larger of the wedge bound (:func:`_wedge_bounds`,
-  steps 1 to 5) and Cantelli's from the moments of :mod:`.moment_kernels`
-  (``rvo_certificate``, ``receding_certificate``);
 * :func:`condition_bounds` bounds the planner's whole condition, each stage only where the
-  earlier ones fall short (``condition_bound``): a plan's certificates in one call;
+  earlier ones fall short (``condition_bound``: a plan's certificates in one call), or
+  ``P(f >= 0)`` or ``P(g >= 0)`` alone (``rvo_certificate``, ``receding_certificate``). Per entry
+  and condition (:func:`_certify`): the exact cases (zero covariance, ``S_ww = 0``), else the
+  larger of the wedge bound (:func:`_wedge_bounds`, steps 1 to 5) and Cantelli's from the
+  moments of :mod:`.moment_kernels`;
 * :func:`horizon_bounds` bounds the whole condition by half-planes the segment from ``r`` to
   ``r + tau w`` stays in (:func:`.certificate.horizon_certificate`).
 
@@ -71,10 +71,9 @@ _VECTOR = types.float64[::1]
 _FLAGS = types.boolean[::1]
 _CUT_SIGNATURE = types.Tuple((_ROWS, _ROWS, _ROWS, _FLAGS))(
     READ_ONLY_ROWS, READ_ONLY_CUBE, types.int64)
-_CERTIFICATES_SIGNATURE = types.Tuple((_VECTOR, types.int64[::1]))(
-    READ_ONLY_ROWS, READ_ONLY_CUBE, READ_ONLY_VECTOR, types.boolean, types.int64)
-_CONDITION_SIGNATURE = _VECTOR(READ_ONLY_ROWS, READ_ONLY_CUBE, READ_ONLY_VECTOR,
-                               READ_ONLY_VECTOR, READ_ONLY_FLAGS, types.float64, types.int64)
+_CONDITION_SIGNATURE = types.Tuple((_VECTOR, types.int64[::1]))(
+    READ_ONLY_ROWS, READ_ONLY_CUBE, READ_ONLY_VECTOR, READ_ONLY_VECTOR, READ_ONLY_FLAGS,
+    types.float64, types.int64, types.boolean)
 _HORIZON_SIGNATURE = _VECTOR(READ_ONLY_ROWS, READ_ONLY_CUBE, READ_ONLY_VECTOR, READ_ONLY_VECTOR)
 
 
@@ -763,55 +762,19 @@ def _certify(mean, cov, radius, across, rows, start, width, masses, invertible, 
         method[row] = kind
 
 
-@jit(_CERTIFICATES_SIGNATURE)
-def certificates(mean, cov, radius, across, pairs):
-    """
-    Return the bound of ``f`` (ACROSS) or of ``g`` per entry, and its method.
-
-    ``rvo_certificate`` and ``receding_certificate`` of :mod:`.certificate` (:func:`_certify`
-    on every entry, one batch).
-
-    Parameters
-    ----------
-    mean : numpy.ndarray
-        Mean of ``z = (r, w)``, shape (N, 4).
-    cov : numpy.ndarray
-        Covariance of ``z``, shape (N, 4, 4).
-    radius : numpy.ndarray
-        ``R`` per entry, shape (N,) (unused for ``g``).
-    across : bool
-        The bound of ``f`` (else of ``g``).
-    pairs : int
-        K, wedges of the half turn, >= 2.
-
-    Returns
-    -------
-    probability : numpy.ndarray
-        The bound per entry, in [0, 1], shape (N,).
-    method : numpy.ndarray
-        Its index in :data:`.certificate.METHODS`, shape (N,).
-
-    """
-    _check(mean, cov, radius)
-    count = mean.shape[0]
-    start, width, masses, invertible = cut_wedges(mean, cov, pairs)
-    probability = np.empty(count)
-    method = np.empty(count, dtype=np.int64)
-    _certify(mean, cov, radius, across, np.arange(count), start, width, masses, invertible,
-             _floors(mean, cov, radius), probability, method)
-    return probability, method
-
-
 @jit(_CONDITION_SIGNATURE)
-def condition_bounds(mean, cov, radius, required, gated, horizon, pairs):
+def condition_bounds(mean, cov, radius, required, gated, horizon, pairs, rvo):
     """
     Return the bound of the accepted condition per entry, computed as far as needed.
 
-    ``condition_bound`` of :mod:`.certificate`: the bound of ``f`` on every entry; where it
-    falls short of REQUIRED and the gate counts (GATED), the larger with the bound of ``g``,
+    ``condition_bound`` of :mod:`.certificate`: the bound of ``f`` on every entry (RVO); where
+    it falls short of REQUIRED and the gate counts (GATED), the larger with the bound of ``g``,
     computed on exactly those entries as one batch; where that too falls short and HORIZON is
     finite, the larger with the horizon bound (:func:`_horizon_bound`). The wedges and the
-    moments of ``f`` and ``g`` are computed once for every entry.
+    moments of ``f`` and ``g`` are computed once for every entry. Without RVO the bound of
+    ``g`` alone on the GATED entries (``receding_certificate``, every entry gated); with RVO
+    and no entry gated the bound of ``f`` alone (``rvo_certificate``). One kernel serves the
+    three, so that the wedge bound is compiled once.
 
     Parameters
     ----------
@@ -827,11 +790,16 @@ def condition_bounds(mean, cov, radius, required, gated, horizon, pairs):
         ``tau`` [s]; ``inf``: no horizon pair.
     pairs : int
         K, wedges of the half turn, >= 2.
+    rvo : bool
+        Whether the bound of ``f`` comes first (else only ``g``'s is computed).
 
     Returns
     -------
-    numpy.ndarray
-        The bound per entry, in [0, 1], shape (N,).
+    bounds : numpy.ndarray
+        The bound per entry, in [0, 1], shape (N,); 0 for an entry with neither bound.
+    method : numpy.ndarray
+        Per entry the index in :data:`.certificate.METHODS` of the last bound of ``f`` or ``g``
+        computed for it (-1 for none), shape (N,).
 
     """
     _check(mean, cov, radius)
@@ -840,30 +808,30 @@ def condition_bounds(mean, cov, radius, required, gated, horizon, pairs):
         raise ValueError('required and gated must have one value per entry')
     start, width, masses, invertible = cut_wedges(mean, cov, pairs)
     moments = _floors(mean, cov, radius)
-    bounds = np.empty(count)
-    method = np.empty(count, dtype=np.int64)
-    _certify(mean, cov, radius, True, np.arange(count), start, width, masses, invertible,
-             moments, bounds, method)
-    short = 0
-    for entry in range(count):
-        if gated[entry] and bounds[entry] < required[entry]:
-            short += 1
-    if short == 0:
-        return bounds
-    rows = np.empty(short, dtype=np.int64)
-    short = 0
-    for entry in range(count):
-        if gated[entry] and bounds[entry] < required[entry]:
-            rows[short] = entry
-            short += 1
-    receding = np.empty(short)
-    _certify(mean, cov, radius, False, rows, start, width, masses, invertible, moments,
-             receding, np.empty(short, dtype=np.int64))
+    bounds = np.zeros(count)
+    method = np.full(count, -1, dtype=np.int64)
     finite = math.isfinite(horizon)
-    for row in range(short):
-        entry = rows[row]
-        bounds[entry] = max(bounds[entry], receding[row])
-        if finite and bounds[entry] < required[entry]:
-            bounds[entry] = max(bounds[entry], _horizon_bound(mean, cov, entry, radius[entry],
-                                                              horizon))
-    return bounds
+    rows = np.empty(count, dtype=np.int64)
+    # The stages: f, then g. ACROSS is not a constant, so that _certify is compiled once.
+    for stage in range(2):
+        across = stage == 0
+        # Every entry for f; for g the gated entries f leaves short.
+        size = 0
+        for entry in range(count):
+            if rvo if across else gated[entry] and (not rvo or bounds[entry] < required[entry]):
+                rows[size] = entry
+                size += 1
+        if size == 0:
+            continue
+        values = np.empty(size)
+        kinds = np.empty(size, dtype=np.int64)
+        _certify(mean, cov, radius, across, rows[:size], start, width, masses, invertible,
+                 moments, values, kinds)
+        for row in range(size):
+            entry = rows[row]
+            bounds[entry] = max(bounds[entry], values[row])
+            method[entry] = kinds[row]
+            if not across and finite and bounds[entry] < required[entry]:
+                bounds[entry] = max(bounds[entry], _horizon_bound(mean, cov, entry,
+                                                                  radius[entry], horizon))
+    return bounds, method
