@@ -382,6 +382,55 @@ def test_known_velocity_is_the_exact_folded_normal():
     assert standing.method == 'known-velocity' and float(standing.probability) == 1.0
 
 
+def test_known_velocity_bounds_are_the_exact_probabilities_less_the_slack():
+    # With S_ww = 0 both bounds are the exact probabilities of a normal r less SLACK:
+    # P(|r . n| >= R) for mu_w's unit normal n and P(r . mu_w >= 0), here in mpmath at 30 digits.
+    rng = np.random.default_rng(72)
+    with mpmath.workdps(30):
+        for _ in range(40):
+            mean = np.r_[rng.uniform(-3.0, 3.0, size=2), rng.normal(size=2)]
+            cov = np.zeros((4, 4))
+            factor = rng.normal(scale=rng.choice([0.02, 0.2, 1.0]), size=(2, 2))
+            cov[:2, :2] = factor @ factor.T
+            radius = rng.uniform(0.2, 1.0)
+            r_x, r_y, w_x, w_y = (mpmath.mpf(float(value)) for value in mean)
+            s_xx, s_xy, s_yy = (mpmath.mpf(float(value)) for value in
+                                (cov[0, 0], cov[0, 1], cov[1, 1]))
+            speed = mpmath.sqrt(w_x ** 2 + w_y ** 2)
+            n_x, n_y = w_y / speed, -w_x / speed
+            offset = r_x * n_x + r_y * n_y
+            spread = mpmath.sqrt(n_x ** 2 * s_xx + 2 * n_x * n_y * s_xy + n_y ** 2 * s_yy)
+            exact_f = (mpmath.ncdf((offset - radius) / spread)
+                       + mpmath.ncdf((-offset - radius) / spread))
+            closing = r_x * w_x + r_y * w_y
+            exact_g = mpmath.ncdf(closing / mpmath.sqrt(w_x ** 2 * s_xx + 2 * w_x * w_y * s_xy
+                                                        + w_y ** 2 * s_yy))
+            rvo = rvo_certificate(mean, cov, radius)
+            gate = receding_certificate(mean, cov)
+            assert rvo.method == gate.method == 'known-velocity'
+            for bound, exact in ((rvo, exact_f), (gate, exact_g)):
+                exact = min(float(exact), 1.0)
+                assert float(bound.probability) <= exact
+                assert float(bound.probability) == pytest.approx(max(exact - SLACK, 0.0),
+                                                                 abs=1e-13)
+
+
+def test_the_condition_bound_rejects_bad_arguments():
+    mean, cov = np.zeros((2, 4)), np.stack([np.eye(4)] * 2)
+    radius, required, gated = np.full(2, 0.5), np.full(2, 0.9), np.ones(2, dtype=bool)
+    assert condition_bound(mean, cov, radius, required, gated, 2.0).shape == (2,)
+    with pytest.raises(ValueError, match='finite'):
+        condition_bound(np.array([[0.0, 0.0, np.inf, 1.0]] * 2), cov, radius, required, gated)
+    with pytest.raises(ValueError, match='finite'):
+        condition_bound(mean, cov * np.nan, radius, required, gated)
+    with pytest.raises(ValueError, match='shape'):
+        condition_bound(mean, cov, np.full(3, 0.5), required, gated)
+    with pytest.raises(ValueError, match='one value per entry'):
+        condition_bound(mean, cov, radius, np.full(3, 0.9), gated)
+    with pytest.raises(ValueError, match='wedges'):
+        condition_bound(mean, cov, radius, required, gated, wedges=6.0)
+
+
 def test_singular_velocity_covariance_with_cross_terms_falls_back_to_cantelli():
     # w varies along x only, and r_y with it: after the shift a cross-covariance is left that
     # the singular S_ww cannot explain by an inverse.
@@ -477,8 +526,7 @@ def test_wedge_masses_never_exceed_the_sampled_masses_of_the_direction():
     cases = cases_of(99, KINDS, 4)
     means, covs, _ = stacked(cases)
     pairs, count = 16, 200_000
-    start, width, masses, invertible = cut_wedges(np.ascontiguousarray(means[:, 2:]),
-                                                  np.ascontiguousarray(covs[:, 2:, 2:]), pairs)
+    start, width, masses, invertible = cut_wedges(means, covs, pairs)
     assert start.shape == width.shape == (len(cases), pairs)
     assert masses.shape == (len(cases), 2 * pairs) and invertible.all()
     assert np.allclose(width.sum(axis=1), math.pi, rtol=0.0, atol=1e-12)

@@ -51,15 +51,15 @@ variable given the direction of ``w`` (``h1`` compares ``r . d`` with ``-tau l``
 h2)`` holds wherever the segment from ``r`` to ``r + tau w`` misses the disc, and that event is
 bounded from below by two normal tails per half-plane (:func:`horizon_certificate`).
 
-Steps 1 to 5 and the horizon bound are compiled by numba
-(:mod:`prvo_planner.core.certificate_kernels`, loaded on the first bound); the rest of this
-module (the arguments, the exact cases, Cantelli's bound from the moments of :mod:`.moments`,
-themselves compiled, and the choice among the bounds) is numpy. Rounding is made to go the safe
+The bounds are computed by numba (:mod:`prvo_planner.core.certificate_kernels`, loaded on the
+first bound): steps 1 to 5, the exact cases, Cantelli's bound from the compiled moments of
+:mod:`.moment_kernels`, the choice among the bounds and the horizon bound, each public function
+of this module one compiled call after checking its arguments. Rounding is made to go the safe
 way where it is cheap: the ranges of ``m`` and ``s^2`` are widened by a relative 1e-9 of their
 scales, the density bound is shrunk by a relative 1e-9, and ``SLACK = 1e-9`` is subtracted from
-every bound, which covers the error of ``Phi`` (scipy's ``ndtr`` in the exact cases, the
-compiled one in the kernels, each below 2e-14 per call, checked against ``math.erfc`` and
-mpmath) summed over up to ``MAX_WEDGES`` wedges and the rounding of the sums. This holds for
+every bound, which covers the error of ``Phi`` (the compiled one of :mod:`.special_kernels`,
+below 2e-14 per call, checked against ``math.erfc`` and mpmath) summed over up to
+``MAX_WEDGES`` wedges and the rounding of the sums. This holds for
 covariances that are not ill conditioned; the bound is not computed in interval arithmetic.
 """
 
@@ -68,8 +68,7 @@ import math
 
 import numpy as np
 
-from .moments import condition_moments, rvo_moments
-from .special import ndtr, ndtri
+from .special import ndtri
 
 DEFAULT_WEDGES = 64
 MIN_WEDGES = 4
@@ -180,81 +179,6 @@ def horizon_search_margin(eta):
     return np.clip(ndtri(eta), 0.0, np.sqrt((1.0 + eta) / (1.0 - eta)))
 
 
-def _ratio(numerator, denominator, zero_by_zero):
-    """``numerator / denominator`` for ``denominator >= 0``: ``+-inf`` by 0, ``0 / 0`` given."""
-    with np.errstate(divide='ignore', invalid='ignore'):
-        quotient = numerator / denominator
-    return np.where(np.isnan(quotient), zero_by_zero, quotient)
-
-
-@dataclass(frozen=True)
-class _Wedges:
-    """
-    Each entry's wedges of the directions of ``w``, and lower bounds on their masses.
-
-    They depend on the mean and covariance of ``w`` alone: the bounds on ``f`` and on ``g`` of
-    the same entries share them (:func:`condition_bound`). Made by
-    :func:`prvo_planner.core.certificate_kernels.cut_wedges`.
-
-    Attributes
-    ----------
-    start, width : numpy.ndarray
-        The wedges of the half turn, shape (N, K).
-    masses : numpy.ndarray
-        Lower bounds on the masses of the wedges, then of their opposites, shape (N, 2 K).
-    invertible : numpy.ndarray
-        Whether ``S_ww`` may be inverted, shape (N,).
-
-    """
-
-    start: np.ndarray
-    width: np.ndarray
-    masses: np.ndarray
-    invertible: np.ndarray
-
-    def take(self, rows):
-        """Return the wedges of the entries ROWS (a mask or indices)."""
-        return _Wedges(start=self.start[rows], width=self.width[rows],
-                       masses=self.masses[rows], invertible=self.invertible[rows])
-
-
-def _wedges(mean, cov, wedges):
-    """Return the :class:`_Wedges` of ``wedges`` wedges of ``mean`` (N, 4), ``cov`` (N, 4, 4)."""
-    # Imported, and so loaded or compiled, on the first wedge bound: a process that certifies
-    # nothing does not import numba for it.
-    from .certificate_kernels import cut_wedges
-
-    return _Wedges(*cut_wedges(_writable(mean[:, 2:]), _writable(cov[:, 2:, 2:]), wedges // 2))
-
-
-def _wedge_bound(mean, cov, radius, wedges):
-    """
-    Return the wedge bound of ``f`` (given ``radius``, (N,)) or of ``g``, and where it applies.
-
-    ``mean`` (N, 4), ``cov`` (N, 4, 4) and their :class:`_Wedges`; results (N,)
-    (:func:`prvo_planner.core.certificate_kernels.wedge_bounds`, compiled).
-    """
-    from .certificate_kernels import wedge_bounds
-
-    across = radius is not None
-    return wedge_bounds(_writable(mean), _writable(cov),
-                        _writable(radius if across else np.zeros(mean.shape[0])), across,
-                        wedges.start, wedges.width, wedges.masses, wedges.invertible)
-
-
-def _writable(array):
-    """ARRAY as a C-ordered, writable float64 array, the kind the compiled kernels take."""
-    return np.require(array, dtype=np.float64, requirements=('C', 'W'))
-
-
-def _cantelli(expectation, variance):
-    """Cantelli's ``k^2 / (1 + k^2)`` of ``k = E / sd`` (0 when ``E < 0``; 1 when exact)."""
-    expectation_sq = expectation * expectation
-    with np.errstate(divide='ignore', invalid='ignore'):
-        bound = expectation_sq / (expectation_sq + np.maximum(variance, 0.0))
-    return np.where(expectation >= 0.0, np.where(np.isnan(bound), 1.0, bound), 0.0) - SLACK
-
-
 def _validated(mean, cov, wedges):
     """Check the arguments; return ``mean`` (N, 4), ``cov`` (N, 4, 4) and the batch shape."""
     mean = np.asarray(mean, dtype=float)
@@ -262,28 +186,32 @@ def _validated(mean, cov, wedges):
     if mean.shape[-1:] != (4,) or cov.shape[-2:] != (4, 4):
         raise ValueError(f'mean must have shape (..., 4) and cov (..., 4, 4), got '
                          f'{mean.shape} and {cov.shape}')
-    if not (np.isfinite(mean).all() and np.isfinite(cov).all()):
-        raise ValueError('mean and cov must be finite')
+    _check_wedges(wedges)
+    shape = np.broadcast_shapes(mean.shape[:-1], cov.shape[:-2])
+    return (np.ascontiguousarray(np.broadcast_to(mean, shape + (4,)).reshape(-1, 4)),
+            np.ascontiguousarray(np.broadcast_to(cov, shape + (4, 4)).reshape(-1, 4, 4)), shape)
+
+
+def _check_wedges(wedges):
+    """Raise ValueError unless WEDGES is an even integer in [MIN_WEDGES, MAX_WEDGES]."""
     if (isinstance(wedges, bool) or not isinstance(wedges, (int, np.integer))
             or not MIN_WEDGES <= wedges <= MAX_WEDGES or wedges % 2):
         raise ValueError(f'wedges must be an even integer in [{MIN_WEDGES}, {MAX_WEDGES}], '
                          f'got {wedges!r}')
-    shape = np.broadcast_shapes(mean.shape[:-1], cov.shape[:-2])
-    return (np.broadcast_to(mean, shape + (4,)).reshape(-1, 4),
-            np.broadcast_to(cov, shape + (4, 4)).reshape(-1, 4, 4), shape)
 
 
-def _assemble(shape, deterministic, known, known_probability, wedge_probability, usable,
-              cantelli_probability, holds):
-    """Pick each entry's bound and its method; see :class:`Certificate`."""
-    general = ~(deterministic | known)
-    use_wedge = general & usable & (wedge_probability > cantelli_probability)
-    probability = np.where(use_wedge, wedge_probability, cantelli_probability)
-    probability = np.where(known, known_probability, probability)
-    probability = np.where(deterministic, holds.astype(float), probability)
-    method = np.select([deterministic, known, use_wedge], list(METHODS[:3]), METHODS[3])
-    return Certificate(probability=np.clip(probability, 0.0, 1.0).reshape(shape),
-                       method=method.reshape(shape))
+def _certificate(mean, cov, radius, across, wedges, shape):
+    """Return the :class:`Certificate` of ``f`` (ACROSS) or of ``g`` (compiled)."""
+    # Imported, and so loaded or compiled, on the first bound: a process that certifies
+    # nothing does not import numba for it.
+    from .certificate_kernels import condition_bounds
+
+    count = mean.shape[0]
+    probability, method = condition_bounds(mean, cov, radius, np.ones(count),
+                                           np.full(count, not across), math.inf, wedges // 2,
+                                           across)
+    return Certificate(probability=probability.reshape(shape),
+                       method=np.array(METHODS)[method].reshape(shape))
 
 
 def rvo_certificate(mean, cov, radius, wedges=DEFAULT_WEDGES):
@@ -317,46 +245,9 @@ def rvo_certificate(mean, cov, radius, wedges=DEFAULT_WEDGES):
 
     """
     mean, cov, shape = _validated(mean, cov, wedges)
-    radius = np.broadcast_to(np.asarray(radius, dtype=float), shape).reshape(-1)
-    return _rvo(mean, cov, radius, *_wedge_bound(mean, cov, radius, _wedges(mean, cov, wedges)),
-                shape)
-
-
-def _rvo(mean, cov, radius, wedge_probability, usable, shape):
-    """
-    Return :func:`rvo_certificate` given the wedge bound of each entry.
-
-    ``mean`` (N, 4), ``cov`` (N, 4, 4), ``radius``, ``wedge_probability`` and where it applies,
-    ``usable``, (N,) each.
-    """
-    mu_r, mu_w = mean[:, :2], mean[:, 2:]
-    cov_rr, cov_ww = cov[:, :2, :2], cov[:, 2:, 2:]
-    deterministic = ~cov.any(axis=(1, 2))
-    cross = mu_r[:, 0] * mu_w[:, 1] - mu_r[:, 1] * mu_w[:, 0]
-    holds = cross * cross - radius * radius * np.sum(mu_w * mu_w, axis=1) >= 0.0
-    known = ~deterministic & ~cov_ww.any(axis=(1, 2))
-    # Computed only if some entry needs it (a belief with a known velocity is rare).
-    known_probability = _known_rvo(mu_r, mu_w, cov_rr, radius) if known.any() else 0.0
-    expectation, variance = rvo_moments(mean, cov, radius)
-    return _assemble(shape, deterministic, known, known_probability, wedge_probability, usable,
-                     _cantelli(expectation, variance), holds)
-
-
-def _known_rvo(mu_r, mu_w, cov_rr, radius):
-    """
-    ``P(f >= 0)`` less ``SLACK`` where ``S_ww = 0``, shape (N,).
-
-    ``w = mu_w`` exactly, and ``f >= 0`` iff ``|r . n| >= R`` for ``mu_w``'s normal ``n``, a
-    folded normal (``w = 0``: ``f = 0``).
-    """
-    speed = np.hypot(mu_w[:, 0], mu_w[:, 1])
-    normal = np.stack([mu_w[:, 1], -mu_w[:, 0]], axis=1) / np.where(speed > 0.0, speed,
-                                                                    1.0)[:, None]
-    offset = np.sum(mu_r * normal, axis=1)
-    spread = np.sqrt(np.maximum(np.einsum('ni,nij,nj->n', normal, cov_rr, normal), 0.0))
-    folded = ndtr(np.stack([_ratio(offset - radius, spread, np.inf),
-                            _ratio(-offset - radius, spread, np.inf)])).sum(axis=0)
-    return np.where(speed > 0.0, folded - SLACK, 1.0)
+    radius = np.ascontiguousarray(np.broadcast_to(np.asarray(radius, dtype=float),
+                                                  shape).reshape(-1))
+    return _certificate(mean, cov, radius, True, wedges, shape)
 
 
 def receding_certificate(mean, cov, wedges=DEFAULT_WEDGES):
@@ -379,34 +270,7 @@ def receding_certificate(mean, cov, wedges=DEFAULT_WEDGES):
 
     """
     mean, cov, shape = _validated(mean, cov, wedges)
-    return _receding(mean, cov, *_wedge_bound(mean, cov, None, _wedges(mean, cov, wedges)),
-                     shape)
-
-
-def _receding(mean, cov, wedge_probability, usable, shape):
-    """
-    Return :func:`receding_certificate` given the wedge bound of each entry.
-
-    ``mean`` (N, 4), ``cov`` (N, 4, 4), ``wedge_probability`` and where it applies, ``usable``,
-    (N,) each.
-    """
-    mu_r, mu_w = mean[:, :2], mean[:, 2:]
-    cov_rr, cov_ww = cov[:, :2, :2], cov[:, 2:, 2:]
-    deterministic = ~cov.any(axis=(1, 2))
-    closing = np.sum(mu_r * mu_w, axis=1)
-    known = ~deterministic & ~cov_ww.any(axis=(1, 2))
-    known_probability = 0.0
-    if known.any():
-        # S_ww = 0: g = r . mu_w is normal (w = 0: g = 0).
-        spread = np.sqrt(np.maximum(np.einsum('ni,nij,nj->n', mu_w, cov_rr, mu_w), 0.0))
-        known_probability = np.where(mu_w.any(axis=1),
-                                     ndtr(_ratio(closing, spread, np.inf)) - SLACK, 1.0)
-    # E[g] and Var[g] are condition_moments' second column at a zero command (lead 0: the mean
-    # of z is MEAN itself; the radius does not enter g).
-    means, variances = condition_moments(mean, cov, np.zeros(mean.shape[0]), np.zeros((1, 2)),
-                                         math.inf, True, 0.0)
-    return _assemble(shape, deterministic, known, known_probability, wedge_probability, usable,
-                     _cantelli(means[:, 0, 1], variances[:, 0, 1]), closing >= 0.0)
+    return _certificate(mean, cov, np.zeros(mean.shape[0]), False, wedges, shape)
 
 
 def condition_bound(mean, cov, radius, required, gated, horizon=None, wedges=DEFAULT_WEDGES):
@@ -420,15 +284,16 @@ def condition_bound(mean, cov, radius, required, gated, horizon=None, wedges=DEF
     :func:`horizon_certificate`'s on the whole condition. Each is a lower bound on the
     condition's probability, so the largest is one. A later bound is computed only for the
     entries the earlier ones leave short, and on exactly those (an entry's bound depends on the
-    batch it is computed in only by rounding and by which events are tried, see
-    :func:`~prvo_planner.core.certificate_kernels.wedge_bounds`, so the batches are the ones the
-    three functions would be called with).
-    The wedges and their masses depend on ``w`` alone: ``f`` and ``g`` share them.
+    batch it is computed in only by which events are tried, see
+    :func:`~prvo_planner.core.certificate_kernels.condition_bounds`, so the batches are the
+    ones the three functions would be called with).
+    The wedges and their masses depend on ``w`` alone: ``f`` and ``g`` share them, and the
+    moments of both, Cantelli's floors, come from one compiled call.
 
     Parameters
     ----------
     mean : array_like
-        Mean of ``z``, shape (N, 4).
+        Mean of ``z``, shape (N, 4) (no other batch shapes: one compiled call, no broadcasting).
     cov : array_like
         Covariance of ``z``, shape (N, 4, 4), symmetric PSD.
     radius : array_like
@@ -448,23 +313,14 @@ def condition_bound(mean, cov, radius, required, gated, horizon=None, wedges=DEF
         The bound, in [0, 1], shape (N,).
 
     """
-    mean, cov, shape = _validated(mean, cov, wedges)
-    radius = np.broadcast_to(np.asarray(radius, dtype=float), shape).reshape(-1)
-    required = np.broadcast_to(np.asarray(required, dtype=float), shape).reshape(-1)
-    gated = np.flatnonzero(np.broadcast_to(gated, shape))
-    cut = _wedges(mean, cov, wedges)
-    bounds = _rvo(mean, cov, radius, *_wedge_bound(mean, cov, radius, cut), shape).probability
-    gate = gated[bounds[gated] < required[gated]]
-    if gate.size:
-        mean_gate, cov_gate = mean[gate], cov[gate]
-        bounds[gate] = np.maximum(bounds[gate], _receding(
-            mean_gate, cov_gate, *_wedge_bound(mean_gate, cov_gate, None, cut.take(gate)),
-            gate.shape).probability)
-    horizon_rows = gate[bounds[gate] < required[gate]]
-    if horizon is not None and horizon_rows.size:
-        bounds[horizon_rows] = np.maximum(bounds[horizon_rows], horizon_certificate(
-            mean[horizon_rows], cov[horizon_rows], radius[horizon_rows], horizon))
-    return bounds
+    _check_wedges(wedges)
+    from .certificate_kernels import condition_bounds
+
+    return condition_bounds(
+        np.ascontiguousarray(mean, dtype=np.float64), np.ascontiguousarray(cov, dtype=np.float64),
+        np.ascontiguousarray(radius, dtype=np.float64),
+        np.ascontiguousarray(required, dtype=np.float64), np.ascontiguousarray(gated, dtype=bool),
+        math.inf if horizon is None else float(horizon), wedges // 2, True)[0]
 
 
 def horizon_certificate(mean, cov, radius, horizon):
@@ -508,11 +364,9 @@ def horizon_certificate(mean, cov, radius, horizon):
 
     """
     mean, cov, shape = _validated(mean, cov, DEFAULT_WEDGES)
-    radius = np.broadcast_to(np.asarray(radius, dtype=float), shape).reshape(-1)
-    horizon = np.broadcast_to(np.asarray(horizon, dtype=float), shape).reshape(-1)
-    if not (np.isfinite(horizon).all() and (horizon > 0.0).all()):
-        raise ValueError('horizon must be finite and > 0')
+    radius, horizon = (np.ascontiguousarray(np.broadcast_to(np.asarray(value, dtype=float),
+                                                            shape).reshape(-1))
+                       for value in (radius, horizon))
     from .certificate_kernels import horizon_bounds
 
-    bound = horizon_bounds(_writable(mean), _writable(cov), _writable(radius), _writable(horizon))
-    return np.clip(bound, 0.0, 1.0).reshape(shape)
+    return horizon_bounds(mean, cov, radius, horizon).reshape(shape)

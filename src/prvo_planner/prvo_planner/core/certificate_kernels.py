@@ -1,14 +1,19 @@
 """
-The certificate's arithmetic compiled (:mod:`.certificate`): wedges, masses, the two bounds.
+The certificate compiled (:mod:`.certificate`): wedges, masses, the bounds and their choice.
 
 Three numba functions, compiled for one signature each when this module is first imported
 (:mod:`.certificate` imports it on its first bound) and kept in numba's on-disk cache, as the ray
-search is (:mod:`.ray_search`; ``./run.sh setup`` compiles both modules once after installing):
+search is (:mod:`.ray_search`; ``./run.sh setup`` compiles every kernel module once after
+installing):
 
 * :func:`cut_wedges` cuts each entry's directions of ``w`` into wedges and bounds their masses
   from below (steps 4 and 5 of the proof in :mod:`.certificate`'s docstring);
-* :func:`wedge_bounds` bounds ``P(f >= 0)`` or ``P(g >= 0)`` of each entry on those wedges
-  (steps 1 to 5);
+* :func:`condition_bounds` bounds the planner's whole condition, each stage only where the
+  earlier ones fall short (``condition_bound``: a plan's certificates in one call), or
+  ``P(f >= 0)`` or ``P(g >= 0)`` alone (``rvo_certificate``, ``receding_certificate``). Per entry
+  and condition (:func:`_certify`): the exact cases (zero covariance, ``S_ww = 0``), else the
+  larger of the wedge bound (:func:`_wedge_bounds`, steps 1 to 5) and Cantelli's from the
+  moments of :mod:`.moment_kernels`;
 * :func:`horizon_bounds` bounds the whole condition by half-planes the segment from ``r`` to
   ``r + tau w`` stays in (:func:`.certificate.horizon_certificate`).
 
@@ -16,13 +21,13 @@ They work entry by entry and wedge by wedge in scalars, with the arithmetic the 
 the ranges of the sinusoids of the direction angle over a wedge (:func:`harmonic_range`), the
 lengths of ``w`` on a strip, the minima of the folded and half normal over a box of mean and
 variance; no (entry, wedge, event) arrays are made. Each entry's bound depends on the others of
-its call in one way only, as it did in numpy: the strip events are tried for every entry when
-some entry of the call has a cross-covariance left after the shift (``reach > 0``), else only
-the discs.
+its batch in one way only: the strip events are tried for every entry when some entry of the
+batch has a cross-covariance left after the shift (``reach > 0``), else only the discs (a
+batch: the entries of a call for ``f``, those left short for ``g``).
 
 ``Phi`` is :func:`ndtr`, cephes' form over the C library's ``erf`` and ``erfc`` (numba cannot
-call scipy's ufunc): within 2e-14 of ``math.erfc``'s ``Phi`` everywhere, which the bound's
-``SLACK`` covers.
+call scipy's ufunc), in the exact cases too: within 2e-14 of ``math.erfc``'s ``Phi``
+everywhere, which the bound's ``SLACK`` covers.
 """
 
 import math
@@ -40,7 +45,8 @@ from .certificate import (
     STRIP_SIZES,
     WIDENING,
 )
-from .ray_solver import jit
+from .moment_kernels import condition_moments
+from .ray_solver import READ_ONLY_CUBE, READ_ONLY_FLAGS, READ_ONLY_ROWS, READ_ONLY_VECTOR, jit
 from .special_kernels import ndtr
 
 _SQRT_HALF = math.sqrt(0.5)
@@ -57,14 +63,18 @@ _DISC_MISSES = np.exp(-0.5 * np.square(DISC_SIZES))
 _STRIP_MISSES = np.array([math.erfc(size * _SQRT_HALF) for size in STRIP_SIZES])
 _EVENTS = len(DISC_SIZES) + len(STRIP_SIZES)
 
-_MATRICES = types.float64[:, :, ::1]
+# The methods of :data:`.certificate.METHODS`, by their index there.
+_DETERMINISTIC, _KNOWN, _WEDGE, _CANTELLI = range(4)
+
 _ROWS = types.float64[:, ::1]
 _VECTOR = types.float64[::1]
 _FLAGS = types.boolean[::1]
-_CUT_SIGNATURE = types.Tuple((_ROWS, _ROWS, _ROWS, _FLAGS))(_ROWS, _MATRICES, types.int64)
-_BOUND_SIGNATURE = types.Tuple((_VECTOR, _FLAGS))(
-    _ROWS, _MATRICES, _VECTOR, types.boolean, _ROWS, _ROWS, _ROWS, _FLAGS)
-_HORIZON_SIGNATURE = _VECTOR(_ROWS, _MATRICES, _VECTOR, _VECTOR)
+_CUT_SIGNATURE = types.Tuple((_ROWS, _ROWS, _ROWS, _FLAGS))(
+    READ_ONLY_ROWS, READ_ONLY_CUBE, types.int64)
+_CONDITION_SIGNATURE = types.Tuple((_VECTOR, types.int64[::1]))(
+    READ_ONLY_ROWS, READ_ONLY_CUBE, READ_ONLY_VECTOR, READ_ONLY_VECTOR, READ_ONLY_FLAGS,
+    types.float64, types.int64, types.boolean)
+_HORIZON_SIGNATURE = _VECTOR(READ_ONLY_ROWS, READ_ONLY_CUBE, READ_ONLY_VECTOR, READ_ONLY_VECTOR)
 
 
 @jit(inline='always')
@@ -171,7 +181,7 @@ def _scaled_psi_lower(beta, quadratic):
 
 
 @jit(_CUT_SIGNATURE)
-def cut_wedges(mu_w, cov_ww, pairs):
+def cut_wedges(mean, cov, pairs):
     """
     Each entry's wedges of the directions of ``w``, and lower bounds on their masses.
 
@@ -192,10 +202,10 @@ def cut_wedges(mu_w, cov_ww, pairs):
 
     Parameters
     ----------
-    mu_w : numpy.ndarray
-        Mean of ``w`` per entry, shape (N, 2).
-    cov_ww : numpy.ndarray
-        Its covariance, shape (N, 2, 2).
+    mean : numpy.ndarray
+        Mean of ``z = (r, w)`` per entry, shape (N, 4); only ``w``'s is read.
+    cov : numpy.ndarray
+        Its covariance, shape (N, 4, 4); only ``S_ww`` is read.
     pairs : int
         K, wedges of the half turn, >= 2.
 
@@ -210,15 +220,15 @@ def cut_wedges(mu_w, cov_ww, pairs):
         Whether ``S_ww`` may be inverted, shape (N,).
 
     """
-    count = mu_w.shape[0]
+    count = mean.shape[0]
     start = np.empty((count, pairs))
     width = np.empty((count, pairs))
     masses = np.empty((count, 2 * pairs))
     invertible = np.empty(count, dtype=np.bool_)
     half_planes = np.empty(pairs + 1)
     for entry in range(count):
-        mu_x, mu_y = mu_w[entry, 0], mu_w[entry, 1]
-        xx, xy, yy = cov_ww[entry, 0, 0], cov_ww[entry, 0, 1], cov_ww[entry, 1, 1]
+        mu_x, mu_y = mean[entry, 2], mean[entry, 3]
+        xx, xy, yy = cov[entry, 2, 2], cov[entry, 2, 3], cov[entry, 3, 3]
         edges = start[entry]
         _wedge_edges(mu_x, mu_y, xx, xy, yy, pairs, edges)
         for wedge in range(pairs - 1):
@@ -341,18 +351,20 @@ def _interval_product(low, high, factor_low, factor_high):
 
 
 @jit()
-def _split(mean, cov, across, invertible, split):
+def _split(mean, cov, across, invertible, rows, split):
     """
     Write ``r^ = r + T w`` split into ``r'``, independent of ``w``, and ``K (w - mu_w)``.
 
     ``T = -lambda I`` for ``f`` (ACROSS) and ``kappa J`` for ``g``, the shift that leaves the
     least cross-covariance ``D = S_rw + T S_ww`` (:mod:`.certificate`, step 1); ``K = D S_ww^-1``
-    the gain (0 where ``D = 0`` or ``S_ww`` is not inverted). SPLIT (N, 12) receives per entry
-    the mean of ``r'`` (2), ``S' = Cov(r^) - D S_ww^-1 D'`` (``xx, xy, yy``), ``K`` (row-major,
-    4), the reach ``||D S_ww^-1/2||_2``, the scale of the entries of ``S'`` (for widening its
-    ranges) and whether the split is known (``S_ww`` inverted or ``D = 0``: 1, else 0).
+    the gain (0 where ``D = 0`` or ``S_ww`` is not inverted). SPLIT (R, 12) receives per entry
+    of ROWS (R,) the mean of ``r'`` (2), ``S' = Cov(r^) - D S_ww^-1 D'`` (``xx, xy, yy``), ``K``
+    (row-major, 4), the reach ``||D S_ww^-1/2||_2``, the scale of the entries of ``S'`` (for
+    widening its ranges) and whether the split is known (``S_ww`` inverted or ``D = 0``: 1,
+    else 0).
     """
-    for entry in range(mean.shape[0]):
+    for row in range(rows.shape[0]):
+        entry = rows[row]
         c = cov[entry]
         xx, xy, yy = c[2, 2], c[2, 3], c[3, 3]
         trace = xx + yy
@@ -392,24 +404,25 @@ def _split(mean, cov, across, invertible, split):
         e01 = 0.5 * ((k00 * d10 + k01 * d11) + (k10 * d00 + k11 * d01))
         # The largest eigenvalue of D S^-1 D', grown by the relative error of the inverse.
         reach = math.sqrt(max(0.5 * (e00 + e11) + math.hypot(0.5 * (e00 - e11), e01), 0.0))
-        split[entry, 0] = mean[entry, 0] + t00 * mean[entry, 2] + t01 * mean[entry, 3]
-        split[entry, 1] = mean[entry, 1] + t10 * mean[entry, 2] + t11 * mean[entry, 3]
-        split[entry, 2] = hat00 - e00
-        split[entry, 3] = hat01 - e01
-        split[entry, 4] = hat11 - e11
-        split[entry, 5], split[entry, 6], split[entry, 7], split[entry, 8] = k00, k01, k10, k11
-        split[entry, 9] = reach * (1.0 + 1e-6)
-        split[entry, 10] = (abs(c[0, 0]) + abs(c[0, 1]) + abs(c[1, 0]) + abs(c[1, 1])
+        split[row, 0] = mean[entry, 0] + t00 * mean[entry, 2] + t01 * mean[entry, 3]
+        split[row, 1] = mean[entry, 1] + t10 * mean[entry, 2] + t11 * mean[entry, 3]
+        split[row, 2] = hat00 - e00
+        split[row, 3] = hat01 - e01
+        split[row, 4] = hat11 - e11
+        split[row, 5], split[row, 6], split[row, 7], split[row, 8] = k00, k01, k10, k11
+        split[row, 9] = reach * (1.0 + 1e-6)
+        split[row, 10] = (abs(c[0, 0]) + abs(c[0, 1]) + abs(c[1, 0]) + abs(c[1, 1])
                             + 2.0 * (abs(rt00) + abs(rt01) + abs(rt10) + abs(rt11))
                             + abs(tt00) + abs(tt01) + abs(tt10) + abs(tt11)
                             + abs(e00) + 2.0 * abs(e01) + abs(e11))
-        split[entry, 11] = invertible[entry] or no_cross
+        split[row, 11] = invertible[entry] or no_cross
 
 
-@jit(_BOUND_SIGNATURE)
-def wedge_bounds(mean, cov, radius, across, start, width, masses, invertible):
+@jit()
+def _wedge_bounds(mean, cov, radius, across, rows, start, width, masses, invertible,
+                  probability, usable):
     """
-    Return the wedge bound of ``f`` (ACROSS) or of ``g`` per entry, and where it applies.
+    Write the wedge bound of ``f`` (ACROSS) or of ``g`` of the entries ROWS, and where it holds.
 
     After the split (:func:`_split`), ``r^ . v`` given ``w`` is normal with variance
     ``s^2 = v' S' v`` and mean ``m``; ``v`` is the normal ``n`` for ``f`` and the direction ``d``
@@ -424,6 +437,9 @@ def wedge_bounds(mean, cov, radius, across, start, width, masses, invertible):
     that sum above one by rounding are scaled down (they stay lower bounds). Each event's miss
     probability is then subtracted, the best event kept, and ``SLACK`` subtracted.
 
+    The entries of ROWS are one batch: the strip events are tried for each of them when some
+    entry of ROWS has a cross-covariance left after the shift, else only the discs.
+
     Parameters
     ----------
     mean : numpy.ndarray
@@ -434,44 +450,42 @@ def wedge_bounds(mean, cov, radius, across, start, width, masses, invertible):
         ``R`` per entry, shape (N,) (unused for ``g``).
     across : bool
         The bound of ``f`` (else of ``g``).
+    rows : numpy.ndarray
+        The entries to bound, shape (R,).
     start, width, masses, invertible : numpy.ndarray
         The entries' wedges, shapes (N, K), (N, K), (N, 2 K), (N,) (:func:`cut_wedges`).
-
-    Returns
-    -------
     probability : numpy.ndarray
-        The bound per entry, shape (N,) (not clipped to [0, 1]).
+        Receives the bound per entry of ROWS, shape (R,) (not clipped to [0, 1]).
     usable : numpy.ndarray
-        False where ``S_ww`` is not inverted but a cross-covariance is left: the split, and so
-        the bound, is unknown there, shape (N,).
+        Receives False where ``S_ww`` is not inverted but a cross-covariance is left: the
+        split, and so the bound, is unknown there, shape (R,).
 
     """
-    count, pairs = start.shape
+    count, pairs = rows.shape[0], start.shape[1]
     split = np.empty((count, 12))
-    _split(mean, cov, across, invertible, split)
+    _split(mean, cov, across, invertible, rows, split)
     strips = False
-    for entry in range(count):
-        strips |= split[entry, 9] > 0.0
+    for row in range(count):
+        strips |= split[row, 9] > 0.0
     events = _EVENTS if strips else len(DISC_SIZES)
-    probability = np.empty(count)
-    usable = np.empty(count, dtype=np.bool_)
     claimed = np.empty(events)
     least = np.empty(events)
     lows = np.empty(events)
     highs = np.empty(events)
     sign = -1.0 if across else 1.0
-    for entry in range(count):
-        usable[entry] = split[entry, 11] != 0.0
+    for row in range(count):
+        entry = rows[row]
+        usable[row] = split[row, 11] != 0.0
         mu_x, mu_y = mean[entry, 2], mean[entry, 3]
-        hat_x, hat_y = split[entry, 0], split[entry, 1]
-        k00, k01, k10, k11 = split[entry, 5], split[entry, 6], split[entry, 7], split[entry, 8]
-        reach = split[entry, 9]
-        widening = WIDENING * split[entry, 10]
+        hat_x, hat_y = split[row, 0], split[row, 1]
+        k00, k01, k10, k11 = split[row, 5], split[row, 6], split[row, 7], split[row, 8]
+        reach = split[row, 9]
+        widening = WIDENING * split[row, 10]
         # The sinusoids of x: mu^ . v (m = 1) and s^2 = v' S' v (m = 2); for v = n(x) the
         # linear coefficients are (-y, x) and the double-angle part changes sign.
         mean_c, mean_s = (-hat_y, hat_x) if across else (hat_x, hat_y)
-        var_constant = 0.5 * (split[entry, 2] + split[entry, 4])
-        var_c, var_s = sign * 0.5 * (split[entry, 2] - split[entry, 4]), sign * split[entry, 3]
+        var_constant = 0.5 * (split[row, 2] + split[row, 4])
+        var_c, var_s = sign * 0.5 * (split[row, 2] - split[row, 4]), sign * split[row, 3]
         # The strips' terms, set where they are tried.
         speed = e_x = e_y = spread = a_c = a_s = b_constant = b_c = b_s = 0.0
         c_low = c_high = a_low = a_high = b_low = b_high = 0.0
@@ -547,8 +561,7 @@ def wedge_bounds(mean, cov, radius, across, start, width, masses, invertible):
             miss = (_DISC_MISSES[event] if event < len(DISC_SIZES)
                     else _STRIP_MISSES[event - len(DISC_SIZES)])
             best = max(best, claimed[event] + (1.0 - mass_sum) * least[event] - miss)
-        probability[entry] = best - SLACK
-    return probability, usable
+        probability[row] = best - SLACK
 
 
 @jit(inline='always')
@@ -568,16 +581,59 @@ def _half_plane_bound(angle, r_x, r_y, rxx, rxy, ryy, p_x, p_y, pxx, pxy, pyy, r
     return bound
 
 
-@jit(_HORIZON_SIGNATURE)
-def horizon_bounds(mean, cov, radius, horizon):
+@jit()
+def _horizon_bound(mean, cov, entry, big_r, tau):
     """
-    Return the horizon bound per entry (``certificate.horizon_certificate``).
+    Return the horizon bound of ENTRY at ``R = big_r``, ``tau``, clipped to [0, 1].
 
     The segment from ``r`` to ``p = r + tau w`` misses the disc of radius ``R`` when both ends
     lie in a half-plane ``e . x >= R``; for each ``e`` that has probability at least one less
     the two normal tails of ``e . r`` and ``e . p``. The largest over ``HORIZON_DIRECTIONS``
     even directions and those of ``mu_r``, ``mu_p`` and their bisector is kept, less
-    ``SLACK``, clipped to [0, 1].
+    ``SLACK``.
+    """
+    c = cov[entry]
+    r_x, r_y = mean[entry, 0], mean[entry, 1]
+    p_x, p_y = r_x + tau * mean[entry, 2], r_y + tau * mean[entry, 3]
+    # Cov(p) = S_rr + tau (S_rw + S_wr) + tau^2 S_ww.
+    pxx = c[0, 0] + tau * (c[0, 2] + c[0, 2]) + tau * tau * c[2, 2]
+    pxy = c[0, 1] + tau * (c[0, 3] + c[1, 2]) + tau * tau * c[2, 3]
+    pyy = c[1, 1] + tau * (c[1, 3] + c[1, 3]) + tau * tau * c[3, 3]
+    best = -np.inf
+    for direction in range(HORIZON_DIRECTIONS):
+        best = max(best, _half_plane_bound(
+            _TWO_PI * direction / HORIZON_DIRECTIONS, r_x, r_y, c[0, 0], c[0, 1], c[1, 1],
+            p_x, p_y, pxx, pxy, pyy, big_r))
+    toward_r, toward_p = math.atan2(r_y, r_x), math.atan2(p_y, p_x)
+    bisector = 0.5 * (toward_r + toward_p)
+    if abs(toward_r - toward_p) > math.pi:
+        bisector += math.pi
+    for angle in (toward_r, toward_p, bisector):
+        best = max(best, _half_plane_bound(angle, r_x, r_y, c[0, 0], c[0, 1], c[1, 1],
+                                           p_x, p_y, pxx, pxy, pyy, big_r))
+    return min(max(best - SLACK, 0.0), 1.0)
+
+
+@jit()
+def _check(mean, cov, radius):
+    """Raise ValueError unless MEAN (N, 4), COV (N, 4, 4) and RADIUS (N,) fit and are finite."""
+    count = mean.shape[0]
+    if (mean.shape[1] != 4 or cov.shape[0] != count or cov.shape[1] != 4 or cov.shape[2] != 4
+            or radius.shape[0] != count):
+        raise ValueError('mean must have shape (N, 4), cov (N, 4, 4) and radius (N,)')
+    for entry in range(count):
+        for row in range(4):
+            if not math.isfinite(mean[entry, row]):
+                raise ValueError('mean and cov must be finite')
+            for column in range(4):
+                if not math.isfinite(cov[entry, row, column]):
+                    raise ValueError('mean and cov must be finite')
+
+
+@jit(_HORIZON_SIGNATURE)
+def horizon_bounds(mean, cov, radius, horizon):
+    """
+    Return the horizon bound per entry (``certificate.horizon_certificate``).
 
     Parameters
     ----------
@@ -591,30 +647,191 @@ def horizon_bounds(mean, cov, radius, horizon):
     Returns
     -------
     numpy.ndarray
-        The bound per entry, shape (N,).
+        The bound per entry (:func:`_horizon_bound`), shape (N,).
 
     """
-    count = mean.shape[0]
-    bounds = np.empty(count)
-    for entry in range(count):
-        c, tau, big_r = cov[entry], horizon[entry], radius[entry]
-        r_x, r_y = mean[entry, 0], mean[entry, 1]
-        p_x, p_y = r_x + tau * mean[entry, 2], r_y + tau * mean[entry, 3]
-        # Cov(p) = S_rr + tau (S_rw + S_wr) + tau^2 S_ww.
-        pxx = c[0, 0] + tau * (c[0, 2] + c[0, 2]) + tau * tau * c[2, 2]
-        pxy = c[0, 1] + tau * (c[0, 3] + c[1, 2]) + tau * tau * c[2, 3]
-        pyy = c[1, 1] + tau * (c[1, 3] + c[1, 3]) + tau * tau * c[3, 3]
-        best = -np.inf
-        for direction in range(HORIZON_DIRECTIONS):
-            best = max(best, _half_plane_bound(
-                _TWO_PI * direction / HORIZON_DIRECTIONS, r_x, r_y, c[0, 0], c[0, 1], c[1, 1],
-                p_x, p_y, pxx, pxy, pyy, big_r))
-        toward_r, toward_p = math.atan2(r_y, r_x), math.atan2(p_y, p_x)
-        bisector = 0.5 * (toward_r + toward_p)
-        if abs(toward_r - toward_p) > math.pi:
-            bisector += math.pi
-        for angle in (toward_r, toward_p, bisector):
-            best = max(best, _half_plane_bound(angle, r_x, r_y, c[0, 0], c[0, 1], c[1, 1],
-                                               p_x, p_y, pxx, pxy, pyy, big_r))
-        bounds[entry] = min(max(best - SLACK, 0.0), 1.0)
+    _check(mean, cov, radius)
+    if horizon.shape[0] != mean.shape[0]:
+        raise ValueError('horizon must have one value per entry')
+    bounds = np.empty(mean.shape[0])
+    for entry in range(mean.shape[0]):
+        tau = horizon[entry]
+        if not (math.isfinite(tau) and tau > 0.0):
+            raise ValueError('horizon must be finite and > 0')
+        bounds[entry] = _horizon_bound(mean, cov, entry, radius[entry], tau)
     return bounds
+
+
+@jit()
+def _floors(mean, cov, radius):
+    """
+    ``E`` and ``Var`` of ``f`` and of ``g`` per entry, shape (N, 1, 2) each.
+
+    The moments of :func:`.moment_kernels.condition_moments` at a zero command (lead 0: the mean
+    of ``z`` is MEAN itself), with the gate; ``g``'s do not depend on the radius.
+    """
+    count = mean.shape[0]
+    zeros = np.zeros(count)
+    return condition_moments(mean, cov, radius, np.zeros((count, 1, 2)), zeros, zeros, zeros,
+                             True, False)
+
+
+@jit(inline='always')
+def _cantelli(expectation, variance):
+    """Cantelli's ``k^2 / (1 + k^2)`` of ``k = E / sd`` (0 when ``E < 0``; 1 when exact)."""
+    if not expectation >= 0.0:
+        return -SLACK
+    expectation_sq = expectation * expectation
+    bound = expectation_sq / (expectation_sq + max(variance, 0.0))
+    return (1.0 if bound != bound else bound) - SLACK
+
+
+@jit(inline='always')
+def _known(mean, cov, entry, big_r, across):
+    """
+    ``P(f >= 0)`` (ACROSS) or ``P(g >= 0)`` less ``SLACK`` where ``S_ww = 0``.
+
+    ``w = mu_w`` exactly. ``f >= 0`` iff ``|r . n| >= R`` for ``mu_w``'s unit normal ``n``, a
+    folded normal; ``g = r . mu_w`` is normal. ``w = 0`` gives ``f = g = 0``: probability 1.
+    """
+    r_x, r_y, w_x, w_y = mean[entry, 0], mean[entry, 1], mean[entry, 2], mean[entry, 3]
+    c = cov[entry]
+    if across:
+        speed = math.hypot(w_x, w_y)
+        if not speed > 0.0:
+            return 1.0
+        n_x, n_y = w_y / speed, -w_x / speed
+        offset = r_x * n_x + r_y * n_y
+        spread = math.sqrt(max(n_x * (c[0, 0] * n_x + c[0, 1] * n_y)
+                               + n_y * (c[1, 0] * n_x + c[1, 1] * n_y), 0.0))
+        return (ndtr(_ratio(offset - big_r, spread, np.inf))
+                + ndtr(_ratio(-offset - big_r, spread, np.inf))) - SLACK
+    if w_x == 0.0 and w_y == 0.0:
+        return 1.0
+    spread = math.sqrt(max(w_x * (c[0, 0] * w_x + c[0, 1] * w_y)
+                           + w_y * (c[1, 0] * w_x + c[1, 1] * w_y), 0.0))
+    return ndtr(_ratio(r_x * w_x + r_y * w_y, spread, np.inf)) - SLACK
+
+
+@jit()
+def _certify(mean, cov, radius, across, rows, start, width, masses, invertible, moments,
+             probability, method):
+    """
+    Write the bound of ``f`` (ACROSS) or of ``g`` of each entry of ROWS (R,), and its method.
+
+    Per entry the exact cases first: zero covariance (1 or 0 as the condition holds at the
+    mean), ``S_ww = 0`` (:func:`_known`); else the wedge bound (the entries of ROWS one batch,
+    :func:`_wedge_bounds`) where it applies and beats Cantelli's of MOMENTS (:func:`_floors`),
+    else Cantelli's. PROBABILITY (R,) receives the bound clipped to [0, 1], METHOD (R,) its
+    index in :data:`.certificate.METHODS`.
+    """
+    count = rows.shape[0]
+    wedge = np.empty(count)
+    usable = np.empty(count, dtype=np.bool_)
+    _wedge_bounds(mean, cov, radius, across, rows, start, width, masses, invertible, wedge,
+                  usable)
+    column = 0 if across else 1
+    for row in range(count):
+        entry = rows[row]
+        c = cov[entry]
+        deterministic = True
+        known = True
+        for index in range(4):
+            for other in range(4):
+                if c[index, other] != 0.0:
+                    deterministic = False
+                    if index >= 2 and other >= 2:
+                        known = False
+        r_x, r_y, w_x, w_y = mean[entry, 0], mean[entry, 1], mean[entry, 2], mean[entry, 3]
+        if deterministic:
+            if across:
+                cross = r_x * w_y - r_y * w_x
+                holds = cross * cross - radius[entry] * radius[entry] * (
+                    w_x * w_x + w_y * w_y) >= 0.0
+            else:
+                holds = r_x * w_x + r_y * w_y >= 0.0
+            value, kind = (1.0 if holds else 0.0), _DETERMINISTIC
+        elif known:
+            value, kind = _known(mean, cov, entry, radius[entry], across), _KNOWN
+        else:
+            value = _cantelli(moments[0][entry, 0, column], moments[1][entry, 0, column])
+            kind = _CANTELLI
+            if usable[row] and wedge[row] > value:
+                value, kind = wedge[row], _WEDGE
+        probability[row] = 0.0 if value < 0.0 else (1.0 if value > 1.0 else value)
+        method[row] = kind
+
+
+@jit(_CONDITION_SIGNATURE)
+def condition_bounds(mean, cov, radius, required, gated, horizon, pairs, rvo):
+    """
+    Return the bound of the accepted condition per entry, computed as far as needed.
+
+    ``condition_bound`` of :mod:`.certificate`: the bound of ``f`` on every entry (RVO); where
+    it falls short of REQUIRED and the gate counts (GATED), the larger with the bound of ``g``,
+    computed on exactly those entries as one batch; where that too falls short and HORIZON is
+    finite, the larger with the horizon bound (:func:`_horizon_bound`). The wedges and the
+    moments of ``f`` and ``g`` are computed once for every entry. Without RVO the bound of
+    ``g`` alone on the GATED entries (``receding_certificate``, every entry gated); with RVO
+    and no entry gated the bound of ``f`` alone (``rvo_certificate``). One kernel serves the
+    three, so that the wedge bound is compiled once.
+
+    Parameters
+    ----------
+    mean : numpy.ndarray
+        Mean of ``z = (r, w)``, shape (N, 4).
+    cov : numpy.ndarray
+        Covariance of ``z``, shape (N, 4, 4).
+    radius, required : numpy.ndarray
+        ``R`` and the probability to certify per entry, shape (N,).
+    gated : numpy.ndarray
+        Whether the gate counts per entry, shape (N,).
+    horizon : float
+        ``tau`` [s]; ``inf``: no horizon pair.
+    pairs : int
+        K, wedges of the half turn, >= 2.
+    rvo : bool
+        Whether the bound of ``f`` comes first (else only ``g``'s is computed).
+
+    Returns
+    -------
+    bounds : numpy.ndarray
+        The bound per entry, in [0, 1], shape (N,); 0 for an entry with neither bound.
+    method : numpy.ndarray
+        Per entry the index in :data:`.certificate.METHODS` of the last bound of ``f`` or ``g``
+        computed for it (-1 for none), shape (N,).
+
+    """
+    _check(mean, cov, radius)
+    count = mean.shape[0]
+    if required.shape[0] != count or gated.shape[0] != count:
+        raise ValueError('required and gated must have one value per entry')
+    start, width, masses, invertible = cut_wedges(mean, cov, pairs)
+    moments = _floors(mean, cov, radius)
+    bounds = np.zeros(count)
+    method = np.full(count, -1, dtype=np.int64)
+    finite = math.isfinite(horizon)
+    rows = np.empty(count, dtype=np.int64)
+    # The stages: f, then g. ACROSS is not a constant, so that _certify is compiled once.
+    for stage in range(2):
+        across = stage == 0
+        # Every entry for f; for g the gated entries f leaves short.
+        size = 0
+        for entry in range(count):
+            if rvo if across else gated[entry] and (not rvo or bounds[entry] < required[entry]):
+                rows[size] = entry
+                size += 1
+        if size == 0:
+            continue
+        values = np.empty(size)
+        kinds = np.empty(size, dtype=np.int64)
+        _certify(mean, cov, radius, across, rows[:size], start, width, masses, invertible,
+                 moments, values, kinds)
+        for row in range(size):
+            entry = rows[row]
+            bounds[entry] = max(bounds[entry], values[row])
+            method[entry] = kinds[row]
+            if not across and finite and bounds[entry] < required[entry]:
+                bounds[entry] = max(bounds[entry], _horizon_bound(mean, cov, entry,
+                                                                  radius[entry], horizon))
+    return bounds, method
