@@ -1,10 +1,13 @@
 """Pass beside: a robot aims beside a neighbour standing on its way, at the two radii and GAP."""
 
+import dataclasses
 import math
 
 import numpy as np
 import pytest
 
+from prvo_planner.agent import AgentSettings, PlannerAgent
+from prvo_planner.core import PlannerConfig
 from prvo_planner.give_way import GAP
 from prvo_planner.passing import AT_GOAL, RANGE, at_goal, pass_beside
 from prvo_planner.routes import NeighbourRoute
@@ -15,6 +18,17 @@ POSITION = np.zeros(2)
 WAY = np.array([[0.0, 0.0], [6.0, 0.0]])
 V_PREF = np.array([0.8, 0.0])
 NEEDED = RADIUS + 0.25 + GAP
+
+
+@dataclasses.dataclass(frozen=True)
+class Measurement:
+    """The fields of prvo_msgs_util.OdometryMeasurement the agent reads."""
+
+    stamp: float
+    position: np.ndarray
+    velocity: np.ndarray
+    covariance: np.ndarray
+    yaw: float = 0.0
 
 
 def aimed_at(velocity):
@@ -97,3 +111,25 @@ def test_a_neighbour_near_the_end_of_the_route_it_publishes_stands():
     assert at_goal(np.array([4.0, AT_GOAL - 0.01]), route)
     assert not at_goal(np.array([4.0 - AT_GOAL - 0.01, 0.0]), route)
     assert not at_goal(np.array([4.0, 0.0]), None)
+
+
+@pytest.mark.parametrize('share, at, goal, oncoming', [
+    (0.5, [3.0, 0.2], [-1.0, 0.2], True),   # on its way toward the robot: met, it leans right
+    (0.0, [3.0, 0.2], [-1.0, 0.2], False),  # announcing no share: it stands, whatever it seems
+    (0.5, [5.8, 0.2], [5.5, 0.2], False),   # within AT_GOAL of its goal: arriving, or aside
+])
+def test_keep_right_meets_a_neighbour_on_its_way_and_not_one_that_stands(share, at, goal,
+                                                                          oncoming):
+    settings = AgentSettings(radius=0.3, unknown_neighbor_radius=0.4, approach_time=0.5,
+                             goal_tolerance=0.2, acceleration_std=1.0, neighbor_timeout=2.0)
+    config = PlannerConfig(eta=0.8, max_speed=1.0, actuation_cov=0.0025 * np.eye(2))
+    agent = PlannerAgent('self', config, settings, [6.0, 0.0])
+    agent.receive_footprint('a', 0.3, 0.0)
+    agent.receive_share('a', share, 0.0)
+    agent.receive_route('a', [at, goal], 0.0)
+    covariance = 0.0001 * np.eye(4)
+    agent.receive_neighbour('a', Measurement(0.0, np.array(at), np.array([-0.3, 0.0]),
+                                             covariance), 0.0)
+    agent.receive_own(Measurement(0.0, np.zeros(2), np.zeros(2), covariance), 0.0)
+    v_pref = agent.plan_request().problem[2]
+    assert (v_pref[1] < -0.1) == oncoming
