@@ -4,6 +4,7 @@ import dataclasses
 import subprocess
 
 import numpy as np
+from planner_testing import Odometry
 import pytest
 
 from prvo_planner import tracking
@@ -26,17 +27,6 @@ CONFIG = PlannerConfig(eta=0.8, max_speed=1.0, actuation_cov=0.0025 * np.eye(2),
                        inertia=0.5, passing_bias=0.1)
 
 
-@dataclasses.dataclass(frozen=True)
-class Measurement:
-    """The fields of prvo_msgs_util.OdometryMeasurement the agent reads."""
-
-    stamp: float
-    position: np.ndarray
-    velocity: np.ndarray
-    covariance: np.ndarray
-    yaw: float = 0.0
-
-
 def measurements(seed, start, velocity, steps, dt=0.1, t0=0.0):
     """Return noisy measurements of a robot moving at constant VELOCITY from START."""
     rng = np.random.default_rng(seed)
@@ -46,7 +36,7 @@ def measurements(seed, start, velocity, steps, dt=0.1, t0=0.0):
         stamp = t0 + step * dt
         truth = np.concatenate([np.asarray(start) + np.asarray(velocity) * step * dt, velocity])
         noisy = truth + rng.normal(0.0, 0.05, 4)
-        result.append(Measurement(round(stamp, 9), noisy[:2], noisy[2:], covariance, 0.1))
+        result.append(Odometry(round(stamp, 9), noisy[:2], noisy[2:], covariance, 0.1))
     return result
 
 
@@ -281,7 +271,7 @@ def test_no_goal_stands_still_without_a_plan():
 
 
 def standing(stamp, position):
-    return Measurement(stamp, np.asarray(position, dtype=float), np.zeros(2),
+    return Odometry(stamp, np.asarray(position, dtype=float), np.zeros(2),
                        0.0001 * np.eye(4))
 
 
@@ -298,7 +288,7 @@ def test_a_robot_at_its_goal_stands_while_nobody_comes_and_steps_aside_when_some
     assert agent.own_announcement == NeighbourAnnouncement(0.3, 0.0)
     # A neighbour heading straight at it, 3 s away: standing still would be a collision within
     # the horizon, so it moves (its share of the avoidance).
-    coming = Measurement(0.1, np.array([3.0, 0.0]), np.array([-1.0, 0.0]), 0.0001 * np.eye(4))
+    coming = Odometry(0.1, np.array([3.0, 0.0]), np.array([-1.0, 0.0]), 0.0001 * np.eye(4))
     agent.receive_neighbour('a', coming, 0.1)
     agent.receive_own(standing(0.1, [0.05, 0.0]), 0.1)
     command = agent.plan()
@@ -451,7 +441,7 @@ def test_an_accelerating_agent_changes_its_command_by_at_most_the_limit_and_brak
     position = np.zeros(2)
     arrived_at = None
     for step in range(80):
-        measured = Measurement(round(step * 0.1, 9), position + rng.normal(0.0, 0.01, 2),
+        measured = Odometry(round(step * 0.1, 9), position + rng.normal(0.0, 0.01, 2),
                                previous + rng.normal(0.0, 0.01, 2), 1e-4 * np.eye(4))
         agent.receive_own(measured, step * 0.1)
         command = agent.plan()
@@ -476,7 +466,7 @@ def test_a_neighbour_heard_again_after_it_was_dropped_is_resumed():
 
 
 def _plan_at(agent, stamp, position):
-    agent.receive_own(Measurement(stamp, np.asarray(position), np.zeros(2), 1e-8 * np.eye(4)),
+    agent.receive_own(Odometry(stamp, np.asarray(position), np.zeros(2), 1e-8 * np.eye(4)),
                       stamp)
     return agent.plan()
 

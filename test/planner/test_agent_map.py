@@ -4,6 +4,7 @@ import dataclasses
 import inspect
 
 import numpy as np
+from planner_testing import Odometry
 import pytest
 
 from prvo_msgs_util import diagnostic_values
@@ -31,17 +32,6 @@ RESOLUTION = 0.1
 # Does the core take the map's obstacles yet? Until it does, the agent's calls are checked and
 # passed on without them.
 CORE_TAKES_OBSTACLES = 'obstacles' in inspect.signature(plan_velocity).parameters
-
-
-@dataclasses.dataclass(frozen=True)
-class Measurement:
-    """The fields of prvo_msgs_util.OdometryMeasurement the agent reads."""
-
-    stamp: float
-    position: np.ndarray
-    velocity: np.ndarray
-    covariance: np.ndarray
-    yaw: float = 0.0
 
 
 def walled_room():
@@ -87,7 +77,7 @@ def drive(agent, start, steps, dt=0.1, t0=0.0):
     position, velocity = np.array(start, dtype=float), np.zeros(2)
     positions, command = [position], None
     for step in range(steps):
-        agent.receive_own(Measurement(round(t0 + step * dt, 9), position, velocity,
+        agent.receive_own(Odometry(round(t0 + step * dt, 9), position, velocity,
                                       1e-4 * np.eye(4)), 0.0)
         command = agent.plan()
         velocity = command.velocity
@@ -101,7 +91,7 @@ def drive(agent, start, steps, dt=0.1, t0=0.0):
 def stand(agent, position, steps, dt=0.1, t0=0.0):
     """Measure the robot at POSITION, standing, STEPS times from T0; return the last command."""
     for step in range(steps):
-        agent.receive_own(Measurement(round(t0 + step * dt, 9), np.array(position, dtype=float),
+        agent.receive_own(Odometry(round(t0 + step * dt, 9), np.array(position, dtype=float),
                                       np.zeros(2), 1e-4 * np.eye(4)), 0.0)
         command = agent.plan()
     return command
@@ -143,10 +133,9 @@ def test_a_goal_behind_a_wall_is_reached_by_the_way_around(planned_obstacles):
     assert beside and all(obstacles is not None and len(obstacles) > 0 for obstacles in beside)
 
 
-
 def test_without_a_map_the_robot_heads_straight_and_plans_without_obstacles(planned_obstacles):
     agent = PlannerAgent('self', CONFIG, SETTINGS, np.array([2.0, 4.5]))
-    agent.receive_own(Measurement(0.0, np.array([2.0, 1.5]), np.zeros(2), 1e-4 * np.eye(4)), 0.0)
+    agent.receive_own(Odometry(0.0, np.array([2.0, 1.5]), np.zeros(2), 1e-4 * np.eye(4)), 0.0)
     command = agent.plan()
     assert command.route is None and command.route_status == ROUTE_NONE
     assert planned_obstacles[-1][1] is None
@@ -229,7 +218,7 @@ def test_a_robot_in_a_u_shaped_trap_leaves_it_by_its_opening(planned_obstacles):
 def test_with_wait_for_map_the_first_plan_waits_for_the_map_as_long_as_for_neighbours():
     settings = dataclasses.replace(SETTINGS, wait_for_map=True, neighbor_timeout=2.0)
     agent = PlannerAgent('self', CONFIG, settings, np.array([2.0, 4.5]))
-    agent.receive_own(Measurement(0.0, np.array([2.0, 1.5]), np.zeros(2), 1e-4 * np.eye(4)),
+    agent.receive_own(Odometry(0.0, np.array([2.0, 1.5]), np.zeros(2), 1e-4 * np.eye(4)),
                       10.0)
     assert agent.awaiting_listed(10.5) and not agent.ready(10.5)
     # Not for ever: after neighbor_timeout the robot plans without.
@@ -237,7 +226,7 @@ def test_with_wait_for_map_the_first_plan_waits_for_the_map_as_long_as_for_neigh
     agent.set_map(walled_room())
     assert not agent.awaiting_listed(10.5) and agent.ready(10.5)
     without = PlannerAgent('self', CONFIG, SETTINGS, np.array([2.0, 4.5]))
-    without.receive_own(Measurement(0.0, np.array([2.0, 1.5]), np.zeros(2), 1e-4 * np.eye(4)),
+    without.receive_own(Odometry(0.0, np.array([2.0, 1.5]), np.zeros(2), 1e-4 * np.eye(4)),
                         10.0)
     assert without.ready(10.0)
 
@@ -246,7 +235,7 @@ def test_with_wait_for_map_a_robot_whose_map_is_being_built_holds_with_zero_comm
     settings = dataclasses.replace(SETTINGS, wait_for_map=True, neighbor_timeout=2.0)
     agent = PlannerAgent('self', CONFIG, settings, np.array([2.0, 4.5]))
     agent.map_pending = True
-    agent.receive_own(Measurement(0.0, np.array([2.0, 1.5]), np.zeros(2), 1e-4 * np.eye(4)),
+    agent.receive_own(Odometry(0.0, np.array([2.0, 1.5]), np.zeros(2), 1e-4 * np.eye(4)),
                       10.0)
     # Waited for as a map not yet arrived is; then held for, by zero commands, not planned
     # without (the robot would head into the walls of the map coming) nor left unanswered.
@@ -257,7 +246,7 @@ def test_with_wait_for_map_a_robot_whose_map_is_being_built_holds_with_zero_comm
     np.testing.assert_array_equal(command.velocity, [0.0, 0.0])
     agent.set_map(walled_room())
     assert not agent.awaiting_map
-    agent.receive_own(Measurement(0.1, np.array([2.0, 1.5]), np.zeros(2), 1e-4 * np.eye(4)),
+    agent.receive_own(Odometry(0.1, np.array([2.0, 1.5]), np.zeros(2), 1e-4 * np.eye(4)),
                       12.6)
     command = agent.plan()
     assert not command.awaiting_map and np.linalg.norm(command.velocity) > 0.0
@@ -297,7 +286,7 @@ def test_a_robot_inside_an_obstacle_on_its_map_says_so_and_leaves_by_the_nearest
     start = np.array([2.25, 2.32])
     agent = PlannerAgent('robot_0', CONFIG, SETTINGS, goal=np.array([6.0, 2.3]))
     agent.set_map(grid)
-    agent.receive_own(Measurement(0.0, start, np.zeros(2), 1e-4 * np.eye(4)), 0.0)
+    agent.receive_own(Odometry(0.0, start, np.zeros(2), 1e-4 * np.eye(4)), 0.0)
     command = agent.plan()
     # The nearest free cell, by brute force over every cell: the one left of x = 2.0.
     rows, columns = np.nonzero(grid.cells == 0)
@@ -336,7 +325,7 @@ def test_a_filter_inside_an_obstacle_passes_its_controller_s_command_on():
     agent = PlannerAgent('robot_0', CONFIG, dataclasses.replace(
         SETTINGS, preferred_source='velocity'))
     agent.set_map(block_room())
-    agent.receive_own(Measurement(0.0, np.array([2.25, 2.32]), np.zeros(2),
+    agent.receive_own(Odometry(0.0, np.array([2.25, 2.32]), np.zeros(2),
                                   1e-4 * np.eye(4)), 0.0)
     agent.receive_upstream(UpstreamCommand((0.0, 0.4), 0.0), 0.0)
     command = agent.plan()
@@ -364,7 +353,7 @@ def test_a_neighbour_standing_in_the_door_is_named_once_it_claims_nothing():
     idle, goes = [], []
     for step in range(int(IDLE_INSIDE / 0.1) + 5):
         stamp = round(0.1 * step, 9)
-        agent.receive_neighbour('broken', Measurement(stamp, np.array([3.0, 2.0]), np.zeros(2),
+        agent.receive_neighbour('broken', Odometry(stamp, np.array([3.0, 2.0]), np.zeros(2),
                                                       1e-4 * np.eye(4)), 0.0)
         command = stand(agent, [1.0, 2.0], 1, t0=stamp)
         idle.append(command.idle_in_passage)
@@ -390,10 +379,10 @@ def test_at_a_passage_its_order_leads_and_the_robot_does_not_keep_right():
         agent.set_map(door_room())
         for step in range(3):
             stamp = round(0.1 * step, 9)
-            agent.receive_neighbour('coming', Measurement(
+            agent.receive_neighbour('coming', Odometry(
                 stamp, np.array([5.0 - 0.1 * step, 2.0]), np.array([-1.0, 0.0]),
                 1e-4 * np.eye(4)), 0.0)
-            agent.receive_own(Measurement(stamp, position, np.zeros(2), 1e-4 * np.eye(4)), 0.0)
+            agent.receive_own(Odometry(stamp, position, np.zeros(2), 1e-4 * np.eye(4)), 0.0)
             request = agent.plan_request()
         assert agent.passage_decision is not None and agent.passage_decision.goes
         preferences[keep_right] = request.problem[2]
@@ -418,16 +407,16 @@ def test_a_robot_waiting_where_no_spot_fits_says_so_and_holds_its_place(monkeypa
     position = np.array([1.5, 2.0])
     for step in range(3):
         stamp = round(0.1 * step, 9)
-        agent.receive_neighbour('other', Measurement(stamp, np.array([3.0, 2.0]), np.zeros(2),
+        agent.receive_neighbour('other', Odometry(stamp, np.array([3.0, 2.0]), np.zeros(2),
                                                      1e-4 * np.eye(4)), 0.0)
-        agent.receive_own(Measurement(stamp, position, np.zeros(2), 1e-4 * np.eye(4)), 0.0)
+        agent.receive_own(Odometry(stamp, position, np.zeros(2), 1e-4 * np.eye(4)), 0.0)
         request = agent.plan_request()
     decision = agent.passage_decision
     west = agent.passage_map.passages[0].ends[0]
     assert not decision.goes and decision.without_spot and decision.waiting_spot is None
     np.testing.assert_array_equal(decision.entrance, west.entrance)
     np.testing.assert_array_equal(request.problem[2], np.zeros(2))
-    agent.receive_own(Measurement(0.3, position, np.zeros(2), 1e-4 * np.eye(4)), 0.0)
+    agent.receive_own(Odometry(0.3, position, np.zeros(2), 1e-4 * np.eye(4)), 0.0)
     command = agent.plan()
     status = plan_status('self', command, 1.0, 'prvo', 0.25)
     assert (f'self waits at passage 0, whose end at ({west.entrance[0]:.2f}, '
@@ -452,9 +441,9 @@ def test_a_neighbour_waiting_at_the_door_before_the_robot_came_goes_first():
         stamp = round(0.1 * step, 9)
         if stamp == 5.0:
             agent.set_goal(np.array([1.0, 2.0]))
-        agent.receive_neighbour('waiter', Measurement(stamp, spot, np.zeros(2),
+        agent.receive_neighbour('waiter', Odometry(stamp, spot, np.zeros(2),
                                                       1e-4 * np.eye(4)), 0.0)
-        agent.receive_own(Measurement(stamp, position, np.zeros(2), 1e-4 * np.eye(4)), 0.0)
+        agent.receive_own(Odometry(stamp, position, np.zeros(2), 1e-4 * np.eye(4)), 0.0)
         agent.plan_request()
         decisions.append(agent.passage_decision)
     assert all(decision is None for decision in decisions[:50])
@@ -483,7 +472,7 @@ def _kept_waiting(search_here, install):
     routes, decisions, wanted = [], [], []
     for step in range(40):
         stamp = round(0.1 * step, 9)
-        agent.receive_neighbour('broken', Measurement(stamp, np.array([3.0, 0.9]), np.zeros(2),
+        agent.receive_neighbour('broken', Odometry(stamp, np.array([3.0, 0.9]), np.zeros(2),
                                                       1e-4 * np.eye(4)), 0.0)
         command = stand(agent, [1.6, 0.9], 1, t0=stamp)
         routes.append(command.route)

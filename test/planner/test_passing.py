@@ -1,9 +1,9 @@
 """Pass beside: a robot aims beside a neighbour standing on its way, at the two radii and GAP."""
 
-import dataclasses
 import math
 
 import numpy as np
+from planner_testing import Odometry
 import pytest
 
 from prvo_planner.agent import AgentSettings, PlannerAgent
@@ -18,17 +18,6 @@ POSITION = np.zeros(2)
 WAY = np.array([[0.0, 0.0], [6.0, 0.0]])
 V_PREF = np.array([0.8, 0.0])
 NEEDED = RADIUS + 0.25 + GAP
-
-
-@dataclasses.dataclass(frozen=True)
-class Measurement:
-    """The fields of prvo_msgs_util.OdometryMeasurement the agent reads."""
-
-    stamp: float
-    position: np.ndarray
-    velocity: np.ndarray
-    covariance: np.ndarray
-    yaw: float = 0.0
 
 
 def aimed_at(velocity):
@@ -128,8 +117,8 @@ def test_keep_right_meets_a_neighbour_on_its_way_and_not_one_that_stands(share, 
     agent.receive_share('a', share, 0.0)
     agent.receive_route('a', [at, goal], 0.0)
     covariance = 0.0001 * np.eye(4)
-    agent.receive_neighbour('a', Measurement(0.0, np.array(at), np.array([-0.3, 0.0]),
+    agent.receive_neighbour('a', Odometry(0.0, np.array(at), np.array([-0.3, 0.0]),
                                              covariance), 0.0)
-    agent.receive_own(Measurement(0.0, np.zeros(2), np.zeros(2), covariance), 0.0)
+    agent.receive_own(Odometry(0.0, np.zeros(2), np.zeros(2), covariance), 0.0)
     v_pref = agent.plan_request().problem[2]
     assert (v_pref[1] < -0.1) == oncoming

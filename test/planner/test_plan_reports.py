@@ -1,26 +1,14 @@
 """A plan's diagnostic status carries the planner's tally of its plans so far."""
 
-import dataclasses
 
 from diagnostic_msgs.msg import DiagnosticStatus
 import numpy as np
+from planner_testing import Odometry
 
 from prvo_msgs_util import diagnostic_values
 from prvo_planner.agent import AgentSettings, PlannerAgent
 from prvo_planner.core import PlannerConfig
 from prvo_planner.reports import plan_status
-
-
-@dataclasses.dataclass(frozen=True)
-class Measurement:
-    """The fields of prvo_msgs_util.OdometryMeasurement the agent reads."""
-
-    stamp: float
-    position: np.ndarray
-    velocity: np.ndarray
-    covariance: np.ndarray
-    yaw: float = 0.0
-
 
 # (robot, x at 0 s [m], velocity along x [m/s]): a neighbour comes head-on.
 HEAD_ON = (('self', -2.0, 0.8), ('other', 2.0, -0.8))
@@ -35,7 +23,7 @@ def head_on(agent, rng, steps, first=0, robots=HEAD_ON):
         stamp = round(0.1 * step, 9)
         for robot, start, velocity in robots:
             position = np.array([start + velocity * stamp, 0.0]) + rng.normal(0.0, 0.02, 2)
-            measurement = Measurement(stamp, position, np.array([velocity, 0.0]),
+            measurement = Odometry(stamp, position, np.array([velocity, 0.0]),
                                       4e-4 * np.eye(4))
             if robot == 'self':
                 agent.receive_own(measurement, stamp)
