@@ -3,10 +3,11 @@ The walls' arithmetic compiled (:mod:`.walls`): geometry, crossing bounds, rejec
 
 Everything a plan beside walls computes per shape, per condition or per (condition, ray), which
 numpy did as tens of calls on arrays of a few to a few hundred elements, here in loops of
-scalars. Seven functions, compiled for one signature each when this module is first imported
-(:mod:`.walls` imports it on its first model; the planner node's warm-up imports it before
-the node spins) and kept in numba's on-disk cache, as the ray search and the certificate are
-(``./run.sh setup`` compiles all three modules once after installing):
+scalars. Ten functions, compiled for one signature each when this module is first imported
+(:mod:`.walls` imports it on its first model, :mod:`.probability` on its first array of
+margins; the planner node's warm-up imports it before the node spins) and kept in numba's
+on-disk cache, as the ray search and the certificate are (``./run.sh setup`` compiles all the
+kernel modules once after installing):
 
 * :func:`wall_geometry`: the shapes within reach of the horizon and their linear conditions
   (each near wall's support line, rectangle sides and end fans, each near disc's fan), with
@@ -18,7 +19,12 @@ the node spins) and kept in numba's on-disk cache, as the ray search and the cer
 * :func:`crossing_bounds`: the reflection principle's bound of each condition at given speeds;
 * :func:`largest_failure`: the largest failure bound over the shapes at a velocity;
 * :func:`rejected_intervals`: the open intervals of each ray that each shape rejects;
-* :func:`cut_by_walls`: the feasible intervals of a plan's rays minus those rejected ones.
+* :func:`cut_by_walls`: the feasible intervals of a plan's rays minus those rejected ones;
+* :func:`wall_conditions` and :func:`wall_speeds`: a plan's model in two calls (the geometry,
+  the spreads and ``m0``; the speeds and the shapes close to ``mu``), scipy's two ``ndtri``
+  calls of the brackets between them;
+* :func:`cantelli_bounds`: Cantelli's bound of an array of margins (the planner's per-plan
+  :func:`.probability.eta_from_k`), beside the walls for want of a module of the plan's own.
 
 ``Phi`` and ``erfcx`` are :mod:`.special_kernels`' (scipy's ufuncs cannot be called from numba):
 ``Phi`` within 2e-14 of scipy's, ``erfcx`` within a few ulps, so a bound moves by rounding only.
@@ -34,6 +40,7 @@ from .ray_solver import (
     READ_ONLY_INDICES,
     READ_ONLY_ROWS,
     READ_ONLY_VECTOR,
+    _fma,
     jit,
 )
 from .special_kernels import erfcx, ndtr
@@ -71,6 +78,21 @@ _REJECTED_SIGNATURE = types.Tuple((_ROWS, _ROWS))(
 _CUT_SIGNATURE = types.Tuple((_INDICES, _VECTOR, _VECTOR))(
     READ_ONLY_INDICES, READ_ONLY_VECTOR, READ_ONLY_VECTOR, types.int64, READ_ONLY_ROWS,
     READ_ONLY_ROWS)
+# wall_conditions: wall_geometry's outputs, then mean0, std0, walk, solved risks, thresholds.
+_CONDITIONS_SIGNATURE = types.Tuple((
+    types.float64, _VECTOR, _INDICES, _INDICES, _VECTOR, _VECTOR, _VECTOR, _VECTOR, _ROWS,
+    _VECTOR, _ROWS, types.boolean[:, ::1], _ROWS, _VECTOR, _VECTOR, _VECTOR, _VECTOR,
+    _VECTOR))(
+    READ_ONLY_VECTOR, READ_ONLY_CUBE, READ_ONLY_ROWS, READ_ONLY_VECTOR, READ_ONLY_ROWS,
+    READ_ONLY_VECTOR, READ_ONLY_ROWS, READ_ONLY_ROWS, types.float64, types.float64,
+    types.float64, types.float64, types.float64, types.float64, types.float64, types.float64)
+# Its arguments are wall_conditions' and scipy's outputs, as line_speeds' are: writable.
+_CLOSE_SIGNATURE = types.Tuple((_VECTOR, _VECTOR, types.boolean[::1]))(
+    _VECTOR, _VECTOR, _VECTOR, types.float64, _VECTOR, _VECTOR, _VECTOR, _VECTOR, _VECTOR,
+    _VECTOR, _VECTOR, types.float64)
+_CANTELLI_SIGNATURE = types.Tuple((_VECTOR, types.boolean))(READ_ONLY_VECTOR, types.boolean)
+# From this k on k^2 / (1 + k^2) is exactly 1 (``probability._CERTAIN_K``).
+_CERTAIN_K = 1e8
 
 
 @jit(inline='always')
@@ -739,3 +761,116 @@ def cut_by_walls(gap_ray, lower, upper, first_ray, wall_upper, wall_lower):
                 pieces += 1
         first = stop
     return out_ray[:pieces].copy(), out_lower[:pieces].copy(), out_upper[:pieces].copy()
+
+
+@jit(_CONDITIONS_SIGNATURE)
+def wall_conditions(mean, segments, frames, half_widths, disc_centres, disc_radii, position_cov,
+                    actuation_cov, base_radius, growth, spread, horizon, max_speed, delta, period,
+                    quantile):
+    """
+    Return one plan's near shapes and their conditions' spreads (:func:`.walls.wall_model`).
+
+    :func:`wall_geometry`, then :func:`line_spreads` of its conditions, and each condition's
+    ``m0 = n.mu - c``, in one call. ``n.mu`` is rounded as numpy's matrix product rounds it
+    here (one fused multiply-add over the product of the second coordinates), so that the
+    walls' plans stay what they were.
+
+    Parameters
+    ----------
+    mean, segments, frames, half_widths, disc_centres, disc_radii : numpy.ndarray
+        As :func:`wall_geometry`.
+    position_cov, actuation_cov : numpy.ndarray
+        ``S_p`` and ``S_a`` as planned with, shape (2, 2).
+    base_radius, growth, spread, horizon, max_speed, delta : float
+        As :func:`wall_geometry`.
+    period, quantile : float
+        ``T`` and ``Phi^-1(eta)``, as :func:`line_spreads`.
+
+    Returns
+    -------
+    tuple
+        :func:`wall_geometry`'s outputs without the offsets (``clearance``, ``far_bounds``,
+        ``walls``, ``discs``, ``wall_radius``, ``wall_distance``, ``disc_radius``,
+        ``disc_distance``, ``normals``, ``risks``, ``end_bounds``, ``end_in_reach``,
+        ``away_normals``), then :func:`line_spreads`' ``away`` thresholds, then ``mean0``,
+        ``std0``, ``walk`` and the solved risks, shape (C,) each.
+
+    """
+    (clearance, far_bounds, walls, discs, wall_radius, wall_distance, disc_radius,
+     disc_distance, normals, offsets, risks, end_bounds, end_in_reach,
+     away_normals) = wall_geometry(mean, segments, frames, half_widths, disc_centres, disc_radii,
+                                   base_radius, growth, spread, horizon, max_speed, delta)
+    std0, walk, solved, away = line_spreads(normals, away_normals, position_cov, actuation_cov,
+                                            period, risks, quantile)
+    mean0 = np.empty(offsets.size)
+    for index in range(offsets.size):
+        mean0[index] = _fma(normals[index, 0], mean[0], normals[index, 1] * mean[1]) \
+            - offsets[index]
+    return (clearance, far_bounds, walls, discs, wall_radius, wall_distance, disc_radius,
+            disc_distance, normals, risks, end_bounds, end_in_reach, away_normals, away, mean0,
+            std0, walk, solved)
+
+
+@jit(_CLOSE_SIGNATURE)
+def wall_speeds(mean0, std0, walk, horizon, risks, low_quantiles, high_quantiles, wall_distance,
+                wall_radius, disc_distance, disc_radius, delta):
+    """
+    Return :func:`line_speeds`' bounds and speeds, and which near shapes are close to ``mu``.
+
+    A shape is close where ``mu`` lies within its grown radius, or where the bound standing
+    still of its support line (a disc: its fan's middle tangent) is at least ``delta``.
+
+    Returns
+    -------
+    still, approach : numpy.ndarray
+        As :func:`line_speeds`, shape (C,).
+    close : numpy.ndarray
+        Per near wall then near disc, shape (n + q,).
+
+    """
+    still, approach = line_speeds(mean0, std0, walk, horizon, risks, low_quantiles,
+                                  high_quantiles)
+    count, discs = wall_distance.size, disc_distance.size
+    close = np.empty(count + discs, dtype=np.bool_)
+    for wall in range(count):
+        close[wall] = (wall_distance[wall] <= wall_radius[wall]
+                       or still[wall * PER_WALL] >= delta)
+    for disc in range(discs):
+        close[count + disc] = (disc_distance[disc] <= disc_radius[disc]
+                               or still[count * PER_WALL + disc * FAN + FAN_HALF] >= delta)
+    return still, approach, close
+
+
+@jit(_CANTELLI_SIGNATURE)
+def cantelli_bounds(margins, clipped):
+    """
+    Return Cantelli's bound ``k^2 / (1 + k^2)`` of each margin, and whether all were valid.
+
+    Parameters
+    ----------
+    margins : numpy.ndarray
+        ``k``, shape (K,).
+    clipped : bool
+        Take ``max(k, 0)`` first (NaN stays NaN).
+
+    Returns
+    -------
+    bounds : numpy.ndarray
+        Shape (K,); 1 from ``k = 1e8`` on (``inf`` included).
+    valid : bool
+        Whether every ``k`` (after the clip) is at least 0: no NaN, no negative.
+
+    """
+    bounds = np.empty(margins.size)
+    valid = True
+    for index in range(margins.size):
+        k = margins[index]
+        if clipped and k < 0.0:
+            k = 0.0
+        if not k >= 0.0:
+            valid = False
+        if k >= _CERTAIN_K:
+            bounds[index] = 1.0
+        else:
+            bounds[index] = k * k / (1.0 + k * k)
+    return bounds, valid

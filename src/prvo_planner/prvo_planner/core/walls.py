@@ -137,23 +137,6 @@ class LinearConditions:
     risks: np.ndarray
     approach: np.ndarray
 
-    @classmethod
-    def of(cls, normals, offsets, risks, mean, spreads, horizon, period):
-        """
-        Return the conditions of NORMALS and OFFSETS for the ego's mean MEAN.
-
-        SPREADS are :func:`.wall_kernels.line_spreads`' ``std0``, ``walk`` and risks clipped.
-        """
-        from .wall_kernels import line_speeds
-        mean0 = normals @ mean - offsets
-        std0, walk, risk = spreads
-        # A partial last period would move less than the walk: cover it whole.
-        horizon = period * math.ceil(horizon / period - 1e-9)
-        still, approach = line_speeds(mean0, std0, walk, horizon, risks, ndtri(0.5 * risk),
-                                      ndtri(risk))
-        return cls(normals=normals, mean0=mean0, std0=std0, walk=walk, horizon=horizon,
-                   still_risk=still, risks=risks, approach=approach)
-
 
 @dataclass(frozen=True)
 class WallModel:
@@ -287,39 +270,36 @@ def wall_model(obstacles, ego, config):
     WallModel
 
     """
-    from .wall_kernels import line_spreads, wall_geometry
+    from .wall_kernels import wall_conditions, wall_speeds
     mean = ego.position
     eta = config.effective_eta
     delta = 1.0 - eta
-    horizon, max_speed = config.obstacle_horizon, config.max_speed
+    horizon, max_speed, period = config.obstacle_horizon, config.max_speed, config.control_period
     position_cov, actuation_cov, growth = _planning_covariances(ego, config)
     position_cov = np.ascontiguousarray(position_cov)
-    actuation_cov = np.ascontiguousarray(actuation_cov)
     spread = _largest_std(position_cov) + horizon * _largest_std(actuation_cov)
     (clearance, far_bounds, walls, discs, wall_radius, wall_distance, disc_radius, disc_distance,
-     normals, offsets, risks, end_bounds, in_reach, away_normals) = wall_geometry(
-        np.ascontiguousarray(mean, dtype=float), obstacles.segments,
-        np.ascontiguousarray(obstacles.frames), obstacles.half_widths, obstacles.disc_centres,
-        obstacles.disc_radii, ego.radius + config.safety_margin, growth, spread, horizon,
-        max_speed, delta)
-    std0, walk, solved, away_thresholds = line_spreads(
-        normals, away_normals, position_cov, actuation_cov, config.control_period, risks,
+     normals, risks, end_bounds, in_reach, away_normals, away_thresholds, mean0, std0, walk,
+     solved) = wall_conditions(
+        mean, obstacles.segments, obstacles.frames, obstacles.half_widths,
+        obstacles.disc_centres, obstacles.disc_radii, position_cov, actuation_cov,
+        ego.radius + config.safety_margin, growth, spread, horizon, max_speed, delta, period,
         _quantile(eta))
-    conditions = LinearConditions.of(normals, offsets, risks, mean, (std0, walk, solved),
-                                     horizon, config.control_period)
-    count, still_risk = len(walls), conditions.still_risk
-    close = np.concatenate([wall_distance, disc_distance]) <= np.concatenate(
-        [wall_radius, disc_radius])
-    close[:count] |= still_risk[:count * PER_WALL:PER_WALL] >= delta
-    close[count:] |= still_risk[count * PER_WALL + FAN_HALF::FAN] >= delta
+    # A partial last period would move less than the walk: cover it whole.
+    rounded = period * math.ceil(horizon / period - 1e-9)
+    still, approach, close = wall_speeds(mean0, std0, walk, rounded, risks, ndtri(0.5 * solved),
+                                         ndtri(solved), wall_distance, wall_radius,
+                                         disc_distance, disc_radius, delta)
     return WallModel(
         mean_position=np.array(mean, dtype=float), clearance=clearance, far_bounds=far_bounds,
         segments=obstacles.segments[walls], radius=wall_radius, distance=wall_distance,
-        centres=obstacles.disc_centres[discs], disc_radius=disc_radius, conditions=conditions,
+        centres=obstacles.disc_centres[discs], disc_radius=disc_radius,
+        conditions=LinearConditions(normals=normals, mean0=mean0, std0=std0, walk=walk,
+                                    horizon=rounded, still_risk=still, risks=risks,
+                                    approach=approach),
         end_bounds=end_bounds, end_in_reach=in_reach, close=close, away_normals=away_normals,
-        away_thresholds=away_thresholds,
-        horizon=horizon, max_speed=max_speed, position_cov=position_cov,
-        walk_cov=config.control_period * actuation_cov)
+        away_thresholds=away_thresholds, horizon=horizon, max_speed=max_speed,
+        position_cov=position_cov, walk_cov=period * actuation_cov)
 
 
 def rejected_intervals(model, directions):
