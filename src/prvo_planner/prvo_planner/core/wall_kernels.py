@@ -345,6 +345,12 @@ def _fan_rejects(normals, approach, first, e_x, e_y, max_speed):
     return upper, lower
 
 
+@jit(inline='always')
+def _counts(upper, lower):
+    """Whether the open interval ``(upper, lower)`` of ``t`` is not empty and meets ``(0, 1)``."""
+    return upper < lower and lower > 0.0 and upper < 1.0
+
+
 @jit(_REJECTED_SIGNATURE)
 def rejected_intervals(normals, approach, risks, directions, max_speed, mean, segments, radius,
                        end_in_reach, centres, disc_radius, close, away_normals,
@@ -360,6 +366,11 @@ def rejected_intervals(normals, approach, risks, directions, max_speed, mean, se
     line and a piece both do: three intervals. A disc rejects where its fan does, unless its
     parallel tangent holds at its risk. A shape close to ``mu`` accepts only moving away,
     ``v_max (n.e) t >= Phi^-1(eta) sqrt(n' S_a n)``.
+
+    The parallel tangents, most of this function's arithmetic, are evaluated only where the
+    piece's interval without them is not empty and meets ``(0, 1)``: elsewhere the interval is
+    returned as it is, empty or beyond every command (``t`` outside ``[0, 1]``), and
+    :func:`cut_by_walls` passes over it as it passed over the tangent's ``(inf, lower)``.
 
     Parameters
     ----------
@@ -389,7 +400,8 @@ def rejected_intervals(normals, approach, risks, directions, max_speed, mean, se
     -------
     upper, lower : numpy.ndarray
         Shape (3 n + q, M): rejected ``(upper, lower)`` (empty where ``upper >= lower``), three
-        per wall (with the rectangle, the start, the end), then one per disc.
+        per wall (with the rectangle, the start, the end), then one per disc; exact within
+        ``[0, 1]``.
 
     """
     walls, discs, rays = radius.size, disc_radius.size, directions.shape[0]
@@ -421,12 +433,14 @@ def rejected_intervals(normals, approach, risks, directions, max_speed, mean, se
                 fan = first + 5 + end * FAN
                 piece_upper, piece_lower = _fan_rejects(normals, approach, fan, e_x, e_y,
                                                         max_speed)
-                if not end_in_reach[wall, end] or _parallel_failure(
+                start = max(support_upper, piece_upper)
+                stop = min(support_lower, piece_lower)
+                if not end_in_reach[wall, end] or (_counts(start, stop) and _parallel_failure(
                         mean, segments[wall, end, 0], segments[wall, end, 1], radius[wall], e_x,
-                        e_y, position_cov, walk_cov, horizon) <= risks[fan]:
-                    piece_upper = math.inf
-                upper[3 * wall + 1 + end, ray] = max(support_upper, piece_upper)
-                lower[3 * wall + 1 + end, ray] = min(support_lower, piece_lower)
+                        e_y, position_cov, walk_cov, horizon) <= risks[fan]):
+                    start = math.inf
+                upper[3 * wall + 1 + end, ray] = start
+                lower[3 * wall + 1 + end, ray] = stop
     for disc in range(discs):
         first, row = walls * PER_WALL + disc * FAN, 3 * walls + disc
         for ray in range(rays):
@@ -439,8 +453,9 @@ def rejected_intervals(normals, approach, risks, directions, max_speed, mean, se
                 continue
             upper[row, ray], lower[row, ray] = _fan_rejects(normals, approach, first, e_x, e_y,
                                                             max_speed)
-            if _parallel_failure(mean, centres[disc, 0], centres[disc, 1], disc_radius[disc],
-                                 e_x, e_y, position_cov, walk_cov, horizon) <= risks[first]:
+            if _counts(upper[row, ray], lower[row, ray]) and _parallel_failure(
+                    mean, centres[disc, 0], centres[disc, 1], disc_radius[disc], e_x, e_y,
+                    position_cov, walk_cov, horizon) <= risks[first]:
                 upper[row, ray] = math.inf
     return upper, lower
 
