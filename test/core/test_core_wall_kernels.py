@@ -15,6 +15,7 @@ import pytest
 from scipy.stats import norm
 
 from prvo_planner.core import AgentBelief, PlannerConfig, wall_kernels
+from prvo_planner.core import walls as walls_module
 from prvo_planner.core.obstacles import StaticObstacles
 from prvo_planner.core.special_kernels import erfcx
 from prvo_planner.core.wall_kernels import crossing_bounds, line_speeds
@@ -525,3 +526,48 @@ def test_cantelli_s_bound_of_arrays_is_k_squared_over_one_plus_k_squared():
             cantelli_of_margins(np.array(margins))
         with pytest.raises(ValueError, match=r'^k must be >= 0'):
             eta_from_k(margins)
+
+
+@pytest.mark.parametrize('seed', range(3))
+def test_the_intrusion_is_the_deepest_overlap_of_the_sampled_path(seed):
+    """How far a command moves into a shape within a period, from dense samples of the path.
+
+    Per near shape ``min(d0, R) - d1``, ``d1`` the smallest distance of 401 points of the path
+    ``mu + t v`` from 401 points of the segment (the disc's centre), 0 where the path crosses
+    the segment; the largest over the shapes and 0. Sampling puts ``d1`` above the exact
+    distance by at most the two samples' spacings, so the intrusion found lies between the
+    sampled one and that much more.
+    """
+    rng = np.random.default_rng(20 + seed)
+    starts = rng.uniform(-1.5, 1.5, (6, 2))
+    ends = starts + rng.uniform(-1.5, 1.5, (6, 2))
+    world = StaticObstacles(np.stack([starts, ends], axis=1), rng.uniform(0.0, 0.1, 6),
+                            rng.uniform(-1.5, 1.5, (2, 2)), rng.uniform(0.1, 0.3, 2))
+    fractions = np.linspace(0.0, 1.0, 401)[:, None]
+    checked = 0
+    for _ in range(4):
+        ego = AgentBelief(rng.uniform(-1.0, 1.0, 2), [0.0, 0.0], 0.01 * np.eye(4), 0.25)
+        model = wall_model(world, ego, PlannerConfig(max_speed=1.0))
+        velocities = np.concatenate([rng.uniform(-2.0, 2.0, (12, 2)), [[0.0, 0.0]]])
+        period = 0.5
+        intrusion = walls_module.wall_intrusion(model, velocities, period)
+        mu = model.mean_position
+        for velocity, found in zip(velocities, intrusion, strict=True):
+            path = mu + fractions * period * velocity
+            expected = 0.0
+            for segment, distance, radius in zip(model.segments, model.distance, model.radius,
+                                                 strict=True):
+                points = segment[0] + fractions * (segment[1] - segment[0])
+                gaps = np.hypot(*(path[:, None, :] - points[None, :, :]).T)
+                # Crossing: the sampled distance falls to the samples' spacing, or below.
+                expected = max(expected, min(distance, radius) - gaps.min())
+            for centre, radius in zip(model.centres, model.disc_radius, strict=True):
+                expected = max(expected, min(np.linalg.norm(mu - centre), radius)
+                               - np.hypot(*(path - centre).T).min())
+            lengths = period * np.linalg.norm(velocity) + np.max(
+                np.linalg.norm(model.segments[:, 1] - model.segments[:, 0], axis=1), initial=0.0)
+            assert expected - 1e-12 <= found <= expected + lengths / 400.0
+            checked += found > 0.0
+        assert intrusion[-1] == pytest.approx(0.0, abs=1e-12) or np.min(
+            model.distance - model.radius, initial=np.inf) < 0.0
+    assert checked > 0

@@ -3,7 +3,7 @@ The walls' arithmetic compiled (:mod:`.walls`): geometry, crossing bounds, rejec
 
 Everything a plan beside walls computes per shape, per condition or per (condition, ray), which
 numpy did as tens of calls on arrays of a few to a few hundred elements, here in loops of
-scalars. Ten functions, compiled for one signature each when this module is first imported
+scalars. Eleven functions, compiled for one signature each when this module is first imported
 (:mod:`.walls` imports it on its first model, :mod:`.probability` on its first array of
 margins; the planner node's warm-up imports it before the node spins) and kept in numba's
 on-disk cache, as the ray search and the certificate are (``./run.sh setup`` compiles all the
@@ -23,6 +23,7 @@ kernel modules once after installing):
 * :func:`wall_conditions` and :func:`wall_speeds`: a plan's model in two calls (the geometry,
   the spreads and ``m0``; the speeds and the shapes close to ``mu``), scipy's two ``ndtri``
   calls of the brackets between them;
+* :func:`wall_intrusions`: how far each of the fallback's candidates moves into a shape;
 * :func:`cantelli_bounds`: Cantelli's bound of an array of margins (the planner's per-plan
   :func:`.probability.eta_from_k`), beside the walls for want of a module of the plan's own.
 
@@ -90,6 +91,9 @@ _CONDITIONS_SIGNATURE = types.Tuple((
 _CLOSE_SIGNATURE = types.Tuple((_VECTOR, _VECTOR, types.boolean[::1]))(
     _VECTOR, _VECTOR, _VECTOR, types.float64, _VECTOR, _VECTOR, _VECTOR, _VECTOR, _VECTOR,
     _VECTOR, _VECTOR, types.float64)
+_INTRUSION_SIGNATURE = _VECTOR(
+    READ_ONLY_ROWS, READ_ONLY_VECTOR, READ_ONLY_CUBE, READ_ONLY_VECTOR, READ_ONLY_VECTOR,
+    READ_ONLY_ROWS, READ_ONLY_VECTOR, types.float64)
 _CANTELLI_SIGNATURE = types.Tuple((_VECTOR, types.boolean))(READ_ONLY_VECTOR, types.boolean)
 # From this k on k^2 / (1 + k^2) is exactly 1 (``probability._CERTAIN_K``).
 _CERTAIN_K = 1e8
@@ -889,3 +893,89 @@ def cantelli_bounds(margins, clipped):
         else:
             bounds[index] = k * k / (1.0 + k * k)
     return bounds, valid
+
+
+@jit(inline='always')
+def _point_segment_distance(point_x, point_y, start_x, start_y, end_x, end_y):
+    """Distance of a point from the segment [start, end] (a point where the two are equal)."""
+    along_x, along_y = end_x - start_x, end_y - start_y
+    length_sq = along_x * along_x + along_y * along_y
+    fraction = 0.0
+    if length_sq > 0.0:
+        fraction = ((point_x - start_x) * along_x + (point_y - start_y) * along_y) / length_sq
+        fraction = 0.0 if fraction < 0.0 else (1.0 if fraction > 1.0 else fraction)
+    return math.hypot(point_x - (start_x + fraction * along_x),
+                      point_y - (start_y + fraction * along_y))
+
+
+@jit(_INTRUSION_SIGNATURE)
+def wall_intrusions(velocities, mean, segments, distance, radius, centres, disc_radius, period):
+    """
+    Return how far each command moves into a near wall or disc within one period (:mod:`.walls`).
+
+    Per shape ``min(d0, R) - d1`` (0 if nowhere): ``d0`` the distance of ``mu`` from it, ``d1``
+    the smallest distance of the path ``mu + t v``, ``t`` in ``[0, period]``, from the segment
+    (0 where the two cross) or from the disc's centre. Only shapes within one period's travel
+    at the fastest command of their grown radius count; the largest over them.
+
+    Parameters
+    ----------
+    velocities : numpy.ndarray
+        The commands, shape (K, 2).
+    mean : numpy.ndarray
+        ``mu``, shape (2,).
+    segments, distance, radius : numpy.ndarray
+        The near walls (n, 2, 2), their distance from ``mu`` and grown radius, (n,) each.
+    centres, disc_radius : numpy.ndarray
+        The near discs (q, 2) and their grown radius (q,).
+    period : float
+        How long a command stays in force [s].
+
+    Returns
+    -------
+    numpy.ndarray
+        Shape (K,), at least 0.
+
+    """
+    count = velocities.shape[0]
+    fastest = 0.0
+    for index in range(count):
+        fastest = max(fastest, math.hypot(velocities[index, 0], velocities[index, 1]))
+    travel = period * fastest
+    start_x, start_y = mean[0], mean[1]
+    intrusion = np.zeros(count)
+    for wall in range(radius.size):
+        if not distance[wall] < radius[wall] + travel:
+            continue
+        a_x, a_y = segments[wall, 0, 0], segments[wall, 0, 1]
+        b_x, b_y = segments[wall, 1, 0], segments[wall, 1, 1]
+        wall_x, wall_y = b_x - a_x, b_y - a_y
+        deepest = min(distance[wall], radius[wall])
+        for index in range(count):
+            end_x = start_x + period * velocities[index, 0]
+            end_y = start_y + period * velocities[index, 1]
+            path_x, path_y = end_x - start_x, end_y - start_y
+            if ((wall_x * (start_y - a_y) - wall_y * (start_x - a_x))
+                    * (wall_x * (end_y - a_y) - wall_y * (end_x - a_x)) < 0.0
+                    and (path_x * (a_y - start_y) - path_y * (a_x - start_x))
+                    * (path_x * (b_y - start_y) - path_y * (b_x - start_x)) < 0.0):
+                separation = 0.0
+            else:
+                separation = min(
+                    _point_segment_distance(start_x, start_y, a_x, a_y, b_x, b_y),
+                    _point_segment_distance(end_x, end_y, a_x, a_y, b_x, b_y),
+                    _point_segment_distance(a_x, a_y, start_x, start_y, end_x, end_y),
+                    _point_segment_distance(b_x, b_y, start_x, start_y, end_x, end_y))
+            intrusion[index] = max(intrusion[index], deepest - separation)
+    for disc in range(disc_radius.size):
+        centre_x, centre_y = centres[disc, 0], centres[disc, 1]
+        disc_start = math.hypot(centre_x - start_x, centre_y - start_y)
+        if not disc_start < disc_radius[disc] + travel:
+            continue
+        deepest = min(disc_start, disc_radius[disc])
+        for index in range(count):
+            end_x = start_x + period * velocities[index, 0]
+            end_y = start_y + period * velocities[index, 1]
+            intrusion[index] = max(intrusion[index], deepest - _point_segment_distance(
+                centre_x, centre_y, start_x, start_y, end_x, end_y))
+    return intrusion

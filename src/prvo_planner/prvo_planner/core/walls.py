@@ -375,10 +375,6 @@ def segment_distances(points, starts, ends):
     return np.hypot(offset[..., 0], offset[..., 1])
 
 
-def _cross(first, second):
-    return first[..., 0] * second[..., 1] - first[..., 1] * second[..., 0]
-
-
 def wall_intrusion(model, velocities, period):
     """
     How far each command moves into a wall or disc obstacle within one period, shape (K,).
@@ -387,7 +383,7 @@ def wall_intrusion(model, velocities, period):
     ``d1`` the smallest distance of the path ``mu + t v``, ``t in [0, period]``, from the
     segment (or disc centre): the overlap the command creates, or adds to an existing one.
     The largest over the near obstacles (the others are further than ``tau v_max``, which a
-    period cannot cover); 0 for ``v = 0``.
+    period cannot cover); 0 for ``v = 0``. Compiled: :func:`.wall_kernels.wall_intrusions`.
 
     Parameters
     ----------
@@ -399,35 +395,10 @@ def wall_intrusion(model, velocities, period):
         How long a command stays in force, seconds.
 
     """
-    start = model.mean_position
-    # Only a shape within one period's travel of its grown radius can be entered.
-    travel = period * np.max(np.hypot(velocities[:, 0], velocities[:, 1]), initial=0.0)
-    reachable = model.distance < model.radius + travel
-    segments, distance, radius = (model.segments[reachable], model.distance[reachable],
-                                  model.radius[reachable])
-    centres, disc_radius = model.centres, model.disc_radius
-    disc_start = np.hypot(centres[:, 0] - start[0], centres[:, 1] - start[1])
-    reachable = disc_start < disc_radius + travel
-    centres, disc_radius, disc_start = (centres[reachable], disc_radius[reachable],
-                                        disc_start[reachable])
-    path_start = np.broadcast_to(start, velocities.shape)[:, None, :]
-    path_end = (start + period * velocities)[:, None, :]
-    wall_a, wall_b = segments[None, :, 0], segments[None, :, 1]
-    separation = np.minimum.reduce([
-        segment_distances(path_start, wall_a, wall_b),
-        segment_distances(path_end, wall_a, wall_b),
-        segment_distances(wall_a, path_start, path_end),
-        segment_distances(wall_b, path_start, path_end)])
-    wall_along, path_along = wall_b - wall_a, path_end - path_start
-    crossing = ((_cross(wall_along, path_start - wall_a) * _cross(wall_along, path_end - wall_a)
-                 < 0.0)
-                & (_cross(path_along, wall_a - path_start)
-                   * _cross(path_along, wall_b - path_start) < 0.0))
-    separation = np.where(crossing, 0.0, separation)
-    walls = np.maximum(np.minimum(distance, radius) - separation, 0.0)
-    discs = np.maximum(np.minimum(disc_start, disc_radius)
-                       - segment_distances(centres[None], path_start, path_end), 0.0)
-    return np.max(np.concatenate([walls, discs], axis=1), axis=1, initial=0.0)
+    from .wall_kernels import wall_intrusions
+    return wall_intrusions(np.ascontiguousarray(velocities, dtype=float), model.mean_position,
+                           model.segments, model.distance, model.radius, model.centres,
+                           model.disc_radius, float(period))
 
 
 def wall_time_to_contact(model, velocities):
