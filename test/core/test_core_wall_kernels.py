@@ -571,3 +571,36 @@ def test_the_intrusion_is_the_deepest_overlap_of_the_sampled_path(seed):
         assert intrusion[-1] == pytest.approx(0.0, abs=1e-12) or np.min(
             model.distance - model.radius, initial=np.inf) < 0.0
     assert checked > 0
+
+
+def test_the_time_to_contact_is_the_first_time_the_gap_closes():
+    """The fallback's time to contact against the first sampled time each gap closes.
+
+    Per near shape the gap ``max(d - R, 0)`` closes at the speed ``-n.v`` towards its line of
+    moving away (``n`` the support line's normal, a disc's middle tangent's); the first of
+    20,001 times in ``[0, tau]`` at which some gap is closed, ``tau`` where none closes.
+    """
+    rng = np.random.default_rng(30)
+    starts = rng.uniform(-1.5, 1.5, (8, 2))
+    world = StaticObstacles(np.stack([starts, starts + rng.uniform(-1.5, 1.5, (8, 2))], axis=1),
+                            np.full(8, 0.05), rng.uniform(-1.5, 1.5, (2, 2)), np.full(2, 0.2))
+    times = np.linspace(0.0, 2.0, 20001)
+    contacts = 0
+    for _ in range(4):
+        ego = AgentBelief(rng.uniform(-1.0, 1.0, 2), [0.0, 0.0], 0.01 * np.eye(4), 0.25)
+        model = wall_model(world, ego, PlannerConfig(max_speed=1.0, obstacle_horizon=2.0))
+        velocities = np.concatenate([rng.uniform(-1.0, 1.0, (30, 2)), [[0.0, 0.0]]])
+        found = walls_module.wall_time_to_contact(model, velocities)
+        gaps = np.maximum(np.concatenate([
+            model.distance - model.radius,
+            np.linalg.norm(model.centres - model.mean_position, axis=1) - model.disc_radius]),
+            0.0)
+        for velocity, time in zip(velocities, found, strict=True):
+            speeds = [-(normal @ velocity) for normal in model.away_normals]
+            closed = np.any([(speed > 0.0) & (gap - speed * times <= 0.0)
+                             for gap, speed in zip(gaps, speeds, strict=True)], axis=0)
+            first = times[np.argmax(closed)] if closed.any() else 2.0
+            assert first - 1e-4 - 1e-12 <= time <= first + 1e-12
+            contacts += time < 2.0
+        assert found[-1] == 2.0
+    assert contacts > 10

@@ -3,7 +3,7 @@ The walls' arithmetic compiled (:mod:`.walls`): geometry, crossing bounds, rejec
 
 Everything a plan beside walls computes per shape, per condition or per (condition, ray), which
 numpy did as tens of calls on arrays of a few to a few hundred elements, here in loops of
-scalars. Eleven functions, compiled for one signature each when this module is first imported
+scalars. Twelve functions, compiled for one signature each when this module is first imported
 (:mod:`.walls` imports it on its first model, :mod:`.probability` on its first array of
 margins; the planner node's warm-up imports it before the node spins) and kept in numba's
 on-disk cache, as the ray search and the certificate are (``./run.sh setup`` compiles all the
@@ -23,7 +23,8 @@ kernel modules once after installing):
 * :func:`wall_conditions` and :func:`wall_speeds`: a plan's model in two calls (the geometry,
   the spreads and ``m0``; the speeds and the shapes close to ``mu``), scipy's two ``ndtri``
   calls of the brackets between them;
-* :func:`wall_intrusions`: how far each of the fallback's candidates moves into a shape;
+* :func:`wall_intrusions` and :func:`contact_times`: how far each of the fallback's candidates
+  moves into a shape within a period, and how soon it reaches one's line;
 * :func:`cantelli_bounds`: Cantelli's bound of an array of margins (the planner's per-plan
   :func:`.probability.eta_from_k`), beside the walls for want of a module of the plan's own.
 
@@ -94,6 +95,9 @@ _CLOSE_SIGNATURE = types.Tuple((_VECTOR, _VECTOR, types.boolean[::1]))(
 _INTRUSION_SIGNATURE = _VECTOR(
     READ_ONLY_ROWS, READ_ONLY_VECTOR, READ_ONLY_CUBE, READ_ONLY_VECTOR, READ_ONLY_VECTOR,
     READ_ONLY_ROWS, READ_ONLY_VECTOR, types.float64)
+_CONTACT_SIGNATURE = _VECTOR(
+    READ_ONLY_ROWS, READ_ONLY_VECTOR, READ_ONLY_VECTOR, READ_ONLY_VECTOR, READ_ONLY_ROWS,
+    READ_ONLY_VECTOR, types.float64)
 _CANTELLI_SIGNATURE = types.Tuple((_VECTOR, types.boolean))(READ_ONLY_VECTOR, types.boolean)
 # From this k on k^2 / (1 + k^2) is exactly 1 (``probability._CERTAIN_K``).
 _CERTAIN_K = 1e8
@@ -979,3 +983,49 @@ def wall_intrusions(velocities, mean, segments, distance, radius, centres, disc_
             intrusion[index] = max(intrusion[index], deepest - _point_segment_distance(
                 centre_x, centre_y, start_x, start_y, end_x, end_y))
     return intrusion
+
+
+@jit(_CONTACT_SIGNATURE)
+def contact_times(products, mean, distance, radius, centres, disc_radius, horizon):
+    """
+    Return how long each command takes to reach the nearest near shape's line, at most tau.
+
+    Per near wall then near disc ``max(d - R, 0) / (-n.v)`` where ``-n.v > 0`` (approaching),
+    else never (:func:`.walls.wall_time_to_contact`).
+
+    Parameters
+    ----------
+    products : numpy.ndarray
+        ``n.v`` of every command and shape's normal of moving away, shape (K, n + q).
+    mean : numpy.ndarray
+        ``mu``, shape (2,).
+    distance, radius : numpy.ndarray
+        The near walls' distance from ``mu`` and grown radius, (n,) each.
+    centres, disc_radius : numpy.ndarray
+        The near discs (q, 2) and their grown radius (q,).
+    horizon : float
+        ``tau`` [s], the cap.
+
+    Returns
+    -------
+    numpy.ndarray
+        Shape (K,).
+
+    """
+    walls, shapes = radius.size, products.shape[1]
+    clearance = np.empty(shapes)
+    for wall in range(walls):
+        clearance[wall] = _at_least_zero(distance[wall] - radius[wall])
+    for disc in range(shapes - walls):
+        clearance[walls + disc] = _at_least_zero(
+            math.hypot(centres[disc, 0] - mean[0], centres[disc, 1] - mean[1])
+            - disc_radius[disc])
+    times = np.empty(products.shape[0])
+    for index in range(products.shape[0]):
+        soonest = math.inf
+        for shape in range(shapes):
+            approach = -products[index, shape]
+            if approach > 0.0:
+                soonest = min(soonest, clearance[shape] / approach)
+        times[index] = min(soonest, horizon)
+    return times
