@@ -310,7 +310,7 @@ def rejected_intervals(model, directions):
     conditions do, a wall where its support line and a piece both do (three intervals per wall,
     one per disc), a shape close to ``mu`` wherever moving away does not hold:
     :func:`.wall_kernels.rejected_intervals`, compiled. The intervals are exact within
-    ``[0, 1]``; beyond it (no command) a disc's parallel tangent is not evaluated.
+    ``[0, 1]``; beyond it (no command) the parallel tangents are not evaluated.
 
     Parameters
     ----------
