@@ -15,6 +15,7 @@ import pytest
 from scipy.stats import norm
 
 from prvo_planner.core import AgentBelief, PlannerConfig, wall_kernels
+from prvo_planner.core import walls as walls_module
 from prvo_planner.core.obstacles import StaticObstacles
 from prvo_planner.core.special_kernels import erfcx
 from prvo_planner.core.wall_kernels import crossing_bounds, line_speeds
@@ -418,3 +419,188 @@ def test_the_line_spreads_are_the_quadratic_forms_of_their_normals():
         assert thresholds[index] == pytest.approx(
             1.6448536269514722 * math.sqrt(0.04 * normal[0] ** 2 + 0.01 * normal[1] ** 2),
             rel=1e-12)
+
+
+@pytest.mark.parametrize('seed', range(3))
+def test_the_model_s_spreads_bounds_and_close_shapes_follow_their_definitions(seed):
+    """The model's two compiled calls (``wall_conditions``, ``wall_speeds``), by condition.
+
+    Each condition's ``m0`` is ``n.mu - c`` with ``c`` the line's offset from closed-form
+    geometry (the support line's farthest end plus ``R``, the rectangle's sides), in exact
+    rational arithmetic; ``s0`` and the walk are the quadratic forms of ``S_p`` and ``T S_a``;
+    the horizon is ``tau`` rounded up to whole periods; the bound standing still is the
+    reflection principle's in mpmath; a shape is close where ``mu`` is within its grown radius
+    or its support line's (a disc: its middle tangent's) bound standing still is at least
+    ``delta``.
+    """
+    from fractions import Fraction
+
+    rng = np.random.default_rng(10 + seed)
+    starts = rng.uniform(-2.0, 2.0, (10, 2))
+    ends = starts + rng.uniform(-2.0, 2.0, (10, 2))
+    world = StaticObstacles(np.stack([starts, ends], axis=1), rng.uniform(0.0, 0.1, 10),
+                            rng.uniform(-2.0, 2.0, (3, 2)), rng.uniform(0.1, 0.4, 3))
+    close_seen = 0
+    for _ in range(8):
+        std = rng.choice([0.0, 0.05, 0.2])
+        position_cov = np.array([[std ** 2, 0.3 * std ** 2], [0.3 * std ** 2, 0.5 * std ** 2]])
+        cov = np.zeros((4, 4))
+        cov[:2, :2], cov[2:, 2:] = position_cov, 0.01 * np.eye(2)
+        ego = AgentBelief(rng.uniform(-1.5, 1.5, 2), [0.0, 0.0], cov, 0.25)
+        actuation_cov = np.array([[0.0025, 0.001], [0.001, 0.004]])
+        config = PlannerConfig(eta=0.95, max_speed=1.0, actuation_cov=actuation_cov,
+                               obstacle_horizon=1.05, control_period=0.1)
+        model = wall_model(world, ego, config)
+        conditions = model.conditions
+        delta = 1.0 - 0.95
+        assert conditions.horizon == pytest.approx(1.1, abs=1e-12)
+        mu = [Fraction(value) for value in model.mean_position]
+        for index, normal in enumerate(conditions.normals):
+            x, y = normal
+            assert conditions.std0[index] == pytest.approx(math.sqrt(max(
+                position_cov[0, 0] * x * x + 2 * position_cov[0, 1] * x * y
+                + position_cov[1, 1] * y * y, 0.0)), rel=1e-12, abs=1e-300)
+            assert conditions.walk[index] == pytest.approx(0.1 * (
+                0.0025 * x * x + 0.002 * x * y + 0.004 * y * y), rel=1e-12)
+            exact = exact_bound(conditions.mean0[index], conditions.std0[index],
+                                conditions.walk[index], conditions.horizon, 0.0)
+            assert conditions.still_risk[index] == pytest.approx(float(exact), rel=1e-10,
+                                                                 abs=1e-300)
+        for row, (segment, radius) in enumerate(zip(model.segments, model.radius, strict=True)):
+            first = 15 * row
+            along = (segment[1] - segment[0]) / np.linalg.norm(segment[1] - segment[0])
+            across = np.array([-along[1], along[0]])
+            support = conditions.normals[first]
+            offsets = [max(segment @ support) + radius, across @ segment[0] + radius,
+                       radius - across @ segment[0], -along @ segment[0], along @ segment[1]]
+            for side, offset in enumerate(offsets):
+                normal = conditions.normals[first + side]
+                exact = (Fraction(normal[0]) * mu[0] + Fraction(normal[1]) * mu[1]
+                         - Fraction(float(offset)))
+                # The offsets here are rounded once more than the kernel's: a few ulps of R.
+                assert conditions.mean0[first + side] == pytest.approx(float(exact), abs=1e-12)
+            close = (model.distance[row] <= radius
+                     or conditions.still_risk[first] >= delta)
+            assert model.close[row] == close
+            close_seen += close
+        walls = len(model.segments)
+        for row, radius in enumerate(model.disc_radius):
+            middle = 15 * walls + 5 * row + 2
+            close = (np.linalg.norm(model.mean_position - model.centres[row]) <= radius
+                     or conditions.still_risk[middle] >= delta)
+            assert model.close[walls + row] == close
+            close_seen += close
+    assert close_seen > 0
+
+
+def test_cantelli_s_bound_of_arrays_is_k_squared_over_one_plus_k_squared():
+    """Cantelli's bound of arrays (compiled) against the correctly rounded quotient.
+
+    ``k^2 / (1 + k^2)`` in exact rational arithmetic, rounded once: the kernel's two roundings
+    and the division stay within 2 ulps; 1 from ``k = 1e8`` on; negative margins are 0 when
+    clipped and an error naming the margins otherwise; NaN is an error either way.
+    """
+    from fractions import Fraction
+
+    from prvo_planner.core.probability import cantelli_of_margins, eta_from_k
+
+    rng = np.random.default_rng(5)
+    margins = np.concatenate([[0.0, 1e-160, 1e-8, 1.0, 9.99e7, 1e8, 3e160, math.inf],
+                              10.0 ** rng.uniform(-5.0, 5.0, 200)])
+    bounds = eta_from_k(margins)
+    for k, bound in zip(margins, bounds, strict=True):
+        if k >= 1e8:
+            assert bound == 1.0
+            continue
+        exact = float(Fraction(k) ** 2 / (1 + Fraction(k) ** 2))
+        assert abs(bound - exact) <= 2 * math.ulp(exact)
+    grid = margins[:12].reshape(3, 4)
+    assert np.array_equal(eta_from_k(grid), bounds[:12].reshape(3, 4))
+    assert isinstance(eta_from_k(np.float64(2.0)), float)
+    clipped = cantelli_of_margins(np.array([[-1.0, -0.0], [2.0, -math.inf]]))
+    assert clipped.tolist() == [[0.0, 0.0], [0.8, 0.0]]
+    with pytest.raises(ValueError, match=r'^k must be >= 0, got \[1.0, -0.5\]$'):
+        eta_from_k(np.array([1.0, -0.5]))
+    for margins in ([math.nan], [1.0, math.nan]):
+        with pytest.raises(ValueError, match=r'^k must be >= 0'):
+            cantelli_of_margins(np.array(margins))
+        with pytest.raises(ValueError, match=r'^k must be >= 0'):
+            eta_from_k(margins)
+
+
+@pytest.mark.parametrize('seed', range(3))
+def test_the_intrusion_is_the_deepest_overlap_of_the_sampled_path(seed):
+    """How far a command moves into a shape within a period, from dense samples of the path.
+
+    Per near shape ``min(d0, R) - d1``, ``d1`` the smallest distance of 401 points of the path
+    ``mu + t v`` from 401 points of the segment (the disc's centre), 0 where the path crosses
+    the segment; the largest over the shapes and 0. Sampling puts ``d1`` above the exact
+    distance by at most the two samples' spacings, so the intrusion found lies between the
+    sampled one and that much more.
+    """
+    rng = np.random.default_rng(20 + seed)
+    starts = rng.uniform(-1.5, 1.5, (6, 2))
+    ends = starts + rng.uniform(-1.5, 1.5, (6, 2))
+    world = StaticObstacles(np.stack([starts, ends], axis=1), rng.uniform(0.0, 0.1, 6),
+                            rng.uniform(-1.5, 1.5, (2, 2)), rng.uniform(0.1, 0.3, 2))
+    fractions = np.linspace(0.0, 1.0, 401)[:, None]
+    checked = 0
+    for _ in range(4):
+        ego = AgentBelief(rng.uniform(-1.0, 1.0, 2), [0.0, 0.0], 0.01 * np.eye(4), 0.25)
+        model = wall_model(world, ego, PlannerConfig(max_speed=1.0))
+        velocities = np.concatenate([rng.uniform(-2.0, 2.0, (12, 2)), [[0.0, 0.0]]])
+        period = 0.5
+        intrusion = walls_module.wall_intrusion(model, velocities, period)
+        mu = model.mean_position
+        for velocity, found in zip(velocities, intrusion, strict=True):
+            path = mu + fractions * period * velocity
+            expected = 0.0
+            for segment, distance, radius in zip(model.segments, model.distance, model.radius,
+                                                 strict=True):
+                points = segment[0] + fractions * (segment[1] - segment[0])
+                gaps = np.hypot(*(path[:, None, :] - points[None, :, :]).T)
+                # Crossing: the sampled distance falls to the samples' spacing, or below.
+                expected = max(expected, min(distance, radius) - gaps.min())
+            for centre, radius in zip(model.centres, model.disc_radius, strict=True):
+                expected = max(expected, min(np.linalg.norm(mu - centre), radius)
+                               - np.hypot(*(path - centre).T).min())
+            lengths = period * np.linalg.norm(velocity) + np.max(
+                np.linalg.norm(model.segments[:, 1] - model.segments[:, 0], axis=1), initial=0.0)
+            assert expected - 1e-12 <= found <= expected + lengths / 400.0
+            checked += found > 0.0
+        assert intrusion[-1] == pytest.approx(0.0, abs=1e-12) or np.min(
+            model.distance - model.radius, initial=np.inf) < 0.0
+    assert checked > 0
+
+
+def test_the_time_to_contact_is_the_first_time_the_gap_closes():
+    """The fallback's time to contact against the first sampled time each gap closes.
+
+    Per near shape the gap ``max(d - R, 0)`` closes at the speed ``-n.v`` towards its line of
+    moving away (``n`` the support line's normal, a disc's middle tangent's); the first of
+    20,001 times in ``[0, tau]`` at which some gap is closed, ``tau`` where none closes.
+    """
+    rng = np.random.default_rng(30)
+    starts = rng.uniform(-1.5, 1.5, (8, 2))
+    world = StaticObstacles(np.stack([starts, starts + rng.uniform(-1.5, 1.5, (8, 2))], axis=1),
+                            np.full(8, 0.05), rng.uniform(-1.5, 1.5, (2, 2)), np.full(2, 0.2))
+    times = np.linspace(0.0, 2.0, 20001)
+    contacts = 0
+    for _ in range(4):
+        ego = AgentBelief(rng.uniform(-1.0, 1.0, 2), [0.0, 0.0], 0.01 * np.eye(4), 0.25)
+        model = wall_model(world, ego, PlannerConfig(max_speed=1.0, obstacle_horizon=2.0))
+        velocities = np.concatenate([rng.uniform(-1.0, 1.0, (30, 2)), [[0.0, 0.0]]])
+        found = walls_module.wall_time_to_contact(model, velocities)
+        gaps = np.maximum(np.concatenate([
+            model.distance - model.radius,
+            np.linalg.norm(model.centres - model.mean_position, axis=1) - model.disc_radius]),
+            0.0)
+        for velocity, time in zip(velocities, found, strict=True):
+            speeds = [-(normal @ velocity) for normal in model.away_normals]
+            closed = np.any([(speed > 0.0) & (gap - speed * times <= 0.0)
+                             for gap, speed in zip(gaps, speeds, strict=True)], axis=0)
+            first = times[np.argmax(closed)] if closed.any() else 2.0
+            assert first - 1e-4 - 1e-12 <= time <= first + 1e-12
+            contacts += time < 2.0
+        assert found[-1] == 2.0
+    assert contacts > 10

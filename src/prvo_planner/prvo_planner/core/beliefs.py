@@ -7,6 +7,8 @@ import numpy as np
 
 # Eigenvalues down to -_PSD_TOLERANCE * scale are rounding, not a modelling error.
 _PSD_TOLERANCE = 1e-9
+# Arrays up to this many entries are checked for finiteness without numpy.
+_SMALL = 16
 
 
 def as_finite_array(value, shape, field):
@@ -41,9 +43,10 @@ def as_finite_array(value, shape, field):
     if array.shape != tuple(shape):
         raise ValueError(f'{field} must have shape {tuple(shape)}, got shape {array.shape}: '
                          f'{value!r}')
-    # Array methods, not np.all / np.max: beliefs are built on every planning cycle, and the
-    # module functions' dispatch costs more than the work on arrays this small.
-    if not np.isfinite(array).all():
+    # Beliefs and plans check a few small arrays on every planning cycle: up to _SMALL entries
+    # one C loop over Python floats costs less than numpy's dispatch of two calls.
+    if not (all(map(math.isfinite, array.ravel().tolist())) if array.size <= _SMALL
+            else np.isfinite(array).all()):
         raise ValueError(f'{field} must be finite, got {array.tolist()!r}')
     array.setflags(write=False)
     return array

@@ -91,17 +91,28 @@ def build_encounter(ego, neighbours, config):
         np.array([belief.avoidance_share for belief in neighbours], dtype=np.float64),
         config.actuation_cov, float(config.neighbor_distance), float(config.guard_time),
         float(config.max_speed), float(config.time_horizon), float(config.safety_margin))
-    count = origin.shape[0]
-    margin = config.effective_k
-    if config.risk == 'joint' and count > 0:
-        # 1 - eta_j = (1 - eta) / n with 1 - eta = 1 / (1 + k^2), written in k to stay finite;
-        # a guard row is one more condition to share the risk with.
-        margin = math.sqrt((1.0 + margin ** 2) * count - 1.0)
+    margin, horizon_margin, eta = _margins(
+        config.effective_k, origin.shape[0] if config.risk == 'joint' else 0)
     return Encounter(
         origin=origin, cov=cov, lead=lead, combined_radius=combined_radius,
-        overlapping=overlapping, margin=margin,
-        # k' = sqrt((1 + eta) / (1 - eta)) with eta = k^2 / (1 + k^2).
-        horizon_margin=math.sqrt(1.0 + 2.0 * margin ** 2), eta=eta_from_k(margin))
+        overlapping=overlapping, margin=margin, horizon_margin=horizon_margin, eta=eta)
+
+
+@functools.lru_cache(maxsize=256)
+def _margins(k, joint_count):
+    """
+    Return the margin, the horizon margin and the probability per neighbour (cached).
+
+    ``k`` is the configuration's margin; ``joint_count`` the number of rows that share the
+    risk (``risk='joint'``), 0 for none.
+    """
+    margin = k
+    if joint_count > 0:
+        # 1 - eta_j = (1 - eta) / n with 1 - eta = 1 / (1 + k^2), written in k to stay finite;
+        # a guard row is one more condition to share the risk with.
+        margin = math.sqrt((1.0 + margin ** 2) * joint_count - 1.0)
+    # k' = sqrt((1 + eta) / (1 - eta)) with eta = k^2 / (1 + k^2).
+    return margin, math.sqrt(1.0 + 2.0 * margin ** 2), eta_from_k(margin)
 
 
 @functools.lru_cache(maxsize=16)

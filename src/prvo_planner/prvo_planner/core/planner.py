@@ -55,7 +55,7 @@ from .moments import (
     condition_moments,
 )
 from .obstacles import StaticObstacles
-from .probability import eta_from_k
+from .probability import cantelli_of_margins, eta_from_k
 from .walls import (
     WallModel,
     cut_by_walls,
@@ -65,6 +65,8 @@ from .walls import (
     wall_model,
     wall_time_to_contact,
 )
+
+_BELIEF_TYPE = frozenset([AgentBelief])
 
 
 def _validated_inputs(ego, neighbours, v_pref, config, previous, limits, obstacles=None):
@@ -77,9 +79,12 @@ def _validated_inputs(ego, neighbours, v_pref, config, previous, limits, obstacl
     if not isinstance(ego, AgentBelief):
         raise ValueError(f'ego must be an AgentBelief, got {ego!r}')
     neighbours = list(neighbours)
-    for index, neighbour in enumerate(neighbours):
-        if not isinstance(neighbour, AgentBelief):
-            raise ValueError(f'neighbours[{index}] must be an AgentBelief, got {neighbour!r}')
+    # One C-level pass over the types; the loop only where one is not exactly AgentBelief.
+    if not _BELIEF_TYPE.issuperset(map(type, neighbours)):
+        for index, neighbour in enumerate(neighbours):
+            if not isinstance(neighbour, AgentBelief):
+                raise ValueError(f'neighbours[{index}] must be an AgentBelief, '
+                                 f'got {neighbour!r}')
     if not isinstance(config, PlannerConfig):
         raise ValueError(f'config must be a PlannerConfig, got {config!r}')
     if previous is not None:
@@ -303,29 +308,35 @@ def _monte_carlo_plan(plan):
         encounter.origin, encounter.cov, encounter.combined_radius, velocity[None, :],
         config.time_horizon, plan.layout.has_receding, encounter.lead)]
     achieved = achieved_margins(*at_velocity, plan.layout, plan.layout.receding_enabled)
-    return _result(plan, velocity, candidates_feasible, achieved,
-                   eta_from_k(np.maximum(achieved, 0.0)), np.zeros(achieved.shape, dtype=bool))
+    return _result(plan, velocity, candidates_feasible, achieved, cantelli_of_margins(achieved),
+                   np.zeros(achieved.shape, dtype=bool))
 
 
 def _result(plan, velocity, candidates_feasible, achieved, bounds, certified):
     """PLAN's result; ACHIEVED, BOUNDS, CERTIFIED per neighbour (see ``_Choice``)."""
     smallest = float(achieved.min(initial=math.inf))
-    certificate = plan.config.certificate
-    velocity = _clip_speed(velocity, plan.config.max_speed)
-    obstacles = ({} if plan.walls is None else {
-        'obstacle_clearance': plan.walls.clearance,
-        'obstacle_probability': obstacle_probability(plan.walls, velocity)})
+    config = plan.config
+    certificate = config.certificate
+    velocity = _clip_speed(velocity, config.max_speed)
+    walls = plan.walls
+    obstacles = ({} if walls is None else {
+        'obstacle_clearance': walls.clearance,
+        'obstacle_probability': obstacle_probability(walls, velocity)})
     return PlanResult(velocity=velocity,
                       feasible=bool(candidates_feasible)
                       and not plan.encounter.overlapping.any()
-                      and obstacles.get('obstacle_clearance', math.inf) > 0.0,
+                      and (walls is None or walls.clearance > 0.0),
                       achieved_k=smallest,
                       eta_bound=(eta_from_k(max(smallest, 0.0)) if certificate == 'cantelli'
                                  else float(bounds.min(initial=1.0))),
                       num_constraints=plan.encounter.origin.shape[0],
                       candidates_feasible=candidates_feasible, neighbour_bounds=bounds,
-                      bound_kinds=['certified' if flag else 'cantelli' for flag in certified],
+                      bound_kinds=tuple(map(_KINDS.__getitem__, certified.tolist())),
                       certificate=certificate, **obstacles)
+
+
+# A neighbour's bound kind by whether it is certified.
+_KINDS = ('cantelli', 'certified')
 
 
 def _wall_only_plan(plan):
@@ -436,9 +447,13 @@ def _solve_group(plans):
     search = _ray_search(plans)
     choice = (_certified_choice(search) if _certifies(plans[0])
               else _choose(search, search.rows.margins))
-    return [_result(plan, choice.velocities[robot], int(choice.candidates_feasible[robot]),
-                    *(values[search.pair_starts[robot]:search.pair_starts[robot]
-                             + search.pair_counts[robot]]
+    if len(plans) == 1:
+        return [_result(plans[0], choice.velocities[0], int(choice.candidates_feasible[0]),
+                        choice.achieved, choice.bounds, choice.certified)]
+    starts, ends = search.pair_starts.tolist(), (search.pair_starts + search.pair_counts).tolist()
+    feasible = choice.candidates_feasible.tolist()
+    return [_result(plan, choice.velocities[robot], feasible[robot],
+                    *(values[starts[robot]:ends[robot]]
                       for values in (choice.achieved, choice.bounds, choice.certified)))
             for robot, plan in enumerate(plans)]
 
@@ -491,7 +506,11 @@ def _choose(search, margins):
     """Choose every robot's velocity with MARGINS (P, C) per link; Cantelli's bounds per pair."""
     plans, directions, ray_starts = search.plans, search.directions, search.ray_starts
     first = plans[0]
-    rows = replace(search.rows, margins=margins)
+    rows = search.rows
+    # RayRows built directly: dataclasses.replace costs twice as much, up to three times a plan.
+    rows = RayRows(means=rows.means, variances=rows.variances, margins=margins,
+                   link_ray=rows.link_ray, link_enabled=rows.link_enabled,
+                   ray_local=rows.ray_local, ray_robot=rows.ray_robot, preferred=rows.preferred)
     gap_ray, lower, upper = _wall_gaps(search, *_allowed_gaps(
         plans, *team_ray_gaps(rows, first.layout, first.config.method, first.deterministic)))
     candidates_feasible, direction_index, chosen_t = cheapest_velocities(
@@ -514,7 +533,7 @@ def _choose(search, margins):
     achieved = _achieved(plans, search.means, search.variances, chosen_links, pair_robot,
                          chosen_t, velocities, search.pair_horizons)
     return _Choice(velocities=velocities, candidates_feasible=candidates_feasible,
-                   achieved=achieved, bounds=eta_from_k(np.maximum(achieved, 0.0)),
+                   achieved=achieved, bounds=cantelli_of_margins(achieved),
                    certified=np.zeros(achieved.shape, dtype=bool))
 
 

@@ -7,7 +7,8 @@ import numpy as np
 from .beliefs import as_covariance, as_finite_array
 
 # From this k on, 1 + k^2 rounds to k^2 (k^2 > 2^53), so k^2 / (1 + k^2) is exactly 1; beyond
-# 1.3e154 k^2 overflows and the quotient would be inf / inf.
+# 1.3e154 k^2 overflows and the quotient would be inf / inf (``wall_kernels.cantelli_bounds``
+# has its own copy).
 _CERTAIN_K = 1e8
 
 
@@ -31,14 +32,35 @@ def eta_from_k(k):
         if not k >= 0.0:
             raise ValueError(f'k must be >= 0, got {k!r}')
         return 1.0 if k >= _CERTAIN_K else k * k / (1.0 + k * k)
+    return _cantelli(k, False)
+
+
+def cantelli_of_margins(margins):
+    """
+    Cantelli's bound of ``max(k, 0)`` for each margin: :func:`eta_from_k` of the clipped margins.
+
+    Parameters
+    ----------
+    margins : array_like
+        Margins ``k`` (negative ones are taken as 0), any shape.
+
+    Returns
+    -------
+    numpy.ndarray
+        The bounds, the shape of ``margins``.
+
+    """
+    return _cantelli(margins, True)
+
+
+def _cantelli(k, clipped):
+    """Cantelli's bound of an array (compiled: :func:`.wall_kernels.cantelli_bounds`)."""
+    from .wall_kernels import cantelli_bounds
     k = np.asarray(k, dtype=float)
-    if not np.all(k >= 0.0):
+    bounds, valid = cantelli_bounds(np.ascontiguousarray(k.reshape(-1)), clipped)
+    if not valid:
         raise ValueError(f'k must be >= 0, got {k.tolist()!r}')
-    # Below _CERTAIN_K the square cannot overflow: no floating-point state to save and restore.
-    square = np.minimum(k, _CERTAIN_K)
-    square = square * square
-    eta = np.where(k >= _CERTAIN_K, 1.0, square / (1.0 + square))
-    return float(eta) if eta.ndim == 0 else eta
+    return float(bounds[0]) if k.ndim == 0 else bounds.reshape(k.shape)
 
 
 def k_from_eta(eta):

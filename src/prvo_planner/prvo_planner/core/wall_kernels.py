@@ -3,10 +3,11 @@ The walls' arithmetic compiled (:mod:`.walls`): geometry, crossing bounds, rejec
 
 Everything a plan beside walls computes per shape, per condition or per (condition, ray), which
 numpy did as tens of calls on arrays of a few to a few hundred elements, here in loops of
-scalars. Seven functions, compiled for one signature each when this module is first imported
-(:mod:`.walls` imports it on its first model; the planner node's warm-up imports it before
-the node spins) and kept in numba's on-disk cache, as the ray search and the certificate are
-(``./run.sh setup`` compiles all three modules once after installing):
+scalars. Twelve functions, compiled for one signature each when this module is first imported
+(:mod:`.walls` imports it on its first model, :mod:`.probability` on its first array of
+margins; the planner node's warm-up imports it before the node spins) and kept in numba's
+on-disk cache, as the ray search and the certificate are (``./run.sh setup`` compiles all the
+kernel modules once after installing):
 
 * :func:`wall_geometry`: the shapes within reach of the horizon and their linear conditions
   (each near wall's support line, rectangle sides and end fans, each near disc's fan), with
@@ -18,7 +19,14 @@ the node spins) and kept in numba's on-disk cache, as the ray search and the cer
 * :func:`crossing_bounds`: the reflection principle's bound of each condition at given speeds;
 * :func:`largest_failure`: the largest failure bound over the shapes at a velocity;
 * :func:`rejected_intervals`: the open intervals of each ray that each shape rejects;
-* :func:`cut_by_walls`: the feasible intervals of a plan's rays minus those rejected ones.
+* :func:`cut_by_walls`: the feasible intervals of a plan's rays minus those rejected ones;
+* :func:`wall_conditions` and :func:`wall_speeds`: a plan's model in two calls (the geometry,
+  the spreads and ``m0``; the speeds and the shapes close to ``mu``), scipy's two ``ndtri``
+  calls of the brackets between them;
+* :func:`wall_intrusions` and :func:`contact_times`: how far each of the fallback's candidates
+  moves into a shape within a period, and how soon it reaches one's line;
+* :func:`cantelli_bounds`: Cantelli's bound of an array of margins (the planner's per-plan
+  :func:`.probability.eta_from_k`), beside the walls for want of a module of the plan's own.
 
 ``Phi`` and ``erfcx`` are :mod:`.special_kernels`' (scipy's ufuncs cannot be called from numba):
 ``Phi`` within 2e-14 of scipy's, ``erfcx`` within a few ulps, so a bound moves by rounding only.
@@ -34,6 +42,7 @@ from .ray_solver import (
     READ_ONLY_INDICES,
     READ_ONLY_ROWS,
     READ_ONLY_VECTOR,
+    _fma,
     jit,
 )
 from .special_kernels import erfcx, ndtr
@@ -71,6 +80,27 @@ _REJECTED_SIGNATURE = types.Tuple((_ROWS, _ROWS))(
 _CUT_SIGNATURE = types.Tuple((_INDICES, _VECTOR, _VECTOR))(
     READ_ONLY_INDICES, READ_ONLY_VECTOR, READ_ONLY_VECTOR, types.int64, READ_ONLY_ROWS,
     READ_ONLY_ROWS)
+# wall_conditions: wall_geometry's outputs, then mean0, std0, walk, solved risks, thresholds.
+_CONDITIONS_SIGNATURE = types.Tuple((
+    types.float64, _VECTOR, _INDICES, _INDICES, _VECTOR, _VECTOR, _VECTOR, _VECTOR, _ROWS,
+    _VECTOR, _ROWS, types.boolean[:, ::1], _ROWS, _VECTOR, _VECTOR, _VECTOR, _VECTOR,
+    _VECTOR))(
+    READ_ONLY_VECTOR, READ_ONLY_CUBE, READ_ONLY_ROWS, READ_ONLY_VECTOR, READ_ONLY_ROWS,
+    READ_ONLY_VECTOR, READ_ONLY_ROWS, READ_ONLY_ROWS, types.float64, types.float64,
+    types.float64, types.float64, types.float64, types.float64, types.float64, types.float64)
+# Its arguments are wall_conditions' and scipy's outputs, as line_speeds' are: writable.
+_CLOSE_SIGNATURE = types.Tuple((_VECTOR, _VECTOR, types.boolean[::1]))(
+    _VECTOR, _VECTOR, _VECTOR, types.float64, _VECTOR, _VECTOR, _VECTOR, _VECTOR, _VECTOR,
+    _VECTOR, _VECTOR, types.float64)
+_INTRUSION_SIGNATURE = _VECTOR(
+    READ_ONLY_ROWS, READ_ONLY_VECTOR, READ_ONLY_CUBE, READ_ONLY_VECTOR, READ_ONLY_VECTOR,
+    READ_ONLY_ROWS, READ_ONLY_VECTOR, types.float64)
+_CONTACT_SIGNATURE = _VECTOR(
+    READ_ONLY_ROWS, READ_ONLY_VECTOR, READ_ONLY_VECTOR, READ_ONLY_VECTOR, READ_ONLY_ROWS,
+    READ_ONLY_VECTOR, types.float64)
+_CANTELLI_SIGNATURE = types.Tuple((_VECTOR, types.boolean))(READ_ONLY_VECTOR, types.boolean)
+# From this k on k^2 / (1 + k^2) is exactly 1 (``probability._CERTAIN_K``).
+_CERTAIN_K = 1e8
 
 
 @jit(inline='always')
@@ -323,6 +353,12 @@ def _fan_rejects(normals, approach, first, e_x, e_y, max_speed):
     return upper, lower
 
 
+@jit(inline='always')
+def _counts(upper, lower):
+    """Whether the open interval ``(upper, lower)`` of ``t`` is not empty and meets ``(0, 1)``."""
+    return upper < lower and lower > 0.0 and upper < 1.0
+
+
 @jit(_REJECTED_SIGNATURE)
 def rejected_intervals(normals, approach, risks, directions, max_speed, mean, segments, radius,
                        end_in_reach, centres, disc_radius, close, away_normals,
@@ -338,6 +374,11 @@ def rejected_intervals(normals, approach, risks, directions, max_speed, mean, se
     line and a piece both do: three intervals. A disc rejects where its fan does, unless its
     parallel tangent holds at its risk. A shape close to ``mu`` accepts only moving away,
     ``v_max (n.e) t >= Phi^-1(eta) sqrt(n' S_a n)``.
+
+    The parallel tangents, most of this function's arithmetic, are evaluated only where the
+    piece's interval without them is not empty and meets ``(0, 1)``: elsewhere the interval is
+    returned as it is, empty or beyond every command (``t`` outside ``[0, 1]``), and
+    :func:`cut_by_walls` passes over it as it passed over the tangent's ``(inf, lower)``.
 
     Parameters
     ----------
@@ -367,7 +408,8 @@ def rejected_intervals(normals, approach, risks, directions, max_speed, mean, se
     -------
     upper, lower : numpy.ndarray
         Shape (3 n + q, M): rejected ``(upper, lower)`` (empty where ``upper >= lower``), three
-        per wall (with the rectangle, the start, the end), then one per disc.
+        per wall (with the rectangle, the start, the end), then one per disc; exact within
+        ``[0, 1]``.
 
     """
     walls, discs, rays = radius.size, disc_radius.size, directions.shape[0]
@@ -399,12 +441,14 @@ def rejected_intervals(normals, approach, risks, directions, max_speed, mean, se
                 fan = first + 5 + end * FAN
                 piece_upper, piece_lower = _fan_rejects(normals, approach, fan, e_x, e_y,
                                                         max_speed)
-                if not end_in_reach[wall, end] or _parallel_failure(
+                start = max(support_upper, piece_upper)
+                stop = min(support_lower, piece_lower)
+                if not end_in_reach[wall, end] or (_counts(start, stop) and _parallel_failure(
                         mean, segments[wall, end, 0], segments[wall, end, 1], radius[wall], e_x,
-                        e_y, position_cov, walk_cov, horizon) <= risks[fan]:
-                    piece_upper = math.inf
-                upper[3 * wall + 1 + end, ray] = max(support_upper, piece_upper)
-                lower[3 * wall + 1 + end, ray] = min(support_lower, piece_lower)
+                        e_y, position_cov, walk_cov, horizon) <= risks[fan]):
+                    start = math.inf
+                upper[3 * wall + 1 + end, ray] = start
+                lower[3 * wall + 1 + end, ray] = stop
     for disc in range(discs):
         first, row = walls * PER_WALL + disc * FAN, 3 * walls + disc
         for ray in range(rays):
@@ -417,8 +461,9 @@ def rejected_intervals(normals, approach, risks, directions, max_speed, mean, se
                 continue
             upper[row, ray], lower[row, ray] = _fan_rejects(normals, approach, first, e_x, e_y,
                                                             max_speed)
-            if _parallel_failure(mean, centres[disc, 0], centres[disc, 1], disc_radius[disc],
-                                 e_x, e_y, position_cov, walk_cov, horizon) <= risks[first]:
+            if _counts(upper[row, ray], lower[row, ray]) and _parallel_failure(
+                    mean, centres[disc, 0], centres[disc, 1], disc_radius[disc], e_x, e_y,
+                    position_cov, walk_cov, horizon) <= risks[first]:
                 upper[row, ray] = math.inf
     return upper, lower
 
@@ -739,3 +784,248 @@ def cut_by_walls(gap_ray, lower, upper, first_ray, wall_upper, wall_lower):
                 pieces += 1
         first = stop
     return out_ray[:pieces].copy(), out_lower[:pieces].copy(), out_upper[:pieces].copy()
+
+
+@jit(_CONDITIONS_SIGNATURE)
+def wall_conditions(mean, segments, frames, half_widths, disc_centres, disc_radii, position_cov,
+                    actuation_cov, base_radius, growth, spread, horizon, max_speed, delta, period,
+                    quantile):
+    """
+    Return one plan's near shapes and their conditions' spreads (:func:`.walls.wall_model`).
+
+    :func:`wall_geometry`, then :func:`line_spreads` of its conditions, and each condition's
+    ``m0 = n.mu - c``, in one call. ``n.mu`` is rounded as numpy's matrix product rounds it
+    here (one fused multiply-add over the product of the second coordinates), so that the
+    walls' plans stay what they were.
+
+    Parameters
+    ----------
+    mean, segments, frames, half_widths, disc_centres, disc_radii : numpy.ndarray
+        As :func:`wall_geometry`.
+    position_cov, actuation_cov : numpy.ndarray
+        ``S_p`` and ``S_a`` as planned with, shape (2, 2).
+    base_radius, growth, spread, horizon, max_speed, delta : float
+        As :func:`wall_geometry`.
+    period, quantile : float
+        ``T`` and ``Phi^-1(eta)``, as :func:`line_spreads`.
+
+    Returns
+    -------
+    tuple
+        :func:`wall_geometry`'s outputs without the offsets (``clearance``, ``far_bounds``,
+        ``walls``, ``discs``, ``wall_radius``, ``wall_distance``, ``disc_radius``,
+        ``disc_distance``, ``normals``, ``risks``, ``end_bounds``, ``end_in_reach``,
+        ``away_normals``), then :func:`line_spreads`' ``away`` thresholds, then ``mean0``,
+        ``std0``, ``walk`` and the solved risks, shape (C,) each.
+
+    """
+    (clearance, far_bounds, walls, discs, wall_radius, wall_distance, disc_radius,
+     disc_distance, normals, offsets, risks, end_bounds, end_in_reach,
+     away_normals) = wall_geometry(mean, segments, frames, half_widths, disc_centres, disc_radii,
+                                   base_radius, growth, spread, horizon, max_speed, delta)
+    std0, walk, solved, away = line_spreads(normals, away_normals, position_cov, actuation_cov,
+                                            period, risks, quantile)
+    mean0 = np.empty(offsets.size)
+    for index in range(offsets.size):
+        mean0[index] = _fma(normals[index, 0], mean[0], normals[index, 1] * mean[1]) \
+            - offsets[index]
+    return (clearance, far_bounds, walls, discs, wall_radius, wall_distance, disc_radius,
+            disc_distance, normals, risks, end_bounds, end_in_reach, away_normals, away, mean0,
+            std0, walk, solved)
+
+
+@jit(_CLOSE_SIGNATURE)
+def wall_speeds(mean0, std0, walk, horizon, risks, low_quantiles, high_quantiles, wall_distance,
+                wall_radius, disc_distance, disc_radius, delta):
+    """
+    Return :func:`line_speeds`' bounds and speeds, and which near shapes are close to ``mu``.
+
+    A shape is close where ``mu`` lies within its grown radius, or where the bound standing
+    still of its support line (a disc: its fan's middle tangent) is at least ``delta``.
+
+    Returns
+    -------
+    still, approach : numpy.ndarray
+        As :func:`line_speeds`, shape (C,).
+    close : numpy.ndarray
+        Per near wall then near disc, shape (n + q,).
+
+    """
+    still, approach = line_speeds(mean0, std0, walk, horizon, risks, low_quantiles,
+                                  high_quantiles)
+    count, discs = wall_distance.size, disc_distance.size
+    close = np.empty(count + discs, dtype=np.bool_)
+    for wall in range(count):
+        close[wall] = (wall_distance[wall] <= wall_radius[wall]
+                       or still[wall * PER_WALL] >= delta)
+    for disc in range(discs):
+        close[count + disc] = (disc_distance[disc] <= disc_radius[disc]
+                               or still[count * PER_WALL + disc * FAN + FAN_HALF] >= delta)
+    return still, approach, close
+
+
+@jit(_CANTELLI_SIGNATURE)
+def cantelli_bounds(margins, clipped):
+    """
+    Return Cantelli's bound ``k^2 / (1 + k^2)`` of each margin, and whether all were valid.
+
+    Parameters
+    ----------
+    margins : numpy.ndarray
+        ``k``, shape (K,).
+    clipped : bool
+        Take ``max(k, 0)`` first (NaN stays NaN).
+
+    Returns
+    -------
+    bounds : numpy.ndarray
+        Shape (K,); 1 from ``k = 1e8`` on (``inf`` included).
+    valid : bool
+        Whether every ``k`` (after the clip) is at least 0: no NaN, no negative.
+
+    """
+    bounds = np.empty(margins.size)
+    valid = True
+    for index in range(margins.size):
+        k = margins[index]
+        if clipped and k < 0.0:
+            k = 0.0
+        if not k >= 0.0:
+            valid = False
+        if k >= _CERTAIN_K:
+            bounds[index] = 1.0
+        else:
+            bounds[index] = k * k / (1.0 + k * k)
+    return bounds, valid
+
+
+@jit(inline='always')
+def _point_segment_distance(point_x, point_y, start_x, start_y, end_x, end_y):
+    """Distance of a point from the segment [start, end] (a point where the two are equal)."""
+    along_x, along_y = end_x - start_x, end_y - start_y
+    length_sq = along_x * along_x + along_y * along_y
+    fraction = 0.0
+    if length_sq > 0.0:
+        fraction = ((point_x - start_x) * along_x + (point_y - start_y) * along_y) / length_sq
+        fraction = 0.0 if fraction < 0.0 else (1.0 if fraction > 1.0 else fraction)
+    return math.hypot(point_x - (start_x + fraction * along_x),
+                      point_y - (start_y + fraction * along_y))
+
+
+@jit(_INTRUSION_SIGNATURE)
+def wall_intrusions(velocities, mean, segments, distance, radius, centres, disc_radius, period):
+    """
+    Return how far each command moves into a near wall or disc within one period (:mod:`.walls`).
+
+    Per shape ``min(d0, R) - d1`` (0 if nowhere): ``d0`` the distance of ``mu`` from it, ``d1``
+    the smallest distance of the path ``mu + t v``, ``t`` in ``[0, period]``, from the segment
+    (0 where the two cross) or from the disc's centre. Only shapes within one period's travel
+    at the fastest command of their grown radius count; the largest over them.
+
+    Parameters
+    ----------
+    velocities : numpy.ndarray
+        The commands, shape (K, 2).
+    mean : numpy.ndarray
+        ``mu``, shape (2,).
+    segments, distance, radius : numpy.ndarray
+        The near walls (n, 2, 2), their distance from ``mu`` and grown radius, (n,) each.
+    centres, disc_radius : numpy.ndarray
+        The near discs (q, 2) and their grown radius (q,).
+    period : float
+        How long a command stays in force [s].
+
+    Returns
+    -------
+    numpy.ndarray
+        Shape (K,), at least 0.
+
+    """
+    count = velocities.shape[0]
+    fastest = 0.0
+    for index in range(count):
+        fastest = max(fastest, math.hypot(velocities[index, 0], velocities[index, 1]))
+    travel = period * fastest
+    start_x, start_y = mean[0], mean[1]
+    intrusion = np.zeros(count)
+    for wall in range(radius.size):
+        if not distance[wall] < radius[wall] + travel:
+            continue
+        a_x, a_y = segments[wall, 0, 0], segments[wall, 0, 1]
+        b_x, b_y = segments[wall, 1, 0], segments[wall, 1, 1]
+        wall_x, wall_y = b_x - a_x, b_y - a_y
+        deepest = min(distance[wall], radius[wall])
+        for index in range(count):
+            end_x = start_x + period * velocities[index, 0]
+            end_y = start_y + period * velocities[index, 1]
+            path_x, path_y = end_x - start_x, end_y - start_y
+            if ((wall_x * (start_y - a_y) - wall_y * (start_x - a_x))
+                    * (wall_x * (end_y - a_y) - wall_y * (end_x - a_x)) < 0.0
+                    and (path_x * (a_y - start_y) - path_y * (a_x - start_x))
+                    * (path_x * (b_y - start_y) - path_y * (b_x - start_x)) < 0.0):
+                separation = 0.0
+            else:
+                separation = min(
+                    _point_segment_distance(start_x, start_y, a_x, a_y, b_x, b_y),
+                    _point_segment_distance(end_x, end_y, a_x, a_y, b_x, b_y),
+                    _point_segment_distance(a_x, a_y, start_x, start_y, end_x, end_y),
+                    _point_segment_distance(b_x, b_y, start_x, start_y, end_x, end_y))
+            intrusion[index] = max(intrusion[index], deepest - separation)
+    for disc in range(disc_radius.size):
+        centre_x, centre_y = centres[disc, 0], centres[disc, 1]
+        disc_start = math.hypot(centre_x - start_x, centre_y - start_y)
+        if not disc_start < disc_radius[disc] + travel:
+            continue
+        deepest = min(disc_start, disc_radius[disc])
+        for index in range(count):
+            end_x = start_x + period * velocities[index, 0]
+            end_y = start_y + period * velocities[index, 1]
+            intrusion[index] = max(intrusion[index], deepest - _point_segment_distance(
+                centre_x, centre_y, start_x, start_y, end_x, end_y))
+    return intrusion
+
+
+@jit(_CONTACT_SIGNATURE)
+def contact_times(products, mean, distance, radius, centres, disc_radius, horizon):
+    """
+    Return how long each command takes to reach the nearest near shape's line, at most tau.
+
+    Per near wall then near disc ``max(d - R, 0) / (-n.v)`` where ``-n.v > 0`` (approaching),
+    else never (:func:`.walls.wall_time_to_contact`).
+
+    Parameters
+    ----------
+    products : numpy.ndarray
+        ``n.v`` of every command and shape's normal of moving away, shape (K, n + q).
+    mean : numpy.ndarray
+        ``mu``, shape (2,).
+    distance, radius : numpy.ndarray
+        The near walls' distance from ``mu`` and grown radius, (n,) each.
+    centres, disc_radius : numpy.ndarray
+        The near discs (q, 2) and their grown radius (q,).
+    horizon : float
+        ``tau`` [s], the cap.
+
+    Returns
+    -------
+    numpy.ndarray
+        Shape (K,).
+
+    """
+    walls, shapes = radius.size, products.shape[1]
+    clearance = np.empty(shapes)
+    for wall in range(walls):
+        clearance[wall] = _at_least_zero(distance[wall] - radius[wall])
+    for disc in range(shapes - walls):
+        clearance[walls + disc] = _at_least_zero(
+            math.hypot(centres[disc, 0] - mean[0], centres[disc, 1] - mean[1])
+            - disc_radius[disc])
+    times = np.empty(products.shape[0])
+    for index in range(products.shape[0]):
+        soonest = math.inf
+        for shape in range(shapes):
+            approach = -products[index, shape]
+            if approach > 0.0:
+                soonest = min(soonest, clearance[shape] / approach)
+        times[index] = min(soonest, horizon)
+    return times

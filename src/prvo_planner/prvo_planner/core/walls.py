@@ -137,23 +137,6 @@ class LinearConditions:
     risks: np.ndarray
     approach: np.ndarray
 
-    @classmethod
-    def of(cls, normals, offsets, risks, mean, spreads, horizon, period):
-        """
-        Return the conditions of NORMALS and OFFSETS for the ego's mean MEAN.
-
-        SPREADS are :func:`.wall_kernels.line_spreads`' ``std0``, ``walk`` and risks clipped.
-        """
-        from .wall_kernels import line_speeds
-        mean0 = normals @ mean - offsets
-        std0, walk, risk = spreads
-        # A partial last period would move less than the walk: cover it whole.
-        horizon = period * math.ceil(horizon / period - 1e-9)
-        still, approach = line_speeds(mean0, std0, walk, horizon, risks, ndtri(0.5 * risk),
-                                      ndtri(risk))
-        return cls(normals=normals, mean0=mean0, std0=std0, walk=walk, horizon=horizon,
-                   still_risk=still, risks=risks, approach=approach)
-
 
 @dataclass(frozen=True)
 class WallModel:
@@ -287,39 +270,36 @@ def wall_model(obstacles, ego, config):
     WallModel
 
     """
-    from .wall_kernels import line_spreads, wall_geometry
+    from .wall_kernels import wall_conditions, wall_speeds
     mean = ego.position
     eta = config.effective_eta
     delta = 1.0 - eta
-    horizon, max_speed = config.obstacle_horizon, config.max_speed
+    horizon, max_speed, period = config.obstacle_horizon, config.max_speed, config.control_period
     position_cov, actuation_cov, growth = _planning_covariances(ego, config)
     position_cov = np.ascontiguousarray(position_cov)
-    actuation_cov = np.ascontiguousarray(actuation_cov)
     spread = _largest_std(position_cov) + horizon * _largest_std(actuation_cov)
     (clearance, far_bounds, walls, discs, wall_radius, wall_distance, disc_radius, disc_distance,
-     normals, offsets, risks, end_bounds, in_reach, away_normals) = wall_geometry(
-        np.ascontiguousarray(mean, dtype=float), obstacles.segments,
-        np.ascontiguousarray(obstacles.frames), obstacles.half_widths, obstacles.disc_centres,
-        obstacles.disc_radii, ego.radius + config.safety_margin, growth, spread, horizon,
-        max_speed, delta)
-    std0, walk, solved, away_thresholds = line_spreads(
-        normals, away_normals, position_cov, actuation_cov, config.control_period, risks,
+     normals, risks, end_bounds, in_reach, away_normals, away_thresholds, mean0, std0, walk,
+     solved) = wall_conditions(
+        mean, obstacles.segments, obstacles.frames, obstacles.half_widths,
+        obstacles.disc_centres, obstacles.disc_radii, position_cov, actuation_cov,
+        ego.radius + config.safety_margin, growth, spread, horizon, max_speed, delta, period,
         _quantile(eta))
-    conditions = LinearConditions.of(normals, offsets, risks, mean, (std0, walk, solved),
-                                     horizon, config.control_period)
-    count, still_risk = len(walls), conditions.still_risk
-    close = np.concatenate([wall_distance, disc_distance]) <= np.concatenate(
-        [wall_radius, disc_radius])
-    close[:count] |= still_risk[:count * PER_WALL:PER_WALL] >= delta
-    close[count:] |= still_risk[count * PER_WALL + FAN_HALF::FAN] >= delta
+    # A partial last period would move less than the walk: cover it whole.
+    rounded = period * math.ceil(horizon / period - 1e-9)
+    still, approach, close = wall_speeds(mean0, std0, walk, rounded, risks, ndtri(0.5 * solved),
+                                         ndtri(solved), wall_distance, wall_radius,
+                                         disc_distance, disc_radius, delta)
     return WallModel(
         mean_position=np.array(mean, dtype=float), clearance=clearance, far_bounds=far_bounds,
         segments=obstacles.segments[walls], radius=wall_radius, distance=wall_distance,
-        centres=obstacles.disc_centres[discs], disc_radius=disc_radius, conditions=conditions,
+        centres=obstacles.disc_centres[discs], disc_radius=disc_radius,
+        conditions=LinearConditions(normals=normals, mean0=mean0, std0=std0, walk=walk,
+                                    horizon=rounded, still_risk=still, risks=risks,
+                                    approach=approach),
         end_bounds=end_bounds, end_in_reach=in_reach, close=close, away_normals=away_normals,
-        away_thresholds=away_thresholds,
-        horizon=horizon, max_speed=max_speed, position_cov=position_cov,
-        walk_cov=config.control_period * actuation_cov)
+        away_thresholds=away_thresholds, horizon=horizon, max_speed=max_speed,
+        position_cov=position_cov, walk_cov=period * actuation_cov)
 
 
 def rejected_intervals(model, directions):
@@ -329,7 +309,8 @@ def rejected_intervals(model, directions):
     Each condition accepts ``[0, upper] U [lower, 1]`` of a ray, a piece rejects where all its
     conditions do, a wall where its support line and a piece both do (three intervals per wall,
     one per disc), a shape close to ``mu`` wherever moving away does not hold:
-    :func:`.wall_kernels.rejected_intervals`, compiled.
+    :func:`.wall_kernels.rejected_intervals`, compiled. The intervals are exact within
+    ``[0, 1]``; beyond it (no command) the parallel tangents are not evaluated.
 
     Parameters
     ----------
@@ -394,10 +375,6 @@ def segment_distances(points, starts, ends):
     return np.hypot(offset[..., 0], offset[..., 1])
 
 
-def _cross(first, second):
-    return first[..., 0] * second[..., 1] - first[..., 1] * second[..., 0]
-
-
 def wall_intrusion(model, velocities, period):
     """
     How far each command moves into a wall or disc obstacle within one period, shape (K,).
@@ -406,7 +383,7 @@ def wall_intrusion(model, velocities, period):
     ``d1`` the smallest distance of the path ``mu + t v``, ``t in [0, period]``, from the
     segment (or disc centre): the overlap the command creates, or adds to an existing one.
     The largest over the near obstacles (the others are further than ``tau v_max``, which a
-    period cannot cover); 0 for ``v = 0``.
+    period cannot cover); 0 for ``v = 0``. Compiled: :func:`.wall_kernels.wall_intrusions`.
 
     Parameters
     ----------
@@ -418,35 +395,10 @@ def wall_intrusion(model, velocities, period):
         How long a command stays in force, seconds.
 
     """
-    start = model.mean_position
-    # Only a shape within one period's travel of its grown radius can be entered.
-    travel = period * np.max(np.hypot(velocities[:, 0], velocities[:, 1]), initial=0.0)
-    reachable = model.distance < model.radius + travel
-    segments, distance, radius = (model.segments[reachable], model.distance[reachable],
-                                  model.radius[reachable])
-    centres, disc_radius = model.centres, model.disc_radius
-    disc_start = np.hypot(centres[:, 0] - start[0], centres[:, 1] - start[1])
-    reachable = disc_start < disc_radius + travel
-    centres, disc_radius, disc_start = (centres[reachable], disc_radius[reachable],
-                                        disc_start[reachable])
-    path_start = np.broadcast_to(start, velocities.shape)[:, None, :]
-    path_end = (start + period * velocities)[:, None, :]
-    wall_a, wall_b = segments[None, :, 0], segments[None, :, 1]
-    separation = np.minimum.reduce([
-        segment_distances(path_start, wall_a, wall_b),
-        segment_distances(path_end, wall_a, wall_b),
-        segment_distances(wall_a, path_start, path_end),
-        segment_distances(wall_b, path_start, path_end)])
-    wall_along, path_along = wall_b - wall_a, path_end - path_start
-    crossing = ((_cross(wall_along, path_start - wall_a) * _cross(wall_along, path_end - wall_a)
-                 < 0.0)
-                & (_cross(path_along, wall_a - path_start)
-                   * _cross(path_along, wall_b - path_start) < 0.0))
-    separation = np.where(crossing, 0.0, separation)
-    walls = np.maximum(np.minimum(distance, radius) - separation, 0.0)
-    discs = np.maximum(np.minimum(disc_start, disc_radius)
-                       - segment_distances(centres[None], path_start, path_end), 0.0)
-    return np.max(np.concatenate([walls, discs], axis=1), axis=1, initial=0.0)
+    from .wall_kernels import wall_intrusions
+    return wall_intrusions(np.ascontiguousarray(velocities, dtype=float), model.mean_position,
+                           model.segments, model.distance, model.radius, model.centres,
+                           model.disc_radius, float(period))
 
 
 def wall_time_to_contact(model, velocities):
@@ -457,13 +409,11 @@ def wall_time_to_contact(model, velocities):
     the support line's normal, the disc's middle tangent's), else never; the smallest over
     them, at most ``tau``.
     """
-    clearance = np.maximum(np.concatenate([model.distance - model.radius,
-                                           np.hypot(*(model.centres - model.mean_position).T)
-                                           - model.disc_radius]), 0.0)
-    approach = -(velocities @ model.away_normals.T)
-    times = np.divide(clearance, approach, out=np.full(approach.shape, np.inf),
-                      where=approach > 0.0)
-    return np.minimum(np.min(times, axis=1, initial=np.inf), model.horizon)
+    from .wall_kernels import contact_times
+    # The products n.v by numpy's matrix product (BLAS), the rest compiled.
+    return contact_times(np.ascontiguousarray(velocities @ model.away_normals.T),
+                         model.mean_position, model.distance, model.radius, model.centres,
+                         model.disc_radius, float(model.horizon))
 
 
 def obstacle_probability(model, velocity):
