@@ -578,3 +578,51 @@ def test_the_normal_distribution_functions_the_bounds_use_match_the_c_library():
                 # (Below -37 Phi is subnormal, its relative precision less.)
                 assert abs(compiled - exact) <= 2e-16 * (value * value + 4.0) * exact
     assert math.isnan(compiled_ndtr(math.nan))
+
+
+def test_certified_bounds_floor_by_cantelli_and_bound_by_monte_carlo():
+    # Per (velocity, neighbour): Cantelli's k^2 / (1 + k^2) of the achieved margin, and where it
+    # falls short, the larger with a certified bound, which must not exceed the probability of
+    # the accepted condition (f >= 0, or g >= 0 where gated) sampled with its own generator.
+    from independent import gaussian, rvo_f
+    from prvo_core_testing import random_covariance
+
+    from prvo_planner.core.certificate_kernels import certified_bounds
+
+    rng = np.random.default_rng(41)
+    count, velocities_count = 6, 3
+    origin = np.column_stack([rng.uniform(-3.0, 3.0, size=(count, 2)),
+                              rng.normal(0.0, 0.5, size=(count, 2))])
+    cov = np.array([random_covariance(rng, 4, rng.uniform(0.01, 0.1)) for _ in range(count)])
+    radius = rng.uniform(0.3, 0.8, size=count)
+    lead = np.full(count, 2.0)
+    gated = np.arange(count) % 2 == 0
+    velocities = rng.normal(0.0, 0.7, size=(velocities_count, 2))
+    achieved = rng.uniform(-0.5, 4.0, size=(velocities_count, count))
+    achieved[0, 0] = 2e8
+    required = np.full(count, 0.9)
+    bounds, certified = certified_bounds(origin, lead, cov, radius, velocities, achieved,
+                                         required, gated, math.inf, 32)
+    margin = np.maximum(achieved, 0.0)
+    floors = np.where(margin >= 1e8, 1.0, margin ** 2 / (1.0 + margin ** 2))
+    assert bounds.shape == certified.shape == (velocities_count, count)
+    assert np.all(bounds >= floors)
+    # Where Cantelli suffices nothing is certified; elsewhere the flag is the larger bound's kind.
+    np.testing.assert_array_equal(bounds[floors >= required], floors[floors >= required])
+    assert not np.any(certified[floors >= required])
+    np.testing.assert_array_equal(certified, bounds > floors)
+    assert np.any(certified)
+    samples = 200_000
+    for velocity in range(velocities_count):
+        for neighbour in range(count):
+            if not certified[velocity, neighbour]:
+                continue
+            mean = origin[neighbour].copy()
+            mean[2:] += lead[neighbour] * velocities[velocity]
+            z = gaussian(rng, mean, cov[neighbour], samples)
+            accepted = rvo_f(z[:, :2], z[:, 2:], radius[neighbour]) >= 0.0
+            if gated[neighbour]:
+                accepted |= np.sum(z[:, :2] * z[:, 2:], axis=1) >= 0.0
+            probability = accepted.mean()
+            error = math.sqrt(max(probability * (1.0 - probability), 1e-6) / samples)
+            assert bounds[velocity, neighbour] <= probability + 4.0 * error

@@ -46,6 +46,7 @@ from .certificate import (
     WIDENING,
 )
 from .moment_kernels import condition_moments
+from .probability import _CERTAIN_K
 from .ray_solver import READ_ONLY_CUBE, READ_ONLY_FLAGS, READ_ONLY_ROWS, READ_ONLY_VECTOR, jit
 from .special_kernels import ndtr
 
@@ -74,6 +75,9 @@ _CUT_SIGNATURE = types.Tuple((_ROWS, _ROWS, _ROWS, _FLAGS))(
 _CONDITION_SIGNATURE = types.Tuple((_VECTOR, types.int64[::1]))(
     READ_ONLY_ROWS, READ_ONLY_CUBE, READ_ONLY_VECTOR, READ_ONLY_VECTOR, READ_ONLY_FLAGS,
     types.float64, types.int64, types.boolean)
+_CERTIFIED_SIGNATURE = types.Tuple((_ROWS, types.boolean[:, ::1]))(
+    READ_ONLY_ROWS, READ_ONLY_VECTOR, READ_ONLY_CUBE, READ_ONLY_VECTOR, READ_ONLY_ROWS,
+    READ_ONLY_ROWS, READ_ONLY_VECTOR, READ_ONLY_FLAGS, types.float64, types.int64)
 _HORIZON_SIGNATURE = _VECTOR(READ_ONLY_ROWS, READ_ONLY_CUBE, READ_ONLY_VECTOR, READ_ONLY_VECTOR)
 
 
@@ -672,8 +676,7 @@ def _floors(mean, cov, radius):
     """
     count = mean.shape[0]
     zeros = np.zeros(count)
-    return condition_moments(mean, cov, radius, np.zeros((count, 1, 2)), zeros, zeros, zeros,
-                             True, False)
+    return condition_moments(mean, cov, radius, np.zeros((1, 1, 2)), zeros, zeros, True, False)
 
 
 @jit(inline='always')
@@ -835,3 +838,92 @@ def condition_bounds(mean, cov, radius, required, gated, horizon, pairs, rvo):
                 bounds[entry] = max(bounds[entry], _horizon_bound(mean, cov, entry,
                                                                   radius[entry], horizon))
     return bounds, method
+
+
+@jit(_CERTIFIED_SIGNATURE)
+def certified_bounds(origin, lead, cov, radius, velocities, achieved, required, gated, horizon,
+                     pairs):
+    """
+    Per velocity and neighbour the larger of Cantelli's bound and the certified one, and its kind.
+
+    Cantelli's bound ``k^2 / (1 + k^2)`` of the achieved margin ``max(k, 0)`` (1 from
+    ``k = 1e8`` on, as :func:`.probability.eta_from_k`) is the floor; where it falls short of
+    the REQUIRED probability, :func:`condition_bounds` of the condition at that velocity, every
+    short (velocity, neighbour) entry in one batch, velocity-major.
+
+    Parameters
+    ----------
+    origin : numpy.ndarray
+        Mean of ``z`` at ``v_c = 0`` per neighbour, shape (n, 4).
+    lead : numpy.ndarray
+        ``1 / rho`` per neighbour, shape (n,): the mean of ``z`` at ``v_c`` is ORIGIN plus
+        ``lead v_c`` in its velocity components.
+    cov, radius
+        Covariance of ``z`` (n, 4, 4) and ``R`` (n,) per neighbour.
+    velocities : numpy.ndarray
+        The commanded velocities to certify, shape (V, 2).
+    achieved : numpy.ndarray
+        The margin ``k`` each meets per neighbour, shape (V, n).
+    required : numpy.ndarray
+        The probability to certify per neighbour, shape (n,).
+    gated : numpy.ndarray
+        Whether the gate counts per neighbour, shape (n,).
+    horizon : float
+        ``tau``; ``inf``: no horizon pair.
+    pairs : int
+        Wedges of the half turn.
+
+    Returns
+    -------
+    bounds : numpy.ndarray
+        Shape (V, n).
+    certified : numpy.ndarray
+        Whether each bound is the certified one (larger than Cantelli's), shape (V, n).
+
+    """
+    count, neighbours = achieved.shape
+    bounds = np.empty((count, neighbours))
+    certified = np.zeros((count, neighbours), dtype=np.bool_)
+    short = 0
+    for velocity in range(count):
+        for neighbour in range(neighbours):
+            margin = max(achieved[velocity, neighbour], 0.0)
+            if margin >= _CERTAIN_K:
+                floor = 1.0
+            else:
+                square = margin * margin
+                floor = square / (1.0 + square)
+            bounds[velocity, neighbour] = floor
+            if floor < required[neighbour]:
+                short += 1
+    if short == 0:
+        return bounds, certified
+    mean = np.empty((short, 4))
+    short_cov = np.empty((short, 4, 4))
+    short_radius = np.empty(short)
+    short_required = np.empty(short)
+    short_gated = np.empty(short, dtype=np.bool_)
+    entry = 0
+    for velocity in range(count):
+        for neighbour in range(neighbours):
+            if bounds[velocity, neighbour] < required[neighbour]:
+                mean[entry, 0] = origin[neighbour, 0]
+                mean[entry, 1] = origin[neighbour, 1]
+                mean[entry, 2] = origin[neighbour, 2] + lead[neighbour] * velocities[velocity, 0]
+                mean[entry, 3] = origin[neighbour, 3] + lead[neighbour] * velocities[velocity, 1]
+                short_cov[entry] = cov[neighbour]
+                short_radius[entry] = radius[neighbour]
+                short_required[entry] = required[neighbour]
+                short_gated[entry] = gated[neighbour]
+                entry += 1
+    gaussian = condition_bounds(mean, short_cov, short_radius, short_required, short_gated,
+                                horizon, pairs, True)[0]
+    entry = 0
+    for velocity in range(count):
+        for neighbour in range(neighbours):
+            if bounds[velocity, neighbour] < required[neighbour]:
+                if gaussian[entry] > bounds[velocity, neighbour]:
+                    bounds[velocity, neighbour] = gaussian[entry]
+                    certified[velocity, neighbour] = True
+                entry += 1
+    return bounds, certified
