@@ -580,49 +580,43 @@ def test_the_normal_distribution_functions_the_bounds_use_match_the_c_library():
     assert math.isnan(compiled_ndtr(math.nan))
 
 
-def test_certified_bounds_floor_by_cantelli_and_bound_by_monte_carlo():
-    # Per (velocity, neighbour): Cantelli's k^2 / (1 + k^2) of the achieved margin, and where it
-    # falls short, the larger with a certified bound, which must not exceed the probability of
-    # the accepted condition (f >= 0, or g >= 0 where gated) sampled with its own generator.
-    from independent import gaussian, rvo_f
+
+def test_short_entries_are_the_velocities_cantelli_leaves_short():
+    # Per (velocity, neighbour) Cantelli's k^2 / (1 + k^2) of the achieved margin (1 from
+    # k = 1e8 on, 0 for a negative margin); the entries below the required probability,
+    # velocity-major, with the mean of z at their velocity and their neighbour's arguments.
     from prvo_core_testing import random_covariance
 
-    from prvo_planner.core.certificate_kernels import certified_bounds
+    from prvo_planner.core.certificate_kernels import short_entries
 
     rng = np.random.default_rng(41)
     count, velocities_count = 6, 3
-    origin = np.column_stack([rng.uniform(-3.0, 3.0, size=(count, 2)),
-                              rng.normal(0.0, 0.5, size=(count, 2))])
-    cov = np.array([random_covariance(rng, 4, rng.uniform(0.01, 0.1)) for _ in range(count)])
+    origin = rng.normal(0.0, 2.0, size=(count, 4))
+    cov = np.array([random_covariance(rng, 4, 0.1) for _ in range(count)])
     radius = rng.uniform(0.3, 0.8, size=count)
-    lead = np.full(count, 2.0)
+    lead = rng.uniform(1.0, 2.0, size=count)
     gated = np.arange(count) % 2 == 0
     velocities = rng.normal(0.0, 0.7, size=(velocities_count, 2))
-    achieved = rng.uniform(-0.5, 4.0, size=(velocities_count, count))
-    achieved[0, 0] = 2e8
-    required = np.full(count, 0.9)
-    bounds, certified = certified_bounds(origin, lead, cov, radius, velocities, achieved,
-                                         required, gated, math.inf, 32)
-    margin = np.maximum(achieved, 0.0)
-    floors = np.where(margin >= 1e8, 1.0, margin ** 2 / (1.0 + margin ** 2))
-    assert bounds.shape == certified.shape == (velocities_count, count)
-    assert np.all(bounds >= floors)
-    # Where Cantelli suffices nothing is certified; elsewhere the flag is the larger bound's kind.
-    np.testing.assert_array_equal(bounds[floors >= required], floors[floors >= required])
-    assert not np.any(certified[floors >= required])
-    np.testing.assert_array_equal(certified, bounds > floors)
-    assert np.any(certified)
-    samples = 200_000
-    for velocity in range(velocities_count):
-        for neighbour in range(count):
-            if not certified[velocity, neighbour]:
-                continue
-            mean = origin[neighbour].copy()
-            mean[2:] += lead[neighbour] * velocities[velocity]
-            z = gaussian(rng, mean, cov[neighbour], samples)
-            accepted = rvo_f(z[:, :2], z[:, 2:], radius[neighbour]) >= 0.0
-            if gated[neighbour]:
-                accepted |= np.sum(z[:, :2] * z[:, 2:], axis=1) >= 0.0
-            probability = accepted.mean()
-            error = math.sqrt(max(probability * (1.0 - probability), 1e-6) / samples)
-            assert bounds[velocity, neighbour] <= probability + 4.0 * error
+    achieved = rng.uniform(-0.5, 6.0, size=(velocities_count, count))
+    achieved[0, :3] = [2e8, 1e300, math.inf]
+    required = rng.uniform(0.5, 0.99, size=count)
+    floors, short, mean, short_cov, short_radius, short_required, short_gated = short_entries(
+        origin, lead, cov, radius, velocities, achieved, required, gated)
+    expected_floors = [[1.0 if k >= 1e8 else (max(k, 0.0) ** 2 / (1.0 + max(k, 0.0) ** 2))
+                        for k in row] for row in achieved]
+    np.testing.assert_allclose(floors, expected_floors, rtol=1e-15, atol=0.0)
+    expected = [(velocity, neighbour) for velocity in range(velocities_count)
+                for neighbour in range(count)
+                if expected_floors[velocity][neighbour] < required[neighbour]]
+    assert 0 < len(expected) < velocities_count * count
+    np.testing.assert_array_equal(short, [velocity * count + neighbour
+                                          for velocity, neighbour in expected])
+    for entry, (velocity, neighbour) in enumerate(expected):
+        np.testing.assert_allclose(
+            mean[entry], np.r_[origin[neighbour, :2],
+                               origin[neighbour, 2:] + lead[neighbour] * velocities[velocity]],
+            rtol=1e-15, atol=1e-15)
+        np.testing.assert_array_equal(short_cov[entry], cov[neighbour])
+        assert short_radius[entry] == radius[neighbour]
+        assert short_required[entry] == required[neighbour]
+        assert short_gated[entry] == gated[neighbour]

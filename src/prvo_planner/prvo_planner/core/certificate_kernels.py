@@ -75,9 +75,10 @@ _CUT_SIGNATURE = types.Tuple((_ROWS, _ROWS, _ROWS, _FLAGS))(
 _CONDITION_SIGNATURE = types.Tuple((_VECTOR, types.int64[::1]))(
     READ_ONLY_ROWS, READ_ONLY_CUBE, READ_ONLY_VECTOR, READ_ONLY_VECTOR, READ_ONLY_FLAGS,
     types.float64, types.int64, types.boolean)
-_CERTIFIED_SIGNATURE = types.Tuple((_ROWS, types.boolean[:, ::1]))(
+_SHORT_SIGNATURE = types.Tuple((
+    _ROWS, types.int64[::1], _ROWS, types.float64[:, :, ::1], _VECTOR, _VECTOR, _FLAGS))(
     READ_ONLY_ROWS, READ_ONLY_VECTOR, READ_ONLY_CUBE, READ_ONLY_VECTOR, READ_ONLY_ROWS,
-    READ_ONLY_ROWS, READ_ONLY_VECTOR, READ_ONLY_FLAGS, types.float64, types.int64)
+    READ_ONLY_ROWS, READ_ONLY_VECTOR, READ_ONLY_FLAGS)
 _HORIZON_SIGNATURE = _VECTOR(READ_ONLY_ROWS, READ_ONLY_CUBE, READ_ONLY_VECTOR, READ_ONLY_VECTOR)
 
 
@@ -840,16 +841,15 @@ def condition_bounds(mean, cov, radius, required, gated, horizon, pairs, rvo):
     return bounds, method
 
 
-@jit(_CERTIFIED_SIGNATURE)
-def certified_bounds(origin, lead, cov, radius, velocities, achieved, required, gated, horizon,
-                     pairs):
+@jit(_SHORT_SIGNATURE)
+def short_entries(origin, lead, cov, radius, velocities, achieved, required, gated):
     """
-    Per velocity and neighbour the larger of Cantelli's bound and the certified one, and its kind.
+    Cantelli's bound per velocity and neighbour, and the entries where it falls short.
 
     Cantelli's bound ``k^2 / (1 + k^2)`` of the achieved margin ``max(k, 0)`` (1 from
-    ``k = 1e8`` on, as :func:`.probability.eta_from_k`) is the floor; where it falls short of
-    the REQUIRED probability, :func:`condition_bounds` of the condition at that velocity, every
-    short (velocity, neighbour) entry in one batch, velocity-major.
+    ``k = 1e8`` on, as :func:`.probability.eta_from_k`) is the floor of the planner's
+    certified bounds; where it falls short of the REQUIRED probability, the entry's arguments
+    of :func:`.certificate.condition_bound` are gathered, velocity-major.
 
     Parameters
     ----------
@@ -868,23 +868,21 @@ def certified_bounds(origin, lead, cov, radius, velocities, achieved, required, 
         The probability to certify per neighbour, shape (n,).
     gated : numpy.ndarray
         Whether the gate counts per neighbour, shape (n,).
-    horizon : float
-        ``tau``; ``inf``: no horizon pair.
-    pairs : int
-        Wedges of the half turn.
 
     Returns
     -------
-    bounds : numpy.ndarray
-        Shape (V, n).
-    certified : numpy.ndarray
-        Whether each bound is the certified one (larger than Cantelli's), shape (V, n).
+    floors : numpy.ndarray
+        Cantelli's bound per entry, shape (V, n).
+    short : numpy.ndarray
+        The short entries' flat indices into FLOORS, shape (S,).
+    mean, cov, radius, required, gated : numpy.ndarray
+        Per short entry the mean of ``z`` at its velocity (S, 4), and its neighbour's
+        covariance (S, 4, 4), ``R``, required probability and gate (S,).
 
     """
     count, neighbours = achieved.shape
-    bounds = np.empty((count, neighbours))
-    certified = np.zeros((count, neighbours), dtype=np.bool_)
-    short = 0
+    floors = np.empty((count, neighbours))
+    entries = 0
     for velocity in range(count):
         for neighbour in range(neighbours):
             margin = max(achieved[velocity, neighbour], 0.0)
@@ -893,20 +891,20 @@ def certified_bounds(origin, lead, cov, radius, velocities, achieved, required, 
             else:
                 square = margin * margin
                 floor = square / (1.0 + square)
-            bounds[velocity, neighbour] = floor
+            floors[velocity, neighbour] = floor
             if floor < required[neighbour]:
-                short += 1
-    if short == 0:
-        return bounds, certified
-    mean = np.empty((short, 4))
-    short_cov = np.empty((short, 4, 4))
-    short_radius = np.empty(short)
-    short_required = np.empty(short)
-    short_gated = np.empty(short, dtype=np.bool_)
+                entries += 1
+    short = np.empty(entries, dtype=np.int64)
+    mean = np.empty((entries, 4))
+    short_cov = np.empty((entries, 4, 4))
+    short_radius = np.empty(entries)
+    short_required = np.empty(entries)
+    short_gated = np.empty(entries, dtype=np.bool_)
     entry = 0
     for velocity in range(count):
         for neighbour in range(neighbours):
-            if bounds[velocity, neighbour] < required[neighbour]:
+            if floors[velocity, neighbour] < required[neighbour]:
+                short[entry] = velocity * neighbours + neighbour
                 mean[entry, 0] = origin[neighbour, 0]
                 mean[entry, 1] = origin[neighbour, 1]
                 mean[entry, 2] = origin[neighbour, 2] + lead[neighbour] * velocities[velocity, 0]
@@ -916,14 +914,4 @@ def certified_bounds(origin, lead, cov, radius, velocities, achieved, required, 
                 short_required[entry] = required[neighbour]
                 short_gated[entry] = gated[neighbour]
                 entry += 1
-    gaussian = condition_bounds(mean, short_cov, short_radius, short_required, short_gated,
-                                horizon, pairs, True)[0]
-    entry = 0
-    for velocity in range(count):
-        for neighbour in range(neighbours):
-            if bounds[velocity, neighbour] < required[neighbour]:
-                if gaussian[entry] > bounds[velocity, neighbour]:
-                    bounds[velocity, neighbour] = gaussian[entry]
-                    certified[velocity, neighbour] = True
-                entry += 1
-    return bounds, certified
+    return floors, short, mean, short_cov, short_radius, short_required, short_gated

@@ -1,11 +1,13 @@
 """
 The closed-form moments of the conditions compiled (:mod:`.moments`).
 
-One numba function, :func:`condition_moments`, compiled for one signature when this module is
-first imported (:func:`.moments.condition_moments` imports it on its first call; the planner's
-warm-up makes that call before the node spins) and kept in numba's on-disk cache, as the ray
-search, the certificate and the walls are (``./run.sh setup`` compiles every kernel module once
-after installing).
+Three numba functions, each compiled for one signature when this module is first imported
+(:mod:`.moments` imports it on its first call; the planner's warm-up makes that call before the
+node spins) and kept in numba's on-disk cache, as the ray search, the certificate and the walls
+are (``./run.sh setup`` compiles every kernel module once after installing):
+:func:`condition_moments`, the moments at given commands; :func:`condition_polynomials`, the
+same on the ray polynomials' grid and their fit onto the bivariate quadratic and quartic; and
+:func:`reach_weights`, the weight of the reach condition, which the other two apply themselves.
 
 Per neighbour it forms the quadratic-form matrices and traces of :mod:`.moments`' docstring
 (``A, ASA, (AS)^2 A, (AS)^3 A, ASB, (AS)^2 B, ASBSA, B, BSB`` for ``f``, ``X, XSX`` for each

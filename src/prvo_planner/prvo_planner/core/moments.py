@@ -24,9 +24,9 @@ Vandermonde matrix (a well-conditioned, full-rank 25 x 15 system); restricted to
 direction's monomials (compiled: :func:`.ray_search.ray_links`). This costs a few hundred
 closed-form evaluations per plan, independent of the number of directions.
 
-The closed forms themselves are compiled by numba (:mod:`.moment_kernels`, loaded on the first
-call of :func:`condition_moments`, which :func:`rvo_moments` calls too); the fit is a matrix
-product here.
+The closed forms and the fit are compiled by numba (:mod:`.moment_kernels`, loaded on the
+first call of :func:`condition_moments`, :func:`bivariate_polynomials` or :func:`reach_weights`);
+this module lays out their arguments.
 """
 
 import math

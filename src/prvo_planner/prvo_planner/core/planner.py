@@ -23,7 +23,7 @@ import math
 import numpy as np
 
 from .beliefs import AgentBelief, as_finite_array
-from .certificate import DEFAULT_WEDGES, horizon_search_margin, search_margin
+from .certificate import condition_bound, horizon_search_margin, search_margin
 from .choice import (
     CostTerms,
     cheapest_velocities,
@@ -534,9 +534,9 @@ def _certified_bounds(search, velocities, achieved, required):
     gate counts ``P(g >= 0)``, then with a finite horizon the whole condition): a neighbour
     Cantelli already certifies costs nothing (most of a crowd's are far). The larger of the two
     bounds is kept; it is certified where it is the Gaussian one. A robot's velocities are
-    certified in one compiled call (:func:`.certificate_kernels.certified_bounds`: the floors,
-    the short entries, their certificates); the calls are per robot, so that a robot's plan
-    does not depend on its companions.
+    certified in one call, as a certificate's cost is mostly per call (the floors and the short
+    entries compiled: :func:`.certificate_kernels.short_entries`); the calls are per robot, so
+    that a robot's plan does not depend on its companions.
 
     Returns
     -------
@@ -544,19 +544,26 @@ def _certified_bounds(search, velocities, achieved, required):
         Per robot None (not certified) or the bounds (V, n) and whether each is certified.
 
     """
-    from .certificate_kernels import certified_bounds
+    from .certificate_kernels import short_entries
 
     results = [None] * len(search.plans)
     for robot, plan in enumerate(search.plans):
         if velocities[robot] is None:
             continue
         encounter = plan.encounter
-        # Compiled: the floors, the short entries and their certificates in one call.
-        results[robot] = certified_bounds(
+        # Compiled: the floors, and the short entries' arguments of the certificate.
+        floors, short, *entries = short_entries(
             encounter.origin, encounter.lead, plan.cov, plan.radius, velocities[robot],
-            achieved[robot], required[_pairs(search, robot)], plan.layout.receding_enabled,
-            plan.config.time_horizon if plan.layout.has_horizon else math.inf,
-            DEFAULT_WEDGES // 2)
+            achieved[robot], required[_pairs(search, robot)], plan.layout.receding_enabled)
+        certified = np.zeros(floors.shape, dtype=bool)
+        if short.size:
+            gaussian = condition_bound(*entries, plan.config.time_horizon
+                                       if plan.layout.has_horizon else None)
+            flat = floors.reshape(-1)
+            floor = flat[short]
+            certified.reshape(-1)[short] = gaussian > floor
+            flat[short] = np.maximum(gaussian, floor)
+        results[robot] = (floors, certified)
     return results
 
 
