@@ -1,13 +1,15 @@
 """
 The closed-form moments of the conditions compiled (:mod:`.moments`).
 
-Three numba functions, each compiled for one signature when this module is first imported
+Four numba functions, each compiled for one signature when this module is first imported
 (:mod:`.moments` imports it on its first call; the planner's warm-up makes that call before the
 node spins) and kept in numba's on-disk cache, as the ray search, the certificate and the walls
 are (``./run.sh setup`` compiles every kernel module once after installing):
 :func:`condition_moments`, the moments at given commands; :func:`condition_polynomials`, the
 same on the ray polynomials' grid and their fit onto the bivariate quadratic and quartic; and
-:func:`reach_weights`, the weight of the reach condition, which the other two apply themselves.
+:func:`condition_margins`, the margins met at given commands (with the ray search's
+:func:`.ray_search.achieved_margins`); and :func:`reach_weights`, the weight of the reach
+condition, which the others apply themselves.
 
 Per neighbour it forms the quadratic-form matrices and traces of :mod:`.moments`' docstring
 (``A, ASA, (AS)^2 A, (AS)^3 A, ASB, (AS)^2 B, ASBSA, B, BSB`` for ``f``, ``X, XSX`` for each
@@ -24,7 +26,8 @@ from numba import types
 import numpy as np
 
 from .moments import REACH_WEIGHT_BOUNDS
-from .ray_solver import READ_ONLY_CUBE, READ_ONLY_ROWS, READ_ONLY_VECTOR, jit
+from .ray_search import achieved_margins
+from .ray_solver import READ_ONLY_CUBE, READ_ONLY_FLAGS, READ_ONLY_ROWS, READ_ONLY_VECTOR, jit
 
 # q = r x u = z'Az, p = |u|^2 = z'Bz, g = r . u = z'Gz, |r|^2 = z'Pz.
 _CROSS = np.array([[0.0, 0.0, 0.0, 0.5],
@@ -54,6 +57,9 @@ _MOMENTS_SIGNATURE = types.Tuple((_CUBE, _CUBE))(
 _POLYNOMIALS_SIGNATURE = types.Tuple((_CUBE, _CUBE))(
     READ_ONLY_ROWS, READ_ONLY_CUBE, READ_ONLY_VECTOR, READ_ONLY_CUBE, READ_ONLY_VECTOR,
     READ_ONLY_VECTOR, types.boolean, types.boolean, READ_ONLY_ROWS)
+_MARGINS_SIGNATURE = types.float64[:, ::1](
+    READ_ONLY_ROWS, READ_ONLY_CUBE, READ_ONLY_VECTOR, READ_ONLY_CUBE, READ_ONLY_VECTOR,
+    READ_ONLY_VECTOR, types.boolean, types.boolean, READ_ONLY_FLAGS)
 _WEIGHTS_SIGNATURE = types.float64[::1](READ_ONLY_ROWS, READ_ONLY_VECTOR)
 
 
@@ -147,10 +153,10 @@ def condition_moments(origin, cov, radius, velocities, horizon, lead, gate, fini
         Commanded velocities ``v_c`` per neighbour, shape (N, P, 2), or shared, (1, P, 2): the
         mean of ``z`` at one is ``origin`` plus ``lead v_c`` in the velocity components.
     horizon : numpy.ndarray
-        ``tau`` per neighbour, shape (N,); read only if ``finite``. ``h3``'s ``eps`` is
-        :func:`reach_weights`'.
+        ``tau`` per neighbour, shape (N,), or shared, (1,); read only if ``finite``. ``h3``'s
+        ``eps`` is :func:`reach_weights`'.
     lead : numpy.ndarray
-        ``1 / rho`` per neighbour, shape (N,).
+        ``1 / rho`` per neighbour, shape (N,), or shared, (1,).
     gate, finite : bool
         Whether ``g`` is a condition; whether ``h1``, ``h2`` and ``h3`` are.
 
@@ -185,7 +191,7 @@ def condition_moments(origin, cov, radius, velocities, horizon, lead, gate, fini
     _copy(_DOT, left[2])
     for neighbour in range(count):
         if finite:
-            tau = horizon[neighbour]
+            tau = horizon[neighbour if horizon.shape[0] > 1 else 0]
             weight = _reach_weight(origin[neighbour, 0], origin[neighbour, 1],
                                    radius[neighbour])
             for row in range(4):
@@ -226,9 +232,10 @@ def condition_moments(origin, cov, radius, velocities, horizon, lead, gate, fini
         radius_sq = radius[neighbour] * radius[neighbour]
         m0, m1 = origin[neighbour, 0], origin[neighbour, 1]
         commands = velocities[0] if shared else velocities[neighbour]
+        factor = lead[neighbour if lead.shape[0] > 1 else 0]
         for point in range(points):
-            m2 = origin[neighbour, 2] + lead[neighbour] * commands[point, 0]
-            m3 = origin[neighbour, 3] + lead[neighbour] * commands[point, 1]
+            m2 = origin[neighbour, 2] + factor * commands[point, 0]
+            m3 = origin[neighbour, 3] + factor * commands[point, 1]
             k1 = traces[0] + _form(rvo[0], m0, m1, m2, m3)
             k2 = 2.0 * traces[1] + 4.0 * _form(rvo[1], m0, m1, m2, m3)
             k3 = 8.0 * traces[2] + 24.0 * _form(rvo[2], m0, m1, m2, m3)
@@ -291,3 +298,25 @@ def condition_polynomials(origin, cov, radius, velocities, horizon, lead, gate, 
                         total += fit[term, point] * means[neighbour, point, condition]
                     mean_fit[neighbour, term, condition] = total
     return mean_fit, variance_fit
+
+
+@jit(_MARGINS_SIGNATURE)
+def condition_margins(origin, cov, radius, velocities, horizon, lead, gate, finite, enabled):
+    """
+    Return the margin ``k`` met at each command against each neighbour, shape (P, N).
+
+    The moments of :func:`condition_moments` at the commands VELOCITIES (N or 1, P, 2), then
+    :func:`.ray_search.achieved_margins` of every (neighbour, command) with the gate where
+    ENABLED (N,) and the horizon conditions if FINITE.
+    """
+    means, variances = condition_moments(origin, cov, radius, velocities, horizon, lead, gate,
+                                         finite)
+    count, points, conditions = means.shape
+    margins = achieved_margins(means.reshape(count * points, conditions),
+                               variances.reshape(count * points, conditions),
+                               np.repeat(enabled, points), gate, finite)
+    out = np.empty((points, count))
+    for neighbour in range(count):
+        for point in range(points):
+            out[point, neighbour] = margins[neighbour * points + point]
+    return out

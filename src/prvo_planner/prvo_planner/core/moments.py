@@ -131,11 +131,30 @@ def condition_moments(origin, cov, combined_radius, velocities, time_horizon, re
                                       receding_gate, lead))
 
 
+def condition_margins(origin, cov, combined_radius, velocities, time_horizon, receding_gate,
+                      lead, enabled):
+    """
+    Return the margin ``k`` met at commanded velocities against each neighbour, (P, N).
+
+    The arguments as for :func:`condition_moments`; ENABLED (N,) whether each neighbour's gate
+    counts. Compiled (:func:`.moment_kernels.condition_margins`: the moments and the margins in
+    one call).
+    """
+    from .moment_kernels import condition_margins as margins
+
+    return margins(*_kernel_arguments(origin, cov, combined_radius, velocities, time_horizon,
+                                      receding_gate, lead),
+                   np.ascontiguousarray(enabled, dtype=bool))
+
+
 def _per_neighbour(value, count):
-    """Return VALUE, a number or one per neighbour, as a contiguous float array (COUNT,)."""
+    """Return VALUE, one per neighbour (COUNT,) or shared (1,), as a contiguous float array."""
     if isinstance(value, (int, float)):
-        return np.full(count, float(value))
-    return np.ascontiguousarray(np.broadcast_to(np.asarray(value, dtype=np.float64), (count,)))
+        return np.array([value], dtype=np.float64)
+    value = np.asarray(value, dtype=np.float64)
+    if value.ndim == 0:
+        return value.reshape(1)
+    return np.ascontiguousarray(np.broadcast_to(value, (count,)))
 
 
 def _kernel_arguments(origin, cov, combined_radius, velocities, time_horizon, receding_gate,

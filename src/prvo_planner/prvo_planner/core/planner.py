@@ -52,6 +52,7 @@ from .limits import (
 from .moments import (
     NODES,
     bivariate_polynomials,
+    condition_margins,
     condition_moments,
 )
 from .obstacles import StaticObstacles
@@ -610,8 +611,6 @@ class _Anchors:
 
 def _anchors(search):
     """Per robot its :class:`_Anchors`, none certified yet."""
-    from .ray_search import achieved_margins as margins
-
     anchors = []
     terms = search.terms
     for robot, plan in enumerate(search.plans):
@@ -626,14 +625,10 @@ def _anchors(search):
         shape = (velocities.shape[0], encounter.origin.shape[0])
         achieved = np.zeros(shape)
         if shape[0]:
-            means, variances = condition_moments(encounter.origin, plan.cov, plan.radius,
-                                                 velocities, config.time_horizon,
-                                                 layout.has_receding, encounter.lead)
-            # Every anchor against every neighbour in one compiled call: (n, A), transposed.
-            conditions = means.shape[-1]
-            achieved = margins(means.reshape(-1, conditions), variances.reshape(-1, conditions),
-                               np.repeat(layout.receding_enabled, shape[0]),
-                               layout.has_receding, layout.has_horizon).reshape(shape[::-1]).T
+            # Every anchor against every neighbour in one compiled call.
+            achieved = condition_margins(encounter.origin, plan.cov, plan.radius, velocities,
+                                         config.time_horizon, layout.has_receding,
+                                         encounter.lead, layout.receding_enabled)
             costs = own_terms.costs(velocities)
         else:
             costs = np.zeros(0)
