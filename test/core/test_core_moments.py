@@ -1,12 +1,16 @@
 """``rvo_moments`` and the ray polynomials against quadrature and Monte Carlo."""
 
+import math
+
 from independent import rvo_f
 import numpy as np
 from prvo_core_testing import random_covariance
+import pytest
 
 from prvo_planner.core import rvo_moments
 from prvo_planner.core.moments import (
     bivariate_polynomials,
+    condition_margins,
     condition_moments,
     ray_polynomials,
     reach_weights,
@@ -232,3 +236,49 @@ def test_bivariate_polynomials_match_quadrature_off_the_grid():
                     got_variance = variance_fit[neighbour, column] @ monomials
                     assert abs(got_mean - first) <= 1e-9 * np.sqrt(second)
                     assert abs(got_variance - (second - first ** 2)) <= 1e-9 * second
+
+
+def test_condition_margins_meet_the_closed_form_of_the_quadrature_moments():
+    # The margins of shared commands against each neighbour, from each condition's moments
+    # integrated by quadrature and combined condition by condition (docs/method.md, section 7).
+    from test_core_ray_search import combined_margin
+
+    rng = np.random.default_rng(19)
+    count = 5
+    cases = [random_case(rng) for _ in range(count)]
+    origin = np.array([np.r_[mean[:2], 0.5 * mean[2:]] for mean, _, _ in cases])
+    cov = np.array([case[1] for case in cases])
+    radius = np.array([case[2] for case in cases])
+    lead = rng.uniform(1.0, 2.0, size=count)
+    enabled = np.array([True, False, True, True, False])
+    commands = rng.normal(0.0, 1.0, size=(2, 2))
+    for tau in (2.5, math.inf):
+        finite = math.isfinite(tau)
+        found = condition_margins(origin, cov, radius, commands, tau, True, lead, enabled)
+        assert found.shape == (2, count)
+        for neighbour in range(count):
+            big_r = radius[neighbour]
+            eps = _reach_weight(origin[neighbour], big_r)
+            conditions = [lambda z, big_r=big_r: rvo_f(z[..., :2], z[..., 2:], big_r),
+                          lambda z: np.sum(z[:, :2] * z[:, 2:], axis=1)]
+            if finite:
+                conditions += [
+                    lambda z, tau=tau: (-np.sum(z[:, :2] * z[:, 2:], axis=1)
+                                        - tau * np.sum(z[:, 2:] ** 2, axis=1)),
+                    lambda z, tau=tau, big_r=big_r: (np.sum((z[:, :2] + tau * z[:, 2:]) ** 2,
+                                                            axis=1) - big_r ** 2),
+                    lambda z, tau=tau, eps=eps, big_r=big_r: (
+                        (1.0 - eps) * (np.sum(z[:, :2] ** 2, axis=1)
+                                       - tau ** 2 / eps * np.sum(z[:, 2:] ** 2, axis=1))
+                        - big_r ** 2)]
+            for point, command in enumerate(commands):
+                mean = origin[neighbour].copy()
+                mean[2:] += lead[neighbour] * command
+                moments = []
+                for condition in conditions:
+                    values = quadrature_values(condition, mean, cov[neighbour])
+                    first = np.sum(_GRID_WEIGHTS * values)
+                    moments.append((first, np.sum(_GRID_WEIGHTS * values ** 2) - first ** 2))
+                expected = combined_margin([m for m, _ in moments], [v for _, v in moments],
+                                           enabled[neighbour], True, finite)
+                assert found[point, neighbour] == pytest.approx(expected, rel=1e-7, abs=1e-9)
