@@ -154,6 +154,8 @@ def _per_neighbour(value, count):
     value = np.asarray(value, dtype=np.float64)
     if value.ndim == 0:
         return value.reshape(1)
+    if value.shape == (count,):
+        return np.ascontiguousarray(value)
     return np.ascontiguousarray(np.broadcast_to(value, (count,)))
 
 
