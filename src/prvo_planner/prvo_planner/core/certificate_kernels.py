@@ -909,7 +909,9 @@ def short_entries(origin, lead, cov, radius, velocities, achieved, required, gat
                 mean[entry, 1] = origin[neighbour, 1]
                 mean[entry, 2] = origin[neighbour, 2] + lead[neighbour] * velocities[velocity, 0]
                 mean[entry, 3] = origin[neighbour, 3] + lead[neighbour] * velocities[velocity, 1]
-                short_cov[entry] = cov[neighbour]
+                for row in range(4):
+                    for column in range(4):
+                        short_cov[entry, row, column] = cov[neighbour, row, column]
                 short_radius[entry] = radius[neighbour]
                 short_required[entry] = required[neighbour]
                 short_gated[entry] = gated[neighbour]

@@ -312,9 +312,13 @@ def condition_margins(origin, cov, radius, velocities, horizon, lead, gate, fini
     means, variances = condition_moments(origin, cov, radius, velocities, horizon, lead, gate,
                                          finite)
     count, points, conditions = means.shape
+    gated = np.empty(count * points, dtype=np.bool_)
+    for neighbour in range(count):
+        for point in range(points):
+            gated[neighbour * points + point] = enabled[neighbour]
     margins = achieved_margins(means.reshape(count * points, conditions),
-                               variances.reshape(count * points, conditions),
-                               np.repeat(enabled, points), gate, finite)
+                               variances.reshape(count * points, conditions), gated, gate,
+                               finite)
     out = np.empty((points, count))
     for neighbour in range(count):
         for point in range(points):
