@@ -578,3 +578,45 @@ def test_the_normal_distribution_functions_the_bounds_use_match_the_c_library():
                 # (Below -37 Phi is subnormal, its relative precision less.)
                 assert abs(compiled - exact) <= 2e-16 * (value * value + 4.0) * exact
     assert math.isnan(compiled_ndtr(math.nan))
+
+
+
+def test_short_entries_are_the_velocities_cantelli_leaves_short():
+    # Per (velocity, neighbour) Cantelli's k^2 / (1 + k^2) of the achieved margin (1 from
+    # k = 1e8 on, 0 for a negative margin); the entries below the required probability,
+    # velocity-major, with the mean of z at their velocity and their neighbour's arguments.
+    from prvo_core_testing import random_covariance
+
+    from prvo_planner.core.certificate_kernels import short_entries
+
+    rng = np.random.default_rng(41)
+    count, velocities_count = 6, 3
+    origin = rng.normal(0.0, 2.0, size=(count, 4))
+    cov = np.array([random_covariance(rng, 4, 0.1) for _ in range(count)])
+    radius = rng.uniform(0.3, 0.8, size=count)
+    lead = rng.uniform(1.0, 2.0, size=count)
+    gated = np.arange(count) % 2 == 0
+    velocities = rng.normal(0.0, 0.7, size=(velocities_count, 2))
+    achieved = rng.uniform(-0.5, 6.0, size=(velocities_count, count))
+    achieved[0, :3] = [2e8, 1e300, math.inf]
+    required = rng.uniform(0.5, 0.99, size=count)
+    floors, short, mean, short_cov, short_radius, short_required, short_gated = short_entries(
+        origin, lead, cov, radius, velocities, achieved, required, gated)
+    expected_floors = [[1.0 if k >= 1e8 else (max(k, 0.0) ** 2 / (1.0 + max(k, 0.0) ** 2))
+                        for k in row] for row in achieved]
+    np.testing.assert_allclose(floors, expected_floors, rtol=1e-15, atol=0.0)
+    expected = [(velocity, neighbour) for velocity in range(velocities_count)
+                for neighbour in range(count)
+                if expected_floors[velocity][neighbour] < required[neighbour]]
+    assert 0 < len(expected) < velocities_count * count
+    np.testing.assert_array_equal(short, [velocity * count + neighbour
+                                          for velocity, neighbour in expected])
+    for entry, (velocity, neighbour) in enumerate(expected):
+        np.testing.assert_allclose(
+            mean[entry], np.r_[origin[neighbour, :2],
+                               origin[neighbour, 2:] + lead[neighbour] * velocities[velocity]],
+            rtol=1e-15, atol=1e-15)
+        np.testing.assert_array_equal(short_cov[entry], cov[neighbour])
+        assert short_radius[entry] == radius[neighbour]
+        assert short_required[entry] == required[neighbour]
+        assert short_gated[entry] == gated[neighbour]

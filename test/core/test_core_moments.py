@@ -1,11 +1,20 @@
 """``rvo_moments`` and the ray polynomials against quadrature and Monte Carlo."""
 
+import math
+
 from independent import rvo_f
 import numpy as np
 from prvo_core_testing import random_covariance
+import pytest
 
 from prvo_planner.core import rvo_moments
-from prvo_planner.core.moments import condition_moments, ray_polynomials, reach_weights
+from prvo_planner.core.moments import (
+    bivariate_polynomials,
+    condition_margins,
+    condition_moments,
+    ray_polynomials,
+    reach_weights,
+)
 
 # Probabilists' Gauss-Hermite rule: 5 nodes integrate polynomials of degree <= 9 exactly.
 _NODES, _WEIGHTS = np.polynomial.hermite_e.hermegauss(5)
@@ -158,3 +167,118 @@ def test_ray_polynomials_reproduce_moments_along_rays():
                                    atol=1e-9 * np.max(np.abs(reference_mean)))
         np.testing.assert_allclose(got_variance, reference_variance[:, 0], rtol=1e-9,
                                    atol=1e-9 * np.max(np.abs(reference_variance)))
+
+
+def _reach_weight(origin, radius):
+    """``h3``'s weight written from its definition: ``1 - R / |mu_r|`` within [0.05, 0.95]."""
+    distance = float(np.hypot(origin[0], origin[1]))
+    if distance == 0.0:
+        return 0.05
+    return min(max(1.0 - radius / distance, 0.05), 0.95)
+
+
+def test_reach_weights_match_their_definition():
+    origin = np.array([[3.0, 4.0, 0.1, 0.0], [0.0, 0.0, 1.0, 0.0], [0.0, 0.0, 0.0, 0.0],
+                       [0.3, 0.4, 0.0, 0.0], [100.0, 0.0, 0.0, 0.0], [1.0, 1.0, 0.0, 0.0]])
+    radius = np.array([1.0, 0.5, 0.0, 0.5, 1.0, 0.0])
+    expected = [_reach_weight(row, big_r) for row, big_r in zip(origin, radius, strict=True)]
+    assert expected == [0.8, 0.05, 0.05, 0.05, 0.95, 0.95]
+    np.testing.assert_allclose(reach_weights(origin, radius), expected, rtol=1e-15)
+
+
+def test_bivariate_polynomials_match_quadrature_off_the_grid():
+    # One call for neighbours of their own plan's v_max, horizon and lead, with and without the
+    # gate; the fitted quadratic and quartic, evaluated at commands off the grid, must be each
+    # neighbour's own integrals there.
+    rng = np.random.default_rng(17)
+    count = 5
+    cases = [random_case(rng) for _ in range(count)]
+    origin = np.array([np.r_[mean[:2], 0.5 * mean[2:]] for mean, _, _ in cases])
+    cov = np.array([case[1] for case in cases])
+    radius = np.array([case[2] for case in cases])
+    horizon = rng.uniform(0.5, 4.0, size=count)
+    lead = rng.uniform(1.0, 2.0, size=count)
+    scale = rng.uniform(0.5, 2.0, size=count)
+    nodes_1d = np.cos(np.pi * np.arange(5) / 4.0)
+    grid = np.array([(x, y) for x in nodes_1d for y in nodes_1d])
+    exponents = [(degree - j, j) for degree in range(5) for j in range(degree + 1)]
+    for gate in (True, False):
+        mean_fit, variance_fit = bivariate_polynomials(
+            origin, cov, radius, scale[:, None, None] * grid, horizon, gate, lead)
+        assert mean_fit.shape == (count, 4 + gate, 6)
+        assert variance_fit.shape == (count, 4 + gate, 15)
+        for neighbour in range(count):
+            tau, big_r = horizon[neighbour], radius[neighbour]
+            eps = _reach_weight(origin[neighbour], big_r)
+            conditions = [
+                lambda z, big_r=big_r: rvo_f(z[..., :2], z[..., 2:], big_r),
+                lambda z: np.sum(z[:, :2] * z[:, 2:], axis=1),
+                lambda z, tau=tau: (-np.sum(z[:, :2] * z[:, 2:], axis=1)
+                                    - tau * np.sum(z[:, 2:] ** 2, axis=1)),
+                lambda z, tau=tau, big_r=big_r: (np.sum((z[:, :2] + tau * z[:, 2:]) ** 2, axis=1)
+                                                 - big_r ** 2),
+                lambda z, tau=tau, eps=eps, big_r=big_r: (
+                    (1.0 - eps) * (np.sum(z[:, :2] ** 2, axis=1)
+                                   - tau ** 2 / eps * np.sum(z[:, 2:] ** 2, axis=1))
+                    - big_r ** 2),
+            ]
+            if not gate:
+                del conditions[1]
+            for unit in rng.uniform(-1.0, 1.0, size=(3, 2)):
+                monomials = np.array([unit[0] ** i * unit[1] ** j for i, j in exponents])
+                mean = origin[neighbour].copy()
+                mean[2:] += lead[neighbour] * scale[neighbour] * unit
+                for column, condition in enumerate(conditions):
+                    values = quadrature_values(condition, mean, cov[neighbour])
+                    first = np.sum(_GRID_WEIGHTS * values)
+                    second = np.sum(_GRID_WEIGHTS * values ** 2)
+                    got_mean = mean_fit[neighbour, column] @ monomials[:6]
+                    got_variance = variance_fit[neighbour, column] @ monomials
+                    assert abs(got_mean - first) <= 1e-9 * np.sqrt(second)
+                    assert abs(got_variance - (second - first ** 2)) <= 1e-9 * second
+
+
+def test_condition_margins_meet_the_closed_form_of_the_quadrature_moments():
+    # The margins of shared commands against each neighbour, from each condition's moments
+    # integrated by quadrature and combined condition by condition (docs/method.md, section 7).
+    from test_core_ray_search import combined_margin
+
+    rng = np.random.default_rng(19)
+    count = 5
+    cases = [random_case(rng) for _ in range(count)]
+    origin = np.array([np.r_[mean[:2], 0.5 * mean[2:]] for mean, _, _ in cases])
+    cov = np.array([case[1] for case in cases])
+    radius = np.array([case[2] for case in cases])
+    lead = rng.uniform(1.0, 2.0, size=count)
+    enabled = np.array([True, False, True, True, False])
+    commands = rng.normal(0.0, 1.0, size=(2, 2))
+    for tau in (2.5, math.inf):
+        finite = math.isfinite(tau)
+        found = condition_margins(origin, cov, radius, commands, tau, True, lead, enabled)
+        assert found.shape == (2, count)
+        for neighbour in range(count):
+            big_r = radius[neighbour]
+            eps = _reach_weight(origin[neighbour], big_r)
+            conditions = [lambda z, big_r=big_r: rvo_f(z[..., :2], z[..., 2:], big_r),
+                          lambda z: np.sum(z[:, :2] * z[:, 2:], axis=1)]
+            if finite:
+                conditions += [
+                    lambda z, tau=tau: (-np.sum(z[:, :2] * z[:, 2:], axis=1)
+                                        - tau * np.sum(z[:, 2:] ** 2, axis=1)),
+                    lambda z, tau=tau, big_r=big_r: (np.sum((z[:, :2] + tau * z[:, 2:]) ** 2,
+                                                            axis=1) - big_r ** 2),
+                    lambda z, tau=tau, eps=eps, big_r=big_r: (
+                        (1.0 - eps) * (np.sum(z[:, :2] ** 2, axis=1)
+                                       - tau ** 2 / eps * np.sum(z[:, 2:] ** 2, axis=1))
+                        - big_r ** 2)]
+            for point, command in enumerate(commands):
+                mean = origin[neighbour].copy()
+                mean[2:] += lead[neighbour] * command
+                moments = []
+                for condition in conditions:
+                    values = quadrature_values(condition, mean, cov[neighbour])
+                    first = np.sum(_GRID_WEIGHTS * values)
+                    moments.append((first, np.sum(_GRID_WEIGHTS * values ** 2) - first ** 2))
+                expected = combined_margin([m for m, _ in moments], [v for _, v in moments],
+                                           enabled[neighbour], True, finite)
+                assert found[point, neighbour] == pytest.approx(expected, rel=1e-7, abs=1e-9)

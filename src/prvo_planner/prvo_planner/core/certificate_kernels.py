@@ -46,6 +46,7 @@ from .certificate import (
     WIDENING,
 )
 from .moment_kernels import condition_moments
+from .probability import _CERTAIN_K
 from .ray_solver import READ_ONLY_CUBE, READ_ONLY_FLAGS, READ_ONLY_ROWS, READ_ONLY_VECTOR, jit
 from .special_kernels import ndtr
 
@@ -74,6 +75,10 @@ _CUT_SIGNATURE = types.Tuple((_ROWS, _ROWS, _ROWS, _FLAGS))(
 _CONDITION_SIGNATURE = types.Tuple((_VECTOR, types.int64[::1]))(
     READ_ONLY_ROWS, READ_ONLY_CUBE, READ_ONLY_VECTOR, READ_ONLY_VECTOR, READ_ONLY_FLAGS,
     types.float64, types.int64, types.boolean)
+_SHORT_SIGNATURE = types.Tuple((
+    _ROWS, types.int64[::1], _ROWS, types.float64[:, :, ::1], _VECTOR, _VECTOR, _FLAGS))(
+    READ_ONLY_ROWS, READ_ONLY_VECTOR, READ_ONLY_CUBE, READ_ONLY_VECTOR, READ_ONLY_ROWS,
+    READ_ONLY_ROWS, READ_ONLY_VECTOR, READ_ONLY_FLAGS)
 _HORIZON_SIGNATURE = _VECTOR(READ_ONLY_ROWS, READ_ONLY_CUBE, READ_ONLY_VECTOR, READ_ONLY_VECTOR)
 
 
@@ -672,8 +677,7 @@ def _floors(mean, cov, radius):
     """
     count = mean.shape[0]
     zeros = np.zeros(count)
-    return condition_moments(mean, cov, radius, np.zeros((count, 1, 2)), zeros, zeros, zeros,
-                             True, False)
+    return condition_moments(mean, cov, radius, np.zeros((1, 1, 2)), zeros, zeros, True, False)
 
 
 @jit(inline='always')
@@ -835,3 +839,81 @@ def condition_bounds(mean, cov, radius, required, gated, horizon, pairs, rvo):
                 bounds[entry] = max(bounds[entry], _horizon_bound(mean, cov, entry,
                                                                   radius[entry], horizon))
     return bounds, method
+
+
+@jit(_SHORT_SIGNATURE)
+def short_entries(origin, lead, cov, radius, velocities, achieved, required, gated):
+    """
+    Cantelli's bound per velocity and neighbour, and the entries where it falls short.
+
+    Cantelli's bound ``k^2 / (1 + k^2)`` of the achieved margin ``max(k, 0)`` (1 from
+    ``k = 1e8`` on, as :func:`.probability.eta_from_k`) is the floor of the planner's
+    certified bounds; where it falls short of the REQUIRED probability, the entry's arguments
+    of :func:`.certificate.condition_bound` are gathered, velocity-major.
+
+    Parameters
+    ----------
+    origin : numpy.ndarray
+        Mean of ``z`` at ``v_c = 0`` per neighbour, shape (n, 4).
+    lead : numpy.ndarray
+        ``1 / rho`` per neighbour, shape (n,): the mean of ``z`` at ``v_c`` is ORIGIN plus
+        ``lead v_c`` in its velocity components.
+    cov, radius
+        Covariance of ``z`` (n, 4, 4) and ``R`` (n,) per neighbour.
+    velocities : numpy.ndarray
+        The commanded velocities to certify, shape (V, 2).
+    achieved : numpy.ndarray
+        The margin ``k`` each meets per neighbour, shape (V, n).
+    required : numpy.ndarray
+        The probability to certify per neighbour, shape (n,).
+    gated : numpy.ndarray
+        Whether the gate counts per neighbour, shape (n,).
+
+    Returns
+    -------
+    floors : numpy.ndarray
+        Cantelli's bound per entry, shape (V, n).
+    short : numpy.ndarray
+        The short entries' flat indices into FLOORS, shape (S,).
+    mean, cov, radius, required, gated : numpy.ndarray
+        Per short entry the mean of ``z`` at its velocity (S, 4), and its neighbour's
+        covariance (S, 4, 4), ``R``, required probability and gate (S,).
+
+    """
+    count, neighbours = achieved.shape
+    floors = np.empty((count, neighbours))
+    entries = 0
+    for velocity in range(count):
+        for neighbour in range(neighbours):
+            margin = max(achieved[velocity, neighbour], 0.0)
+            if margin >= _CERTAIN_K:
+                floor = 1.0
+            else:
+                square = margin * margin
+                floor = square / (1.0 + square)
+            floors[velocity, neighbour] = floor
+            if floor < required[neighbour]:
+                entries += 1
+    short = np.empty(entries, dtype=np.int64)
+    mean = np.empty((entries, 4))
+    short_cov = np.empty((entries, 4, 4))
+    short_radius = np.empty(entries)
+    short_required = np.empty(entries)
+    short_gated = np.empty(entries, dtype=np.bool_)
+    entry = 0
+    for velocity in range(count):
+        for neighbour in range(neighbours):
+            if floors[velocity, neighbour] < required[neighbour]:
+                short[entry] = velocity * neighbours + neighbour
+                mean[entry, 0] = origin[neighbour, 0]
+                mean[entry, 1] = origin[neighbour, 1]
+                mean[entry, 2] = origin[neighbour, 2] + lead[neighbour] * velocities[velocity, 0]
+                mean[entry, 3] = origin[neighbour, 3] + lead[neighbour] * velocities[velocity, 1]
+                for row in range(4):
+                    for column in range(4):
+                        short_cov[entry, row, column] = cov[neighbour, row, column]
+                short_radius[entry] = radius[neighbour]
+                short_required[entry] = required[neighbour]
+                short_gated[entry] = gated[neighbour]
+                entry += 1
+    return floors, short, mean, short_cov, short_radius, short_required, short_gated

@@ -1,11 +1,15 @@
 """
 The closed-form moments of the conditions compiled (:mod:`.moments`).
 
-One numba function, :func:`condition_moments`, compiled for one signature when this module is
-first imported (:func:`.moments.condition_moments` imports it on its first call; the planner's
-warm-up makes that call before the node spins) and kept in numba's on-disk cache, as the ray
-search, the certificate and the walls are (``./run.sh setup`` compiles every kernel module once
-after installing).
+Four numba functions, each compiled for one signature when this module is first imported
+(:mod:`.moments` imports it on its first call; the planner's warm-up makes that call before the
+node spins) and kept in numba's on-disk cache, as the ray search, the certificate and the walls
+are (``./run.sh setup`` compiles every kernel module once after installing):
+:func:`condition_moments`, the moments at given commands; :func:`condition_polynomials`, the
+same on the ray polynomials' grid and their fit onto the bivariate quadratic and quartic; and
+:func:`condition_margins`, the margins met at given commands (with the ray search's
+:func:`.ray_search.achieved_margins`); and :func:`reach_weights`, the weight of the reach
+condition, which the others apply themselves.
 
 Per neighbour it forms the quadratic-form matrices and traces of :mod:`.moments`' docstring
 (``A, ASA, (AS)^2 A, (AS)^3 A, ASB, (AS)^2 B, ASBSA, B, BSB`` for ``f``, ``X, XSX`` for each
@@ -16,10 +20,14 @@ such calls (the ray polynomials' grid, the anchors, the chosen velocity, Cantell
 the certificate).
 """
 
+import math
+
 from numba import types
 import numpy as np
 
-from .ray_solver import READ_ONLY_CUBE, READ_ONLY_ROWS, READ_ONLY_VECTOR, jit
+from .moments import REACH_WEIGHT_BOUNDS
+from .ray_search import achieved_margins
+from .ray_solver import READ_ONLY_CUBE, READ_ONLY_FLAGS, READ_ONLY_ROWS, READ_ONLY_VECTOR, jit
 
 # q = r x u = z'Az, p = |u|^2 = z'Bz, g = r . u = z'Gz, |r|^2 = z'Pz.
 _CROSS = np.array([[0.0, 0.0, 0.0, 0.5],
@@ -37,11 +45,22 @@ _POSITION = np.diag([1.0, 1.0, 0.0, 0.0])
 _RVO_FORMS = 9
 _RVO_TRACES = 8
 _EXTRA_CONDITIONS = 4
+# The first six monomials of the bivariate quartic (moments._EXPONENTS) have degree <= 2.
+_QUADRATIC_TERMS = 6
+
+_LOWEST_WEIGHT, _HIGHEST_WEIGHT = REACH_WEIGHT_BOUNDS
 
 _CUBE = types.float64[:, :, ::1]
 _MOMENTS_SIGNATURE = types.Tuple((_CUBE, _CUBE))(
     READ_ONLY_ROWS, READ_ONLY_CUBE, READ_ONLY_VECTOR, READ_ONLY_CUBE, READ_ONLY_VECTOR,
-    READ_ONLY_VECTOR, READ_ONLY_VECTOR, types.boolean, types.boolean)
+    READ_ONLY_VECTOR, types.boolean, types.boolean)
+_POLYNOMIALS_SIGNATURE = types.Tuple((_CUBE, _CUBE))(
+    READ_ONLY_ROWS, READ_ONLY_CUBE, READ_ONLY_VECTOR, READ_ONLY_CUBE, READ_ONLY_VECTOR,
+    READ_ONLY_VECTOR, types.boolean, types.boolean, READ_ONLY_ROWS)
+_MARGINS_SIGNATURE = types.float64[:, ::1](
+    READ_ONLY_ROWS, READ_ONLY_CUBE, READ_ONLY_VECTOR, READ_ONLY_CUBE, READ_ONLY_VECTOR,
+    READ_ONLY_VECTOR, types.boolean, types.boolean, READ_ONLY_FLAGS)
+_WEIGHTS_SIGNATURE = types.float64[::1](READ_ONLY_ROWS, READ_ONLY_VECTOR)
 
 
 @jit()
@@ -83,8 +102,32 @@ def _form(matrix, m0, m1, m2, m3):
     return total
 
 
+@jit()
+def _reach_weight(x, y, radius):
+    """Return ``1 - R / |mu_r|`` within `REACH_WEIGHT_BOUNDS` (NaN: the lower bound)."""
+    weight = 1.0 - radius / math.hypot(x, y)
+    if weight != weight:
+        return _LOWEST_WEIGHT
+    return min(max(weight, _LOWEST_WEIGHT), _HIGHEST_WEIGHT)
+
+
+@jit(_WEIGHTS_SIGNATURE)
+def reach_weights(origin, radius):
+    """
+    Return the weight ``eps`` of each neighbour's reach condition ``h3``, shape (N,).
+
+    ORIGIN (N, 4) is the mean of ``z`` (its first two components the relative position's),
+    RADIUS (N,) ``R``: ``1 - R / |mu_r|`` within `REACH_WEIGHT_BOUNDS`.
+    """
+    weights = np.empty(origin.shape[0])
+    for neighbour in range(origin.shape[0]):
+        weights[neighbour] = _reach_weight(origin[neighbour, 0], origin[neighbour, 1],
+                                           radius[neighbour])
+    return weights
+
+
 @jit(_MOMENTS_SIGNATURE)
-def condition_moments(origin, cov, radius, velocities, horizon, weights, lead, gate, finite):
+def condition_moments(origin, cov, radius, velocities, horizon, lead, gate, finite):
     """
     Mean and variance of every condition of every neighbour at given commanded velocities.
 
@@ -107,12 +150,13 @@ def condition_moments(origin, cov, radius, velocities, horizon, weights, lead, g
     radius : numpy.ndarray
         ``R`` per neighbour, shape (N,).
     velocities : numpy.ndarray
-        Commanded velocities ``v_c`` per neighbour, shape (N, P, 2): the mean of ``z`` at one
-        is ``origin`` plus ``lead v_c`` in the velocity components.
-    horizon, weights : numpy.ndarray
-        ``tau`` and ``h3``'s ``eps`` per neighbour, shape (N,); read only if ``finite``.
+        Commanded velocities ``v_c`` per neighbour, shape (N, P, 2), or shared, (1, P, 2): the
+        mean of ``z`` at one is ``origin`` plus ``lead v_c`` in the velocity components.
+    horizon : numpy.ndarray
+        ``tau`` per neighbour, shape (N,), or shared, (1,); read only if ``finite``. ``h3``'s
+        ``eps`` is :func:`reach_weights`'.
     lead : numpy.ndarray
-        ``1 / rho`` per neighbour, shape (N,).
+        ``1 / rho`` per neighbour, shape (N,), or shared, (1,).
     gate, finite : bool
         Whether ``g`` is a condition; whether ``h1``, ``h2`` and ``h3`` are.
 
@@ -122,7 +166,8 @@ def condition_moments(origin, cov, radius, velocities, horizon, weights, lead, g
         Shape (N, P, C) each, ``C = 1 + gate + 3 finite``.
 
     """
-    count, points = velocities.shape[0], velocities.shape[1]
+    count, points = origin.shape[0], velocities.shape[1]
+    shared = velocities.shape[0] == 1
     extras = (1 if gate else 0) + (3 if finite else 0)
     means = np.empty((count, points, 1 + extras))
     variances = np.empty((count, points, 1 + extras))
@@ -146,8 +191,9 @@ def condition_moments(origin, cov, radius, velocities, horizon, weights, lead, g
     _copy(_DOT, left[2])
     for neighbour in range(count):
         if finite:
-            tau = horizon[neighbour]
-            weight = weights[neighbour]
+            tau = horizon[neighbour if horizon.shape[0] > 1 else 0]
+            weight = _reach_weight(origin[neighbour, 0], origin[neighbour, 1],
+                                   radius[neighbour])
             for row in range(4):
                 for column in range(4):
                     left[3, row, column] = -_DOT[row, column] - tau * _SPEED[row, column]
@@ -185,9 +231,11 @@ def condition_moments(origin, cov, radius, velocities, horizon, weights, lead, g
         traces[7] = squared_traces[1]
         radius_sq = radius[neighbour] * radius[neighbour]
         m0, m1 = origin[neighbour, 0], origin[neighbour, 1]
+        commands = velocities[0] if shared else velocities[neighbour]
+        factor = lead[neighbour if lead.shape[0] > 1 else 0]
         for point in range(points):
-            m2 = origin[neighbour, 2] + lead[neighbour] * velocities[neighbour, point, 0]
-            m3 = origin[neighbour, 3] + lead[neighbour] * velocities[neighbour, point, 1]
+            m2 = origin[neighbour, 2] + factor * commands[point, 0]
+            m3 = origin[neighbour, 3] + factor * commands[point, 1]
             k1 = traces[0] + _form(rvo[0], m0, m1, m2, m3)
             k2 = 2.0 * traces[1] + 4.0 * _form(rvo[1], m0, m1, m2, m3)
             k3 = 8.0 * traces[2] + 24.0 * _form(rvo[2], m0, m1, m2, m3)
@@ -213,3 +261,66 @@ def condition_moments(origin, cov, radius, velocities, horizon, weights, lead, g
                     4.0 * _form(sandwich[index], m0, m1, m2, m3) + 2.0 * squared_traces[index])
                 column += 1
     return means, variances
+
+
+@jit(_POLYNOMIALS_SIGNATURE)
+def condition_polynomials(origin, cov, radius, velocities, horizon, lead, gate, finite, fit):
+    """
+    Coefficients of every condition's mean and variance in the command, fitted on a grid.
+
+    The moments of :func:`condition_moments` at the grid VELOCITIES (N or 1, G, 2), then per
+    neighbour and condition the products ``fit[:Q] @ means`` and ``fit @ variances`` with FIT
+    (F, G) the least-squares inverse of the grid's Vandermonde matrix, each sum in index order;
+    ``Q`` = 6, the quadratic terms of the mean.
+
+    Returns
+    -------
+    means, variances : numpy.ndarray
+        Shape (N, 6, C) and (N, F, C).
+
+    """
+    means, variances = condition_moments(origin, cov, radius, velocities, horizon, lead, gate,
+                                         finite)
+    count, points, conditions = means.shape
+    terms = fit.shape[0]
+    mean_fit = np.empty((count, _QUADRATIC_TERMS, conditions))
+    variance_fit = np.empty((count, terms, conditions))
+    for neighbour in range(count):
+        for term in range(terms):
+            for condition in range(conditions):
+                total = 0.0
+                for point in range(points):
+                    total += fit[term, point] * variances[neighbour, point, condition]
+                variance_fit[neighbour, term, condition] = total
+                if term < _QUADRATIC_TERMS:
+                    total = 0.0
+                    for point in range(points):
+                        total += fit[term, point] * means[neighbour, point, condition]
+                    mean_fit[neighbour, term, condition] = total
+    return mean_fit, variance_fit
+
+
+@jit(_MARGINS_SIGNATURE)
+def condition_margins(origin, cov, radius, velocities, horizon, lead, gate, finite, enabled):
+    """
+    Return the margin ``k`` met at each command against each neighbour, shape (P, N).
+
+    The moments of :func:`condition_moments` at the commands VELOCITIES (N or 1, P, 2), then
+    :func:`.ray_search.achieved_margins` of every (neighbour, command) with the gate where
+    ENABLED (N,) and the horizon conditions if FINITE.
+    """
+    means, variances = condition_moments(origin, cov, radius, velocities, horizon, lead, gate,
+                                         finite)
+    count, points, conditions = means.shape
+    gated = np.empty(count * points, dtype=np.bool_)
+    for neighbour in range(count):
+        for point in range(points):
+            gated[neighbour * points + point] = enabled[neighbour]
+    margins = achieved_margins(means.reshape(count * points, conditions),
+                               variances.reshape(count * points, conditions), gated, gate,
+                               finite)
+    out = np.empty((points, count))
+    for neighbour in range(count):
+        for point in range(points):
+            out[point, neighbour] = margins[neighbour * points + point]
+    return out

@@ -24,9 +24,9 @@ Vandermonde matrix (a well-conditioned, full-rank 25 x 15 system); restricted to
 direction's monomials (compiled: :func:`.ray_search.ray_links`). This costs a few hundred
 closed-form evaluations per plan, independent of the number of directions.
 
-The closed forms themselves are compiled by numba (:mod:`.moment_kernels`, loaded on the first
-call of :func:`condition_moments`, which :func:`rvo_moments` calls too); the fit is a matrix
-product here.
+The closed forms and the fit are compiled by numba (:mod:`.moment_kernels`, loaded on the
+first call of :func:`condition_moments`, :func:`bivariate_polynomials` or :func:`reach_weights`);
+this module lays out their arguments.
 """
 
 import math
@@ -40,15 +40,17 @@ REACH_WEIGHT_BOUNDS = (0.05, 0.95)
 
 
 def reach_weights(origin, combined_radius):
-    """Return the weight ``eps`` of each neighbour's reach condition ``h3``, shape (N,).
+    """
+    Return the weight ``eps`` of each neighbour's reach condition ``h3``, shape (N,).
 
     ORIGIN (N, 4) is the mean of ``z`` (its first two components the relative position's),
-    COMBINED_RADIUS (N,) ``R``: ``1 - R / |mu_r|`` within `REACH_WEIGHT_BOUNDS`.
+    COMBINED_RADIUS (N,) ``R``: ``1 - R / |mu_r|`` within `REACH_WEIGHT_BOUNDS` (compiled:
+    :func:`.moment_kernels.reach_weights`, which :func:`condition_moments` applies itself).
     """
-    distance = np.hypot(origin[:, 0], origin[:, 1])
-    with np.errstate(divide='ignore', invalid='ignore'):
-        weight = 1.0 - combined_radius / distance
-    return np.clip(np.nan_to_num(weight, nan=REACH_WEIGHT_BOUNDS[0]), *REACH_WEIGHT_BOUNDS)
+    from .moment_kernels import reach_weights as weights
+
+    return weights(np.ascontiguousarray(origin, dtype=np.float64),
+                   np.ascontiguousarray(combined_radius, dtype=np.float64))
 
 
 def rvo_moments(mean, cov, radius):
@@ -124,20 +126,55 @@ def condition_moments(origin, cov, combined_radius, velocities, time_horizon, re
     """
     from .moment_kernels import condition_moments as moments
 
-    count = origin.shape[0]
-    horizon = np.ascontiguousarray(np.broadcast_to(np.asarray(time_horizon, dtype=np.float64),
-                                                   (count,)))
-    finite = bool(np.isfinite(horizon).all())
-    velocities = np.asarray(velocities, dtype=np.float64)
     # Compiled (moment_kernels): the matrices and traces per neighbour, the cumulants per point.
-    return moments(
-        np.ascontiguousarray(origin, dtype=np.float64),
-        np.ascontiguousarray(cov, dtype=np.float64),
-        np.ascontiguousarray(combined_radius, dtype=np.float64),
-        np.ascontiguousarray(np.broadcast_to(velocities, (count,) + velocities.shape[-2:])),
-        horizon, reach_weights(origin, combined_radius) if finite else horizon,
-        np.ascontiguousarray(np.broadcast_to(np.asarray(lead, dtype=np.float64), (count,))),
-        bool(receding_gate), finite)
+    return moments(*_kernel_arguments(origin, cov, combined_radius, velocities, time_horizon,
+                                      receding_gate, lead))
+
+
+def condition_margins(origin, cov, combined_radius, velocities, time_horizon, receding_gate,
+                      lead, enabled):
+    """
+    Return the margin ``k`` met at commanded velocities against each neighbour, (P, N).
+
+    The arguments as for :func:`condition_moments`; ENABLED (N,) whether each neighbour's gate
+    counts. Compiled (:func:`.moment_kernels.condition_margins`: the moments and the margins in
+    one call).
+    """
+    from .moment_kernels import condition_margins as margins
+
+    return margins(*_kernel_arguments(origin, cov, combined_radius, velocities, time_horizon,
+                                      receding_gate, lead),
+                   np.ascontiguousarray(enabled, dtype=bool))
+
+
+def _per_neighbour(value, count):
+    """Return VALUE, one per neighbour (COUNT,) or shared (1,), as a contiguous float array."""
+    if isinstance(value, (int, float)):
+        return np.array([value], dtype=np.float64)
+    value = np.asarray(value, dtype=np.float64)
+    if value.ndim == 0:
+        return value.reshape(1)
+    if value.shape == (count,):
+        return np.ascontiguousarray(value)
+    return np.ascontiguousarray(np.broadcast_to(value, (count,)))
+
+
+def _kernel_arguments(origin, cov, combined_radius, velocities, time_horizon, receding_gate,
+                      lead):
+    """Return the arguments of the moments' kernels: contiguous arrays, whether tau is finite."""
+    count = origin.shape[0]
+    horizon = _per_neighbour(time_horizon, count)
+    finite = (math.isfinite(time_horizon) if isinstance(time_horizon, (int, float))
+              else bool(np.isfinite(horizon).all()))
+    velocities = np.asarray(velocities, dtype=np.float64)
+    if velocities.ndim == 2:
+        # Shared by every neighbour: the kernels read it as (1, P, 2).
+        velocities = velocities[None]
+    return (np.ascontiguousarray(origin, dtype=np.float64),
+            np.ascontiguousarray(cov, dtype=np.float64),
+            np.ascontiguousarray(combined_radius, dtype=np.float64),
+            np.ascontiguousarray(velocities), horizon, _per_neighbour(lead, count),
+            bool(receding_gate), finite)
 
 
 def _monomial_exponents():
@@ -149,9 +186,8 @@ _EXPONENTS = _monomial_exponents()
 # Chebyshev-Lobatto nodes: the 5 x 5 tensor grid is unisolvent for bivariate quartics.
 NODES_1D = np.cos(np.pi * np.arange(5) / 4.0)
 NODES = np.stack(np.meshgrid(NODES_1D, NODES_1D, indexing='ij'), axis=-1).reshape(-1, 2)
-_FIT = np.linalg.pinv(np.prod(NODES[:, None, :] ** _EXPONENTS[None, :, :], axis=-1))
-# The first six monomials of _EXPONENTS have degree <= 2.
-_QUADRATIC_TERMS = 6
+_FIT = np.ascontiguousarray(np.linalg.pinv(np.prod(NODES[:, None, :] ** _EXPONENTS[None, :, :],
+                                                   axis=-1)))
 
 
 def ray_polynomials(origin, cov, combined_radius, directions, scale, time_horizon,
@@ -218,7 +254,10 @@ def bivariate_polynomials(origin, cov, combined_radius, node_velocities, time_ho
         Shape (N, C, 15).
 
     """
-    means, variances = condition_moments(origin, cov, combined_radius, node_velocities,
-                                         time_horizon, receding_gate, lead)
-    return ((_FIT[:_QUADRATIC_TERMS] @ means).swapaxes(-1, -2),
-            (_FIT @ variances).swapaxes(-1, -2))
+    from .moment_kernels import condition_polynomials
+
+    # Compiled (moment_kernels): the moments on the grid and the fit, in one call.
+    means, variances = condition_polynomials(
+        *_kernel_arguments(origin, cov, combined_radius, node_velocities, time_horizon,
+                           receding_gate, lead), _FIT)
+    return means.swapaxes(-1, -2), variances.swapaxes(-1, -2)

@@ -52,6 +52,7 @@ from .limits import (
 from .moments import (
     NODES,
     bivariate_polynomials,
+    condition_margins,
     condition_moments,
 )
 from .obstacles import StaticObstacles
@@ -549,13 +550,13 @@ def _certified_bounds(search, velocities, achieved, required):
     VELOCITIES holds per robot None or the velocities (V, 2) to certify, ACHIEVED their margins
     (V, n) against its n neighbours. Cantelli's bound of the achieved margin is the floor. Where
     it falls short of the REQUIRED probability (per pair), the certified bound of the condition
-    (:func:`condition_bound`: ``P(f >= 0)``, where that too falls short and the gate counts
-    ``P(g >= 0)``, then with a finite horizon the whole condition): a neighbour Cantelli
-    already certifies costs nothing (most of a crowd's are far). The larger of the two bounds
-    is kept; it is certified where it is the Gaussian one. A robot's velocities are certified in
-    one call, as a certificate's cost is mostly per call; the calls are per robot: numpy's
-    vectorised transcendental functions round a value by its place in the batch, and a robot's
-    plan must not depend on its companions.
+    (:func:`.certificate.condition_bound`: ``P(f >= 0)``, where that too falls short and the
+    gate counts ``P(g >= 0)``, then with a finite horizon the whole condition): a neighbour
+    Cantelli already certifies costs nothing (most of a crowd's are far). The larger of the two
+    bounds is kept; it is certified where it is the Gaussian one. A robot's velocities are
+    certified in one call, as a certificate's cost is mostly per call (the floors and the short
+    entries compiled: :func:`.certificate_kernels.short_entries`); the calls are per robot, so
+    that a robot's plan does not depend on its companions.
 
     Returns
     -------
@@ -563,23 +564,26 @@ def _certified_bounds(search, velocities, achieved, required):
         Per robot None (not certified) or the bounds (V, n) and whether each is certified.
 
     """
+    from .certificate_kernels import short_entries
+
     results = [None] * len(search.plans)
     for robot, plan in enumerate(search.plans):
         if velocities[robot] is None:
             continue
-        wanted = required[_pairs(search, robot)]
-        cantelli = eta_from_k(np.maximum(achieved[robot], 0.0))
-        gaussian = np.zeros(cantelli.shape)
-        short_velocity, short_pair = np.nonzero(cantelli < wanted)
-        if short_pair.size:
-            encounter = plan.encounter
-            mean = encounter.origin[short_pair]
-            mean[:, 2:] += encounter.lead[short_pair, None] * velocities[robot][short_velocity]
-            gaussian[short_velocity, short_pair] = condition_bound(
-                mean, plan.cov[short_pair], plan.radius[short_pair], wanted[short_pair],
-                plan.layout.receding_enabled[short_pair],
-                plan.config.time_horizon if plan.layout.has_horizon else None)
-        results[robot] = (np.maximum(gaussian, cantelli), gaussian > cantelli)
+        encounter = plan.encounter
+        # Compiled: the floors, and the short entries' arguments of the certificate.
+        floors, short, *entries = short_entries(
+            encounter.origin, encounter.lead, plan.cov, plan.radius, velocities[robot],
+            achieved[robot], required[_pairs(search, robot)], plan.layout.receding_enabled)
+        certified = np.zeros(floors.shape, dtype=bool)
+        if short.size:
+            gaussian = condition_bound(*entries, plan.config.time_horizon
+                                       if plan.layout.has_horizon else None)
+            flat = floors.reshape(-1)
+            floor = flat[short]
+            certified.reshape(-1)[short] = gaussian > floor
+            flat[short] = np.maximum(gaussian, floor)
+        results[robot] = (floors, certified)
     return results
 
 
@@ -626,11 +630,13 @@ class _Anchors:
 
 def _anchors(search):
     """Per robot its :class:`_Anchors`, none certified yet."""
-    from .ray_search import achieved_margins as margins
-
     anchors = []
-    for plan in search.plans:
+    terms = search.terms
+    for robot, plan in enumerate(search.plans):
         config, encounter, layout = plan.config, plan.encounter, plan.layout
+        # The robot's choice cost, as the search built it.
+        own_terms = terms if len(search.plans) == 1 else CostTerms(
+            table=terms.table[robot:robot + 1], extra=terms.extra[robot:robot + 1])
         velocities = np.zeros((0, 2))
         if plan.allowed is None and plan.walls is None:
             velocities = np.array([_clip_speed(anchor, config.max_speed) for anchor in (
@@ -638,18 +644,15 @@ def _anchors(search):
         shape = (velocities.shape[0], encounter.origin.shape[0])
         achieved = np.zeros(shape)
         if shape[0]:
-            means, variances = condition_moments(encounter.origin, plan.cov, plan.radius,
-                                                 velocities, config.time_horizon,
-                                                 layout.has_receding, encounter.lead)
-            # Every anchor against every neighbour in one compiled call: (n, A), transposed.
-            conditions = means.shape[-1]
-            achieved = margins(means.reshape(-1, conditions), variances.reshape(-1, conditions),
-                               np.repeat(layout.receding_enabled, shape[0]),
-                               layout.has_receding, layout.has_horizon).reshape(shape[::-1]).T
-        terms = CostTerms.of_plan(plan.v_pref, plan.previous, config)
-        anchors.append(_Anchors(terms=terms, velocities=velocities,
-                                costs=terms.costs(velocities), achieved=achieved,
-                                bounds=np.zeros(shape),
+            # Every anchor against every neighbour in one compiled call.
+            achieved = condition_margins(encounter.origin, plan.cov, plan.radius, velocities,
+                                         config.time_horizon, layout.has_receding,
+                                         encounter.lead, layout.receding_enabled)
+            costs = own_terms.costs(velocities)
+        else:
+            costs = np.zeros(0)
+        anchors.append(_Anchors(terms=own_terms, velocities=velocities, costs=costs,
+                                achieved=achieved, bounds=np.zeros(shape),
                                 certified=np.zeros(shape, dtype=bool)))
     return anchors
 
@@ -761,6 +764,8 @@ def _anchored(search, choice, required, anchors):
                                    choice.certified.copy())
     for robot in range(len(plans)):
         own = anchors[robot]
+        if not own.costs.size:
+            continue
         pairs = _pairs(search, robot)
         for index in own.eligible(velocities[robot], candidates_feasible[robot]):
             if np.all(own.bounds[index] >= required[pairs]):
