@@ -205,37 +205,14 @@ def fallback_measures(velocities, origin, lead, radius, horizon, period):
         Shape (K,): how many approaching neighbours (``r . u < 0``) the command passes on its
         left, ``r x u < 0``: a side both robots of a pair see the same way.
 
+    Compiled: :func:`.choice_kernels.fallback_measures`.
     """
-    position = origin[:, None, :2]
-    relative = lead[:, None, None] * velocities[None, :, :] + origin[:, None, 2:]
-    along = np.sum(position * relative, axis=-1)
-    speed_sq = np.sum(relative * relative, axis=-1)
-    distance_sq = np.sum(origin[:, :2] * origin[:, :2], axis=1)
-    distance = np.sqrt(distance_sq)
-    # The closest the centres come within the period, at t = -r.u / |u|^2 clipped to it.
-    with np.errstate(divide='ignore', invalid='ignore'):
-        closest_time = np.clip(np.where(speed_sq > 0.0, -along / speed_sq, 0.0), 0.0, period)
-    closest = np.sqrt(np.sum((position + closest_time[..., None] * relative) ** 2, axis=-1))
-    intrusion = np.max(np.maximum(np.minimum(distance, radius)[:, None] - closest, 0.0),
-                       axis=0, initial=0.0)
-    fastest = np.max(np.sqrt(np.sum(velocities * velocities, axis=1)), initial=0.0)
-    reach = period * (lead * fastest + np.hypot(origin[:, 2], origin[:, 3]))
-    near = distance < radius + reach
-    closing = np.max(np.maximum(-along / np.maximum(distance, 1e-12)[:, None], 0.0), axis=0,
-                     where=near[:, None], initial=0.0)
-    # |r + t u|^2 = R^2: a t^2 + 2 b t + c = 0 with c > 0 (not touching); the first root is
-    # ahead only when approaching (b < 0) and the line passes within R (b^2 >= a c).
-    touching = distance < radius
-    clearance = (distance_sq - radius * radius)[:, None]
-    discriminant = along * along - speed_sq * clearance
-    hits = (along < 0.0) & (discriminant >= 0.0) & ~touching[:, None]
-    with np.errstate(divide='ignore', invalid='ignore'):
-        # The smaller root as c / (-b + sqrt(disc)): no cancellation, and finite as a -> 0.
-        first = clearance / (-along + np.sqrt(np.maximum(discriminant, 0.0)))
-    time_to_collision = np.min(np.where(hits, first, np.inf), axis=0, initial=np.inf)
-    cross = position[..., 0] * relative[..., 1] - position[..., 1] * relative[..., 0]
-    left_passes = np.sum((along < 0.0) & (cross < 0.0), axis=0)
-    return intrusion, closing, np.minimum(time_to_collision, horizon), left_passes
+    from .choice_kernels import fallback_measures as compiled
+
+    return compiled(np.ascontiguousarray(velocities, dtype=float),
+                    np.ascontiguousarray(origin, dtype=float),
+                    np.ascontiguousarray(lead, dtype=float),
+                    np.ascontiguousarray(radius, dtype=float), float(horizon), float(period))
 
 
 def fallback_index(intrusion, closing, time_to_collision, left_passes, costs, walls=None):

@@ -1,7 +1,7 @@
 """
 The choice cost and the best speed on each feasible interval, compiled (:mod:`.choice`).
 
-Four numba functions, each compiled for one signature when this module is first imported
+Five numba functions, each compiled for one signature when this module is first imported
 (:mod:`.choice` imports it on its first cost; the planner's warm-up makes that call before the
 node spins) and kept in numba's on-disk cache, as the ray search, the moments, the certificate
 and the walls are (``./run.sh setup`` compiles every kernel module once after installing):
@@ -13,7 +13,9 @@ and the walls are (``./run.sh setup`` compiles every kernel module once after in
 * :func:`cheapest_velocities`, per plan the cheapest velocity over its feasible intervals
   (:func:`best_speeds` on each, then the first of the smallest cost) and its number of rays
   with a feasible interval;
-* :func:`search_margins`, the margins the certified plan searches each link with.
+* :func:`search_margins`, the margins the certified plan searches each link with;
+* :func:`fallback_measures`, the fallback's measures of candidate commands against the
+  neighbours' means when no velocity is feasible.
 
 Both use one formula, :func:`_cost`. A row of cost terms holds, in this order, ``v_pref``
 (2), ``previous`` (2), ``inertia``, ``bias``, ``progress`` and ``norm`` (:class:`.CostTerms`).
@@ -44,6 +46,10 @@ _CHEAPEST_SIGNATURE = types.Tuple((types.int64[::1], types.int64[::1], types.flo
 _MARGINS_SIGNATURE = types.float64[:, ::1](
     READ_ONLY_ROWS, READ_ONLY_INDICES, READ_ONLY_INDICES, READ_ONLY_ROWS, READ_ONLY_FLAGS,
     types.int64, types.boolean)
+_FALLBACK_SIGNATURE = types.Tuple((types.float64[::1], types.float64[::1], types.float64[::1],
+                                   types.int64[::1]))(
+    READ_ONLY_ROWS, READ_ONLY_ROWS, READ_ONLY_VECTOR, READ_ONLY_VECTOR, types.float64,
+    types.float64)
 
 
 @jit(inline='always')
@@ -280,3 +286,78 @@ def search_margins(cantelli, link_pair, pair_robot, robot_margins, gated, column
             for column in range(last - 3, last):
                 margins[link, column] = robot_margins[robot, 1]
     return margins
+
+
+@jit(_FALLBACK_SIGNATURE)
+def fallback_measures(velocities, origin, lead, radius, horizon, period):
+    """
+    Return the fallback's measures of VELOCITIES (K, 2) against N neighbours (:mod:`.choice`).
+
+    ORIGIN (N, 4) is ``(r, u)`` at zero command, LEAD (N,) the command's factor in ``u``,
+    RADIUS (N,) the ranking radius; :func:`.choice.fallback_measures` documents the four
+    measures (intrusion, closing, time to collision capped at HORIZON, left passes) and PERIOD.
+    Each (neighbour, command) pair is evaluated by the formulas numpy applied elementwise, in
+    the same order of operations; the maxima, minima and counts over neighbours do not depend
+    on their order.
+    """
+    count = velocities.shape[0]
+    neighbours = origin.shape[0]
+    fastest = 0.0
+    for candidate in range(count):
+        speed = np.sqrt(velocities[candidate, 0] * velocities[candidate, 0]
+                        + velocities[candidate, 1] * velocities[candidate, 1])
+        fastest = max(fastest, speed)
+    distance_sq = np.empty(neighbours)
+    distance = np.empty(neighbours)
+    contact = np.empty(neighbours)
+    divisor = np.empty(neighbours)
+    clearance = np.empty(neighbours)
+    near = np.empty(neighbours, dtype=np.bool_)
+    touching = np.empty(neighbours, dtype=np.bool_)
+    for neighbour in range(neighbours):
+        distance_sq[neighbour] = (origin[neighbour, 0] * origin[neighbour, 0]
+                                  + origin[neighbour, 1] * origin[neighbour, 1])
+        distance[neighbour] = np.sqrt(distance_sq[neighbour])
+        contact[neighbour] = min(distance[neighbour], radius[neighbour])
+        divisor[neighbour] = max(distance[neighbour], 1e-12)
+        clearance[neighbour] = distance_sq[neighbour] - radius[neighbour] * radius[neighbour]
+        reach = period * (lead[neighbour] * fastest
+                          + np.hypot(origin[neighbour, 2], origin[neighbour, 3]))
+        near[neighbour] = distance[neighbour] < radius[neighbour] + reach
+        touching[neighbour] = distance[neighbour] < radius[neighbour]
+    intrusion = np.zeros(count)
+    closing = np.zeros(count)
+    time_to_collision = np.empty(count)
+    left_passes = np.zeros(count, dtype=np.int64)
+    for candidate in range(count):
+        velocity_x, velocity_y = velocities[candidate, 0], velocities[candidate, 1]
+        deepest, fastest_closing, first_hit, passes = 0.0, 0.0, np.inf, 0
+        for neighbour in range(neighbours):
+            position_x, position_y = origin[neighbour, 0], origin[neighbour, 1]
+            relative_x = lead[neighbour] * velocity_x + origin[neighbour, 2]
+            relative_y = lead[neighbour] * velocity_y + origin[neighbour, 3]
+            along = position_x * relative_x + position_y * relative_y
+            speed_sq = relative_x * relative_x + relative_y * relative_y
+            # The closest the centres come within the period, at t = -r.u / |u|^2 clipped.
+            closest_time = -along / speed_sq if speed_sq > 0.0 else 0.0
+            closest_time = min(max(closest_time, 0.0), period)
+            gap_x = position_x + closest_time * relative_x
+            gap_y = position_y + closest_time * relative_y
+            closest = np.sqrt(gap_x * gap_x + gap_y * gap_y)
+            deepest = max(deepest, contact[neighbour] - closest)
+            if near[neighbour]:
+                fastest_closing = max(fastest_closing, -along / divisor[neighbour])
+            # |r + t u|^2 = R^2 ahead: approaching, within R of the line, not touching; the
+            # smaller root as c / (-b + sqrt(disc)).
+            discriminant = along * along - speed_sq * clearance[neighbour]
+            if along < 0.0 and discriminant >= 0.0 and not touching[neighbour]:
+                first = clearance[neighbour] / (-along + np.sqrt(discriminant))
+                first_hit = min(first_hit, first)
+            cross = position_x * relative_y - position_y * relative_x
+            if along < 0.0 and cross < 0.0:
+                passes += 1
+        intrusion[candidate] = deepest
+        closing[candidate] = fastest_closing
+        time_to_collision[candidate] = min(first_hit, horizon)
+        left_passes[candidate] = passes
+    return intrusion, closing, time_to_collision, left_passes
