@@ -43,6 +43,29 @@ def random_case(rng):
     return mean, cov, rng.uniform(0.2, 1.5)
 
 
+def written_conditions(big_r, tau=None, eps=None, gate=True):
+    """
+    Return the conditions' functions of z (P, 4), written from their definitions.
+
+    ``f``; ``g`` where GATE; with a finite TAU the horizon pair ``h1``, ``h2``; and with EPS too
+    the lead's condition.
+    """
+    conditions = [lambda z: rvo_f(z[..., :2], z[..., 2:], big_r)]
+    if gate:
+        conditions.append(lambda z: np.sum(z[:, :2] * z[:, 2:], axis=1))
+    if tau is None:
+        return conditions
+    conditions += [
+        lambda z: -np.sum(z[:, :2] * z[:, 2:], axis=1) - tau * np.sum(z[:, 2:] ** 2, axis=1),
+        lambda z: np.sum((z[:, :2] + tau * z[:, 2:]) ** 2, axis=1) - big_r ** 2,
+    ]
+    if eps is not None:
+        conditions.append(lambda z: (
+            (1.0 - eps) * (np.sum(z[:, :2] ** 2, axis=1)
+                           - tau ** 2 / eps * np.sum(z[:, 2:] ** 2, axis=1)) - big_r ** 2))
+    return conditions
+
+
 def test_moments_match_gauss_hermite_quadrature():
     rng = np.random.default_rng(11)
     cases = [random_case(rng) for _ in range(150)]
@@ -85,13 +108,7 @@ def test_horizon_condition_moments_match_quadrature():
         command = 0.5 * mean[2:]
         means, variances = condition_moments(origin, cov[None], np.array([radius]),
                                              command[None, :], tau, True)
-        conditions = [
-            lambda z, radius=radius: rvo_f(z[..., :2], z[..., 2:], radius),
-            lambda z: np.sum(z[:, :2] * z[:, 2:], axis=1),
-            lambda z: -np.sum(z[:, :2] * z[:, 2:], axis=1) - tau * np.sum(z[:, 2:] ** 2, axis=1),
-            lambda z, radius=radius: np.sum((z[:, :2] + tau * z[:, 2:]) ** 2, axis=1)
-            - radius ** 2,
-        ]
+        conditions = written_conditions(radius, tau)
         for column, condition in enumerate(conditions):
             values = quadrature_values(condition, mean, cov)
             first = np.sum(_GRID_WEIGHTS * values)
@@ -119,20 +136,7 @@ def test_batched_condition_moments_match_quadrature_per_neighbour_and_command():
         assert means.shape == variances.shape == (count, points, 4 + gate)
         for neighbour in range(count):
             tau, eps, big_r = horizon[neighbour], weights[neighbour], radius[neighbour]
-            conditions = [
-                lambda z, big_r=big_r: rvo_f(z[..., :2], z[..., 2:], big_r),
-                lambda z: np.sum(z[:, :2] * z[:, 2:], axis=1),
-                lambda z, tau=tau: (-np.sum(z[:, :2] * z[:, 2:], axis=1)
-                                    - tau * np.sum(z[:, 2:] ** 2, axis=1)),
-                lambda z, tau=tau, big_r=big_r: (np.sum((z[:, :2] + tau * z[:, 2:]) ** 2, axis=1)
-                                                 - big_r ** 2),
-                lambda z, tau=tau, eps=eps, big_r=big_r: (
-                    (1.0 - eps) * (np.sum(z[:, :2] ** 2, axis=1)
-                                   - tau ** 2 / eps * np.sum(z[:, 2:] ** 2, axis=1))
-                    - big_r ** 2),
-            ]
-            if not gate:
-                del conditions[1]
+            conditions = written_conditions(big_r, tau, eps, gate)
             for point in range(points):
                 mean = origin[neighbour].copy()
                 mean[2:] += lead[neighbour] * commands[neighbour, point]
@@ -210,20 +214,7 @@ def test_bivariate_polynomials_match_quadrature_off_the_grid():
         for neighbour in range(count):
             tau, big_r = horizon[neighbour], radius[neighbour]
             eps = _reach_weight(origin[neighbour], big_r)
-            conditions = [
-                lambda z, big_r=big_r: rvo_f(z[..., :2], z[..., 2:], big_r),
-                lambda z: np.sum(z[:, :2] * z[:, 2:], axis=1),
-                lambda z, tau=tau: (-np.sum(z[:, :2] * z[:, 2:], axis=1)
-                                    - tau * np.sum(z[:, 2:] ** 2, axis=1)),
-                lambda z, tau=tau, big_r=big_r: (np.sum((z[:, :2] + tau * z[:, 2:]) ** 2, axis=1)
-                                                 - big_r ** 2),
-                lambda z, tau=tau, eps=eps, big_r=big_r: (
-                    (1.0 - eps) * (np.sum(z[:, :2] ** 2, axis=1)
-                                   - tau ** 2 / eps * np.sum(z[:, 2:] ** 2, axis=1))
-                    - big_r ** 2),
-            ]
-            if not gate:
-                del conditions[1]
+            conditions = written_conditions(big_r, tau, eps, gate)
             for unit in rng.uniform(-1.0, 1.0, size=(3, 2)):
                 monomials = np.array([unit[0] ** i * unit[1] ** j for i, j in exponents])
                 mean = origin[neighbour].copy()
@@ -259,18 +250,7 @@ def test_condition_margins_meet_the_closed_form_of_the_quadrature_moments():
         for neighbour in range(count):
             big_r = radius[neighbour]
             eps = _reach_weight(origin[neighbour], big_r)
-            conditions = [lambda z, big_r=big_r: rvo_f(z[..., :2], z[..., 2:], big_r),
-                          lambda z: np.sum(z[:, :2] * z[:, 2:], axis=1)]
-            if finite:
-                conditions += [
-                    lambda z, tau=tau: (-np.sum(z[:, :2] * z[:, 2:], axis=1)
-                                        - tau * np.sum(z[:, 2:] ** 2, axis=1)),
-                    lambda z, tau=tau, big_r=big_r: (np.sum((z[:, :2] + tau * z[:, 2:]) ** 2,
-                                                            axis=1) - big_r ** 2),
-                    lambda z, tau=tau, eps=eps, big_r=big_r: (
-                        (1.0 - eps) * (np.sum(z[:, :2] ** 2, axis=1)
-                                       - tau ** 2 / eps * np.sum(z[:, 2:] ** 2, axis=1))
-                        - big_r ** 2)]
+            conditions = written_conditions(big_r, tau if finite else None, eps)
             for point, command in enumerate(commands):
                 mean = origin[neighbour].copy()
                 mean[2:] += lead[neighbour] * command
