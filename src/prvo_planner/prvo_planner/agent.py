@@ -1131,7 +1131,7 @@ class PlannerAgent:
         """Return V_PREF, or beside a neighbour standing on the robot's way (`passing`).
 
         For a robot on its way along a route to its goal, not giving way itself. STANDING: per
-        neighbour (in the order of BELIEFS and ANNOUNCEMENTS) whether it stands (`_standing`).
+        neighbour (in the order of BELIEFS and ANNOUNCEMENTS) whether it stands (`plan_request`).
         """
         settings = self.settings
         if (not settings.give_way or self.arrived or self._give_way is not None
