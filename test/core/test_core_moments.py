@@ -43,6 +43,16 @@ def random_case(rng):
     return mean, cov, rng.uniform(0.2, 1.5)
 
 
+def random_neighbours(rng, count):
+    """Return (origin (N, 4), cov (N, 4, 4), radius (N,)) of COUNT random cases.
+
+    Each origin is its case's mean with half its relative velocity (a command of half of it).
+    """
+    cases = [random_case(rng) for _ in range(count)]
+    origin = np.array([np.r_[mean[:2], 0.5 * mean[2:]] for mean, _, _ in cases])
+    return origin, np.array([case[1] for case in cases]), np.array([case[2] for case in cases])
+
+
 def written_conditions(big_r, tau=None, eps=None, gate=True):
     """
     Return the conditions' functions of z (P, 4), written from their definitions.
@@ -123,10 +133,7 @@ def test_batched_condition_moments_match_quadrature_per_neighbour_and_command():
     # (neighbour, command, condition) must be that neighbour's own integral.
     rng = np.random.default_rng(15)
     count, points = 7, 3
-    cases = [random_case(rng) for _ in range(count)]
-    origin = np.array([np.r_[mean[:2], 0.5 * mean[2:]] for mean, _, _ in cases])
-    cov = np.array([case[1] for case in cases])
-    radius = np.array([case[2] for case in cases])
+    origin, cov, radius = random_neighbours(rng, count)
     horizon = rng.uniform(0.5, 4.0, size=count)
     lead = rng.uniform(1.0, 2.0, size=count)
     commands = rng.normal(0.0, 1.0, size=(count, points, 2))
@@ -196,10 +203,7 @@ def test_bivariate_polynomials_match_quadrature_off_the_grid():
     # neighbour's own integrals there.
     rng = np.random.default_rng(17)
     count = 5
-    cases = [random_case(rng) for _ in range(count)]
-    origin = np.array([np.r_[mean[:2], 0.5 * mean[2:]] for mean, _, _ in cases])
-    cov = np.array([case[1] for case in cases])
-    radius = np.array([case[2] for case in cases])
+    origin, cov, radius = random_neighbours(rng, count)
     horizon = rng.uniform(0.5, 4.0, size=count)
     lead = rng.uniform(1.0, 2.0, size=count)
     scale = rng.uniform(0.5, 2.0, size=count)
@@ -236,10 +240,7 @@ def test_condition_margins_meet_the_closed_form_of_the_quadrature_moments():
 
     rng = np.random.default_rng(19)
     count = 5
-    cases = [random_case(rng) for _ in range(count)]
-    origin = np.array([np.r_[mean[:2], 0.5 * mean[2:]] for mean, _, _ in cases])
-    cov = np.array([case[1] for case in cases])
-    radius = np.array([case[2] for case in cases])
+    origin, cov, radius = random_neighbours(rng, count)
     lead = rng.uniform(1.0, 2.0, size=count)
     enabled = np.array([True, False, True, True, False])
     commands = rng.normal(0.0, 1.0, size=(2, 2))
