@@ -309,18 +309,24 @@ class Probe:
 
 
 @pytest.fixture
-def probe(ros_domain):
-    """Probe node on the test's private ROS domain."""
+def probe(ros_domain, children):
+    """Probe node on the test's private ROS domain, closed before the test's children are killed.
+
+    A peer killed mid-run leaves its last messages in flight; a pytest worker crashed in CI
+    destroying the probe's node in that moment (twice, the same test). Closed first, the probe
+    stops answering before its subscriptions go, and a lockstep simulator then waits.
+    """
     ros_probe = Probe(ros_domain)
     yield ros_probe
     ros_probe.close()
 
 
 @pytest.fixture
-def spinning_node(ros_domain):
+def spinning_node(ros_domain, children):
     """Return `make(name, namespace)`: a node spinning as the probe's does, closed after the test.
 
     On the test's private ROS domain, in a context of its own: a stand-in for a robot's node.
+    Closed before the test's children are killed, as the probe is.
     """
     made = []
 

@@ -555,8 +555,8 @@ def test_scripted_robot_walks_without_cmd_vel_and_is_reported(probe, children, r
     # Only robot_0 answers. Lockstep must not wait for the scripted robot_1 (a wait would
     # stall the run: the step timeout is an hour).
     planners = Planners(probe, {'robot_0': HEAD_ON['robot_0']})
-    start_sim(children, ros2_executable, 'sim', scenario=str(scenario), step_timeout=3600.0,
-              startup_timeout=3600.0)
+    sim = start_sim(children, ros2_executable, 'sim', scenario=str(scenario),
+                    step_timeout=3600.0, startup_timeout=3600.0)
     steps = 40
     probe.wait_until(lambda: len(planners.steps('robot_1', 'ground_truth')) > steps, 60.0,
                      f'{steps} steps of the scripted robot')
@@ -566,6 +566,10 @@ def test_scripted_robot_walks_without_cmd_vel_and_is_reported(probe, children, r
         # Noise-free: 0.05 m per step up to its one waypoint at (4, 3), whatever robot_0 does.
         np.testing.assert_allclose(walker.position, [4.0, min(0.05 * step, 3.0)], atol=1e-9)
     probe.wait_until(lambda: latest_statuses(diagnostics), 10.0, "the simulator's diagnostics")
+    # The run ends here, not at teardown. Killed there mid-run (the probe answers robot_0 at
+    # once, so steps come as fast as the CPU allows), it left messages in flight while the
+    # probe destroyed its subscriptions: a pytest worker crashed in that teardown twice in CI.
+    assert children.interrupt(sim) == 0
     statuses = latest_statuses(diagnostics)
     assert statuses['prvo_sim']['deadline_misses'] == '0'
     assert statuses['prvo_sim/robot_1']['scripted'] == 'true'
