@@ -2,11 +2,11 @@
 
 Two robots stand at their goals 1.1 m apart across a 2.4 m corridor, leaving 0.6 m between them,
 and a third must pass between them (noise 0.05, the planner's defaults, certified 0.95). Without
-the rule, at a 5 s horizon, it stops in front of them for good (at the default 2 s it squeezes
-through the gap, 5 cm to spare on each side); with it they step off its route (published on
-<robot>/plan, held by the agents as a ROS run holds it) and return once it went by. Only
-preferences change: a Monte Carlo check with a sampler of its own finds every encounter plan
-safe within its horizon with at least eta.
+the rule, at a 5 s horizon and walls over 2 s, it stops in front of them for good (at the
+default horizons it squeezes through the gap, the two edging toward their walls); with it
+they step off its route (published on <robot>/plan, held by the agents as a ROS run holds it)
+and return once it went by. Only preferences change: a Monte Carlo check with a sampler of
+its own finds every encounter plan safe within its horizon with at least eta.
 """
 
 import numpy as np
@@ -69,7 +69,8 @@ def run(tmp_path, seed, give_way, on_step=None, **planner):
 def test_without_the_rule_the_robot_stops_in_front_of_the_two(tmp_path):
     # Without keeping right too: leaning toward its lane (`lanes.corridor_lane`) it pushes
     # between them in the run's last seconds (at 29.7 s of 30).
-    arrived, _ = run(tmp_path, 1, False, time_horizon=5.0, keep_right=0.0)
+    arrived, _ = run(tmp_path, 1, False, time_horizon=5.0, keep_right=0.0,
+                     obstacle_horizon=2.0)
     assert arrived[PASSING] is None
 
 

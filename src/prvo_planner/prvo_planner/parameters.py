@@ -209,9 +209,15 @@ _SPECS = (
                   "robot's share of the gap to each neighbour (half if it announces none) in "
                   'one control period: two robots that change course at once still cannot '
                   'meet within it. Binds only within about 0.2 m; costs speed there.'),
-    ParameterSpec('obstacle_horizon', FLOAT, 2.0, 'Walls and static obstacles constrain the '
+    # 1 s: at 2 s a robot slowed for every wall it headed at within 2 s, the end wall behind
+    # its goal and the side walls it leaned towards to pass, and corridors took 1.1-1.7x as long
+    # (corridor8 worst 18.7 s against 15.7 s, a 2 m corridor 22.4 against 13.4 s mean) with
+    # as close a least wall clearance (docs/results.md, section 3.21).
+    ParameterSpec('obstacle_horizon', FLOAT, 1.0, 'Walls and static obstacles constrain the '
                   'path over this many seconds [s], in [0.5, 10]: longer keeps further '
-                  'from walls and slows earlier, shorter passes closer.', (0.5, 10.0)),
+                  'from walls and slows earlier (before a wall ahead, to at most the gap over '
+                  'the horizon), shorter passes closer; keep it above the time the base needs '
+                  'to stop from max_speed.', (0.5, 10.0)),
     ParameterSpec('neighbor_distance', FLOAT, 10.0, 'Neighbours farther than this [m] are not '
                   'considered, > 0.', (0.0, 1.0e4), rule=_positive),
     ParameterSpec('actuation_std', FLOAT, 0.0, "Std of this robot's velocity execution error "
