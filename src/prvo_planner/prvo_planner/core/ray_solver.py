@@ -296,7 +296,7 @@ def bernstein_may_vanish(variances, row):
 
 
 @jit()
-def segment_certificates(coefficients, counts):
+def segment_certificates(coefficients, first, counts):
     """
     Certify a constant sign on each of the ``SEGMENTS`` equal segments of [0, 1].
 
@@ -306,19 +306,23 @@ def segment_certificates(coefficients, counts):
     Parameters
     ----------
     coefficients : numpy.ndarray
-        Ascending coefficients, coefficient-major: shape (L, K) with L = 3 or 5.
+        Ascending coefficients, coefficient-major: shape (L, K') with L = 3 or 5.
+    first : int
+        The first of the K columns certified.
     counts : numpy.ndarray
         Filled with how many of each segment's L Bernstein coefficients are ``>= 0``: L
         certifies ``p >= 0``, 0 certifies ``p < 0``; shape (SEGMENTS, K), uint8.
 
     """
-    count = coefficients.shape[1]
+    count = counts.shape[1]
     if coefficients.shape[0] == 5:
         matrix = _SEGMENT_BERNSTEIN_4
         for segment in range(SEGMENTS):
             for row in range(count):
-                c0, c1, c2 = coefficients[0, row], coefficients[1, row], coefficients[2, row]
-                c3, c4 = coefficients[3, row], coefficients[4, row]
+                column = first + row
+                c0, c1, c2 = (coefficients[0, column], coefficients[1, column],
+                              coefficients[2, column])
+                c3, c4 = coefficients[3, column], coefficients[4, column]
                 nonnegative = 0
                 for index in range(5):
                     weights = segment * 5 + index
@@ -331,7 +335,9 @@ def segment_certificates(coefficients, counts):
         matrix = _SEGMENT_BERNSTEIN_2
         for segment in range(SEGMENTS):
             for row in range(count):
-                c0, c1, c2 = coefficients[0, row], coefficients[1, row], coefficients[2, row]
+                column = first + row
+                c0, c1, c2 = (coefficients[0, column], coefficients[1, column],
+                              coefficients[2, column])
                 nonnegative = 0
                 for index in range(3):
                     weights = segment * 3 + index
