@@ -165,7 +165,7 @@ class RayRows:
     preferred: np.ndarray
 
 
-def team_ray_gaps(rows, layout, method, deterministic):
+def team_ray_gaps(rows, layout, method, deterministic, searched=None):
     """
     Feasible speed intervals on every ray: the intersection over neighbours of accepted sets.
 
@@ -189,6 +189,9 @@ def team_ray_gaps(rows, layout, method, deterministic):
         ``'exact'`` or ``'taylor'``.
     deterministic : bool
         All variances are zero (the mean alone decides).
+    searched : numpy.ndarray, optional
+        Per robot, whether its rays are searched (the others get no interval), shape (B,);
+        default all.
 
     Returns
     -------
@@ -208,13 +211,15 @@ def team_ray_gaps(rows, layout, method, deterministic):
     variances = np.ascontiguousarray(rows.variances.transpose(2, 0, 1).reshape(5, count),
                                      dtype=np.float64)
     margins = np.ascontiguousarray(rows.margins, dtype=np.float64).reshape(count)
+    if searched is None:
+        searched = np.ones(np.count_nonzero(rows.ray_local == 0), dtype=np.bool_)
     return team_gaps(
         means, variances, margins, np.ascontiguousarray(rows.link_ray, dtype=np.int64),
         np.ascontiguousarray(rows.link_enabled, dtype=np.bool_),
         np.ascontiguousarray(rows.ray_local, dtype=np.int64),
         np.ascontiguousarray(rows.preferred, dtype=np.float64), conditions,
         bool(layout.has_receding), bool(layout.has_horizon), method == 'taylor',
-        bool(deterministic))
+        bool(deterministic), np.ascontiguousarray(searched, dtype=np.bool_))
 
 
 def monte_carlo_probabilities(encounter, layout, directions, speeds, config, rng):

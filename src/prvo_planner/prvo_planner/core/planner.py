@@ -503,8 +503,12 @@ def _ray_search(plans):
                    max_speed=np.array([plan.config.max_speed for plan in plans]))
 
 
-def _choose(search, margins):
-    """Choose every robot's velocity with MARGINS (P, C) per link; Cantelli's bounds per pair."""
+def _choose(search, margins, robots=None):
+    """
+    Choose every robot's velocity with MARGINS (P, C) per link; Cantelli's bounds per pair.
+
+    With ROBOTS (B,) only the robots marked are searched: the others' values are not choices.
+    """
     plans, directions, ray_starts = search.plans, search.directions, search.ray_starts
     first = plans[0]
     rows = search.rows
@@ -513,10 +517,12 @@ def _choose(search, margins):
                    link_ray=rows.link_ray, link_enabled=rows.link_enabled,
                    ray_local=rows.ray_local, ray_robot=rows.ray_robot, preferred=rows.preferred)
     gap_ray, lower, upper = _wall_gaps(search, *_allowed_gaps(
-        plans, *team_ray_gaps(rows, first.layout, first.config.method, first.deterministic)))
+        plans, *team_ray_gaps(rows, first.layout, first.config.method, first.deterministic,
+                              robots)))
     candidates_feasible, direction_index, chosen_t = cheapest_velocities(
         gap_ray, lower, upper, directions, rows, search.terms, search.max_speed)
-    for robot in np.flatnonzero(candidates_feasible == 0):
+    searched = np.ones(len(plans), dtype=bool) if robots is None else robots
+    for robot in np.flatnonzero((candidates_feasible == 0) & searched):
         plan = plans[robot]
         # Under limits only reachable (and trackable) speeds are candidates.
         speeds, costs = (speed_grid(plan.directions, plan.preferred, plan.v_pref, plan.previous,
@@ -729,13 +735,13 @@ def _certified_choice(search):
     if retry.any():
         short = (choice.bounds < required) & retry[pair_robot]
         margins = np.where(short[link_pair, None], cantelli, margins)
-        choice = _merged(choice, _certify(search, _choose(search, margins), required, retry),
-                         retry, retry[pair_robot])
+        choice = _merged(choice, _certify(search, _choose(search, margins, retry), required,
+                                          retry), retry, retry[pair_robot])
         retry &= ((choice.candidates_feasible == 0)
                   | _any_per_robot(search, choice.bounds < required))
         if retry.any():
-            choice = _merged(choice, _certify(search, _choose(search, cantelli), required,
-                                              retry), retry, retry[pair_robot])
+            choice = _merged(choice, _certify(search, _choose(search, cantelli, retry),
+                                              required, retry), retry, retry[pair_robot])
     return _anchored(search, choice, required, anchors)
 
 

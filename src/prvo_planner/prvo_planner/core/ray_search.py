@@ -43,7 +43,7 @@ _FLOATS = types.float64[:, ::1]
 _SIGNATURE = types.Tuple((types.int64[::1], types.float64[::1], types.float64[::1]))(
     _FLOATS, _FLOATS, types.float64[::1], types.int64[::1], types.boolean[::1],
     types.int64[::1], types.float64[::1], types.int64, types.boolean, types.boolean,
-    types.boolean, types.boolean)
+    types.boolean, types.boolean, types.boolean[::1])
 # Roots of one test's row: four of a quartic, two of a quadratic.
 _ROOTS = 4
 
@@ -338,7 +338,7 @@ def _robot_gaps(means, variances, margins, link_ray, link_enabled, ray_local, pr
 
 @jit(_SIGNATURE)
 def team_gaps(means, variances, margins, link_ray, link_enabled, ray_local, preferred,
-              conditions, has_receding, has_horizon, taylor, deterministic):
+              conditions, has_receding, has_horizon, taylor, deterministic, searched):
     """
     Feasible speed intervals on every ray: the intersection over neighbours of accepted sets.
 
@@ -379,6 +379,9 @@ def team_gaps(means, variances, margins, link_ray, link_enabled, ray_local, pref
         The Taylor method (a quadratic surrogate) instead of the exact one.
     deterministic : bool
         All variances are zero (the mean alone decides).
+    searched : numpy.ndarray
+        Per robot (a robot's rays begin where ``ray_local`` is 0), whether its rays are
+        searched; the others have no intervals. Shape (B,).
 
     Returns
     -------
@@ -404,9 +407,13 @@ def team_gaps(means, variances, margins, link_ray, link_enabled, ray_local, pref
             ray_lower[robots], link_lower[robots] = ray, link
             robots += 1
     ray_lower[robots], link_lower[robots] = rays, links
+    if searched.shape[0] != robots:
+        raise ValueError('team_gaps: searched must hold one flag per robot')
     pieces = []
     total = 0
     for robot in range(robots):
+        if not searched[robot]:
+            continue
         piece = _robot_gaps(
             means, variances, margins, link_ray, link_enabled, ray_local, preferred, conditions,
             has_receding, has_horizon, taylor, deterministic, link_lower[robot] * conditions,
