@@ -14,6 +14,7 @@ from prvo_planner.core import (
     plan_velocities,
     plan_velocity,
 )
+from prvo_planner.core import planner as planner_module
 
 
 def assert_each_as_alone(egos, neighbours, v_prefs, configs, previous):
@@ -38,6 +39,21 @@ def test_circle_swap_steps_are_planned_as_alone(count):
             assert_each_as_alone(egos, neighbours, v_prefs, config, previous)
             checked += 1
     assert checked >= 5
+
+
+def test_a_team_split_into_batches_is_planned_as_alone(monkeypatch):
+    # A crowd is solved in batches of at most LINK_BATCH links: here two robots (704 links
+    # each, 11 neighbours and 64 directions) a call.
+    monkeypatch.setattr(planner_module, 'LINK_BATCH', 2000)
+    config = dataclasses.replace(team_config(), certificate='certified', eta=0.95)
+    calls = []
+    solve_group = planner_module._solve_group
+    monkeypatch.setattr(planner_module, '_solve_group',
+                        lambda plans: calls.append(len(plans)) or solve_group(plans))
+    for step, (egos, neighbours, v_prefs, previous) in enumerate(circle_swap(12, config)):
+        if step % 13 == 0:
+            assert_each_as_alone(egos, neighbours, v_prefs, config, previous)
+    assert max(calls) > 1 and min(calls) < 12
 
 
 def test_certified_circle_swap_steps_are_planned_as_alone():

@@ -68,6 +68,10 @@ from .walls import (
 )
 
 _BELIEF_TYPE = frozenset([AgentBelief])
+# Links (neighbour, direction) solved in one call of a team at most (`_batches`): some 6 MB
+# of polynomials; from 10,000 to 100,000 the 48-robot circle's step costs the same, and 2,000
+# (a robot a call) 6-10% more in the interpreter (docs/results.md, 5.22).
+LINK_BATCH = 20000
 
 
 def _validated_inputs(ego, neighbours, v_pref, config, previous, limits, obstacles=None):
@@ -213,10 +217,32 @@ def plan_velocities(egos, neighbours_per_ego, v_prefs, configs, previous=None, l
         else:
             groups.setdefault(plan.structure, []).append((index, plan))
     for members in groups.values():
-        for index, result in zip([index for index, _ in members],
-                                 _solve_group([plan for _, plan in members]), strict=True):
-            results[index] = result
+        for batch in _batches(members):
+            for index, result in zip([index for index, _ in batch],
+                                     _solve_group([plan for _, plan in batch]), strict=True):
+                results[index] = result
     return results
+
+
+def _batches(members):
+    """Split MEMBERS, (index, plan) pairs of one structure, into runs of at most LINK_BATCH links.
+
+    A plan's (neighbour, direction) links are solved alone, so a batch changes no plan; it
+    bounds the arrays of one call (about 64 bytes of polynomials a link and condition), which for
+    a whole crowd reach hundreds of megabytes, mapped afresh and streamed through memory by every
+    stage (docs/results.md, 5.22). A plan with more links than that is a batch of its own.
+    """
+    batch, links = [], 0
+    for member in members:
+        plan = member[1]
+        size = plan.encounter.origin.shape[0] * plan.directions.shape[0]
+        if batch and links + size > LINK_BATCH:
+            yield batch
+            batch, links = [], 0
+        batch.append(member)
+        links += size
+    if batch:
+        yield batch
 
 
 @dataclass(frozen=True)
