@@ -42,7 +42,8 @@ def at_goal(position, route):
 
     ROUTE is the `routes.NeighbourRoute` it publishes, None: none.
     """
-    return route is not None and math.hypot(*(route.points[-1] - position)) < AT_GOAL
+    return route is not None and math.hypot(route.end[0] - position[0],
+                                            route.end[1] - position[1]) < AT_GOAL
 
 
 def pass_beside(position, v_pref, way, radius, standing, room):

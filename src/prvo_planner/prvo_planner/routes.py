@@ -39,11 +39,16 @@ FLIP_CHANGES = 10
 class NeighbourRoute:
     """A neighbour's route: `points` (K, 2) [m, the map frame; read-only] and its `stamp` [s].
 
-    It holds for the plans of odometry stamped after `stamp` (0: for every plan).
+    It holds for the plans of odometry stamped after `stamp` (0: for every plan). `end` is its
+    last point as two floats: every plan of every robot asks how near each neighbour is to it.
     """
 
     points: np.ndarray
     stamp: float
+    end: tuple = dataclasses.field(init=False, repr=False, compare=False)
+
+    def __post_init__(self):
+        object.__setattr__(self, 'end', tuple(self.points[-1].tolist()))
 
 
 def route_stamp(plan_stamp):
