@@ -48,6 +48,8 @@ def test_headon2_both_arrive_without_contact(headon2_run):
     assert recorded['planner_ms']['median'] > 0.0
     # The planner nodes' CPU per plan, and the plans' own share of it.
     assert recorded['planner_cpu']['node_ms']['median'] > 0.0
+    assert 0.0 < recorded['planner_cpu']['plan_ms']['median'] <= recorded['planner_cpu'][
+        'node_ms']['max']
     assert 0.0 < recorded['planner_cpu']['planning_share'] <= 1.0
 
     with open(out / 'trajectories.csv') as csv_file:

@@ -66,6 +66,7 @@ def test_metrics_json_is_strict_json(tmp_path):
     recorded = json.loads((tmp_path / 'metrics.json').read_text(), parse_constant=refuse)
     assert recorded['planner_ms']['max'] is None
     assert recorded['planner_cpu'] == {'node_ms': {'median': None, 'p95': None, 'max': None},
+                                       'plan_ms': {'median': None, 'p95': None, 'max': None},
                                        'planning_share': None}
     assert recorded['wall_time'] is None
     assert recorded['failure'] == 'a failure' and recorded['ending'] == 'failed'
@@ -137,4 +138,6 @@ def test_a_run_ended_at_a_step_needs_that_steps_answers_and_ignores_later_steps(
 def test_the_planner_nodes_cpu_is_summarised_with_the_share_of_planning():
     summary = planner_cpu([(2.0, 10.0), (4.0, 10.0), (3.0, 40.0)])
     assert summary['node_ms'] == {'median': 10.0, 'p95': pytest.approx(37.0), 'max': 40.0}
+    # numpy's linear p95 of (2, 3, 4): 3 + 0.9 (4 - 3).
+    assert summary['plan_ms'] == {'median': 3.0, 'p95': pytest.approx(3.9), 'max': 4.0}
     assert summary['planning_share'] == pytest.approx(9.0 / 60.0)
