@@ -104,13 +104,34 @@ def harmonic_range(cosine, sine, multiple, start, width):
         The minimum and maximum.
 
     """
+    return _range_over(cosine, sine, _sinusoid(cosine, sine), _wedge_ends(multiple, start, width))
+
+
+# A bound's sinusoids change per entry and its wedges per wedge: the kernels take the peaks once
+# per entry (_sinusoid) and the wedge's ends once per wedge and multiple (_wedge_ends), and so
+# call the trigonometric functions 8 times a wedge, not 4 per sinusoid and 2 more per range.
+@jit(inline='always')
+def _sinusoid(cosine, sine):
+    """Return the amplitude ``hypot(c, s)`` and peak ``atan2(s, c)`` of ``c cos y + s sin y``."""
+    return math.hypot(cosine, sine), math.atan2(sine, cosine)
+
+
+@jit(inline='always')
+def _wedge_ends(multiple, start, width):
+    """Return ``m a``, ``m w`` and the cosines and sines at ``m a`` and ``m (a + w)``."""
     begin = multiple * start
     span = multiple * width
     end = begin + span
-    first = cosine * math.cos(begin) + sine * math.sin(begin)
-    last = cosine * math.cos(end) + sine * math.sin(end)
-    amplitude = math.hypot(cosine, sine)
-    peak = math.atan2(sine, cosine)
+    return begin, span, math.cos(begin), math.sin(begin), math.cos(end), math.sin(end)
+
+
+@jit(inline='always')
+def _range_over(cosine, sine, sinusoid, ends):
+    """:func:`harmonic_range` from the SINUSOID's (:func:`_sinusoid`) and the wedge's ENDS."""
+    amplitude, peak = sinusoid
+    begin, span, cos_begin, sin_begin, cos_end, sin_end = ends
+    first = cosine * cos_begin + sine * sin_begin
+    last = cosine * cos_end + sine * sin_end
     # Python's float % takes the divisor's sign, as numpy.mod does.
     low = -amplitude if (peak + math.pi - begin) % _TWO_PI <= span else min(first, last)
     high = amplitude if (peak - begin) % _TWO_PI <= span else max(first, last)
@@ -262,11 +283,14 @@ def cut_wedges(mean, cov, pairs):
         # A >= 1 / lambda_max(S) > 0; the floor keeps rounding from reaching 0.
         floor = 0.5 / (xx + yy)
         scale = (1.0 - WIDENING) / (2.0 * math.pi * math.sqrt(determinant))
+        a_c = 0.5 * (pxx - pyy)
+        b_peak = _sinusoid(pulled_x, pulled_y)
+        a_peak = _sinusoid(a_c, pxy)
         for wedge in range(pairs):
-            b_low, b_high = harmonic_range(pulled_x, pulled_y, 1.0, edges[wedge],
-                                           width[entry, wedge])
-            a_low, a_high = harmonic_range(0.5 * (pxx - pyy), pxy, 2.0, edges[wedge],
-                                           width[entry, wedge])
+            once = _wedge_ends(1.0, edges[wedge], width[entry, wedge])
+            twice = _wedge_ends(2.0, edges[wedge], width[entry, wedge])
+            b_low, b_high = _range_over(pulled_x, pulled_y, b_peak, once)
+            a_low, a_high = _range_over(a_c, pxy, a_peak, twice)
             a_low, a_high = math.sqrt(max(constant + a_low, floor)), constant + a_high
             densities = scale * width[entry, wedge] / a_high
             # The smallest B / sqrt(A) over the wedge (and its opposite, where B changes sign):
@@ -509,6 +533,10 @@ def _wedge_bounds(mean, cov, radius, across, rows, start, width, masses, inverti
             else:
                 b_constant = 0.5 * (k00 + k11)
                 b_c, b_s = 0.5 * (k00 - k11), 0.5 * (k01 + k10)
+        mean_peak, var_peak = _sinusoid(mean_c, mean_s), _sinusoid(var_c, var_s)
+        c_peak = a_peak = b_peak = (0.0, 0.0)
+        if strips:
+            c_peak, a_peak, b_peak = _sinusoid(e_x, e_y), _sinusoid(a_c, a_s), _sinusoid(b_c, b_s)
         total = 0.0
         for side in range(2 * pairs):
             total += masses[entry, side]
@@ -518,14 +546,16 @@ def _wedge_bounds(mean, cov, radius, across, rows, start, width, masses, inverti
         mass_sum = 0.0
         for wedge in range(pairs):
             begin, span = start[entry, wedge], width[entry, wedge]
-            mean_low, mean_high = harmonic_range(mean_c, mean_s, 1.0, begin, span)
-            var_low, var_high = harmonic_range(var_c, var_s, 2.0, begin, span)
+            once = _wedge_ends(1.0, begin, span)
+            twice = _wedge_ends(2.0, begin, span)
+            mean_low, mean_high = _range_over(mean_c, mean_s, mean_peak, once)
+            var_low, var_high = _range_over(var_c, var_s, var_peak, twice)
             sd_low = math.sqrt(max(var_constant + var_low - widening, 0.0))
             sd_high = math.sqrt(max(var_constant + var_high + widening, 0.0))
             if strips:
-                c_low, c_high = harmonic_range(e_x, e_y, 1.0, begin, span)
-                a_low, a_high = harmonic_range(a_c, a_s, 1.0, begin, span)
-                b_low, b_high = harmonic_range(b_c, b_s, 2.0, begin, span)
+                c_low, c_high = _range_over(e_x, e_y, c_peak, once)
+                a_low, a_high = _range_over(a_c, a_s, a_peak, once)
+                b_low, b_high = _range_over(b_c, b_s, b_peak, twice)
                 b_low, b_high = b_constant + b_low, b_constant + b_high
             for side in range(2):
                 # The opposite wedge: the linear ranges negated.
