@@ -21,19 +21,23 @@ wall|cpu]``: one plan at the planner node's defaults (certified bound, eta 0.95,
 actuation noise) of the encounters of 10, 20 and 50 neighbours, without
 and with the walls of ``bench_walls``: its time per call, then the same calls under cProfile
 (timed by the same clock): Python function calls and calls of numpy's Python functions and C
-methods per plan, and the functions of ``prvo_planner.core`` that take the most time, by
-cumulative and by self time. A function's self time includes the numpy arithmetic its
-operators (``a * b``) and ufuncs run, which cProfile does not see as calls.
+methods per plan, the compiled kernels' share (their self time, native code the profiler only
+enters and leaves: what a plan costs with no Python around the kernels), and the functions of
+``prvo_planner.core`` that take the most time, by cumulative and by self time. A function's
+self time includes the numpy arithmetic its operators (``a * b``) and ufuncs run, which cProfile
+does not see as calls.
 """
 
 import argparse
 import cProfile
+import importlib
 import json
 import os
 import pstats
 import sys
 import time
 
+from numba.core.dispatcher import Dispatcher
 import numpy as np
 
 from prvo_planner.core import AgentBelief, PlannerConfig, plan_velocities, plan_velocity
@@ -163,14 +167,25 @@ def _is_numpy(key):
             or (filename == '~' and ('numpy' in function or 'ufunc' in function)))
 
 
+def _is_compiled(key):
+    """Whether a pstats key is a compiled kernel of prvo's core (a numba dispatcher)."""
+    filename, _, function = key
+    if not filename.startswith(CORE_DIRECTORY):
+        return False
+    module = importlib.import_module(
+        f'prvo_planner.core.{os.path.basename(filename)[:-3]}')
+    return isinstance(getattr(module, function, None), Dispatcher)
+
+
 def profile_case(ego, neighbours, config, repeats, clock, obstacles):
     """
     Time and profile ``repeats`` plans of one encounter; return its row.
 
     The row holds the median and p95 time per plan without the profiler [ms], the profiled
     time per plan, calls per plan (every Python function, numpy's functions and methods, the
-    functions of ``prvo_planner.core``) and per function of the core its calls, self and
-    cumulative time per plan [ms].
+    functions of ``prvo_planner.core``), the compiled kernels' time per plan (their self time
+    under the profiler, which adds only its cost per call to native code) and per function of
+    the core its calls, self and cumulative time per plan [ms].
     """
     times = time_calls(ego, neighbours, config, repeats, clock, obstacles)
     profiler = cProfile.Profile(clock)
@@ -189,6 +204,8 @@ def profile_case(ego, neighbours, config, repeats, clock, obstacles):
                                if _is_numpy(key)) / repeats,
             'core_calls': sum(value[1] for value in core.values()) / repeats,
             'core_self_ms': 1e3 * sum(value[2] for value in core.values()) / repeats,
+            'compiled_ms': 1e3 * sum(value[2] for key, value in core.items()
+                                     if _is_compiled(key)) / repeats,
             'functions': {_function_name(key): {'calls': value[1] / repeats,
                                                 'self_ms': 1e3 * value[2] / repeats,
                                                 'cumulative_ms': 1e3 * value[3] / repeats}
@@ -217,11 +234,13 @@ def profile_tables(rows, top=PROFILE_TOP):
     A function is listed if it is among the TOP of any row; each cell is its ms per plan and
     its share of the profiled plan.
     """
-    lines = ['| neighbours | walls | median / p95 ms | profiled ms | Python calls | numpy calls '
-             '| core calls | core self ms (share) |', '|---|---|---|---|---|---|---|---|']
+    lines = ['| neighbours | walls | median / p95 ms | compiled kernels ms | profiled ms '
+             '| Python calls | numpy calls | core calls | core self ms (share) |',
+             '|---|---|---|---|---|---|---|---|---|']
     for row in rows:
         lines.append(f"| {row['neighbours']} | {row['walls']} | {row['median_ms']:.2f} / "
-                     f"{row['p95_ms']:.2f} | {row['profiled_ms']:.2f} | {row['calls']:.0f} | "
+                     f"{row['p95_ms']:.2f} | {row['compiled_ms']:.2f} | "
+                     f"{row['profiled_ms']:.2f} | {row['calls']:.0f} | "
                      f"{row['numpy_calls']:.0f} | {row['core_calls']:.0f} | "
                      f"{row['core_self_ms']:.2f} ({row['core_self_ms'] / row['profiled_ms']:.0%})"
                      ' |')
