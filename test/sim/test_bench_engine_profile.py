@@ -45,6 +45,7 @@ def test_each_phase_counts_what_the_step_calls_and_the_rest_is_other():
     assert times['own_odometry_ms'] == pytest.approx(250.0)
     assert times['announcements_ms'] == pytest.approx(100.0)
     assert times['messages_ms'] == 0.0
+    assert times['kernels_ms'] == 0.0
     assert times['other_ms'] == pytest.approx(5000.0 - 2000.0 - 1500.0 - 250.0 - 100.0)
 
 
@@ -58,3 +59,5 @@ def test_a_profiled_run_has_every_phase_within_its_step():
     # rounding of each to the microsecond aside).
     assert sum(phases) <= row['step_ms'] + 1e-3 * len(phases)
     assert row['other_ms'] >= -1e-3 * len(phases)
+    # The compiled kernels run within the plans: the team's, and a request's.
+    assert 0.0 < row['kernels_ms'] <= row['core_ms'] + row['requests_ms'] + 1e-3

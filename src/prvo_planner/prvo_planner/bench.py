@@ -167,8 +167,12 @@ def _is_numpy(key):
             or (filename == '~' and ('numpy' in function or 'ufunc' in function)))
 
 
-def _is_compiled(key):
-    """Whether a pstats key is a compiled kernel of prvo's core (a numba dispatcher)."""
+def compiled_kernel(key):
+    """Whether a pstats key (file, line, function) is a compiled kernel of prvo's core.
+
+    The core's numba dispatchers: cProfile sees each call as one of its Python function, and
+    its self time is the native code's (the engine benchmark's profile counts them too).
+    """
     filename, _, function = key
     if not filename.startswith(CORE_DIRECTORY):
         return False
@@ -205,7 +209,7 @@ def profile_case(ego, neighbours, config, repeats, clock, obstacles):
             'core_calls': sum(value[1] for value in core.values()) / repeats,
             'core_self_ms': 1e3 * sum(value[2] for value in core.values()) / repeats,
             'compiled_ms': 1e3 * sum(value[2] for key, value in core.items()
-                                     if _is_compiled(key)) / repeats,
+                                     if compiled_kernel(key)) / repeats,
             'functions': {_function_name(key): {'calls': value[1] / repeats,
                                                 'self_ms': 1e3 * value[2] / repeats,
                                                 'cumulative_ms': 1e3 * value[3] / repeats}

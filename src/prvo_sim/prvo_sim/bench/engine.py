@@ -53,11 +53,13 @@ circle's (values read as YAML; `--planner eta=0.95 certificate=certified` runs t
 node's defaults).
 
 With `--profile` each team runs under cProfile (CPU time) and a second table says where a
-robot-step goes: the core's team plan (`plan_velocities`), and around it the agents' plan
+robot-step goes: the core's team plan (`plan_velocities`) and, within the plans, the compiled
+kernels' own time (native code the profiler only enters and leaves), and around it the agents' plan
 requests (beliefs, preferences, rules), their completions (commands), their own odometry and
 the neighbours' tracks (Kalman updates), the odometry messages (serialized and decoded as a
 subscriber gets them), the world's step and the announcements and routes; the rest is the
-step's own bookkeeping. Profiled times are 1.3-2x the plain ones: compare within the table.
+step's own bookkeeping. Profiled times are 1.3-2x the plain ones (the kernels' excepted):
+compare within the table.
 
 Exit codes: 0 every team arrived, 1 a team did not, 2 bad input, 130 when interrupted.
 """
@@ -73,6 +75,7 @@ import time
 
 import numpy as np
 
+from prvo_planner.bench import compiled_kernel
 from prvo_sim.bench.team import (
     CIRCLE8_RADIUS,
     GOAL_TOLERANCE,
@@ -250,7 +253,9 @@ def phase_times(stats, robot_steps):
     """
     Return {phase: profiled ms per robot-step} of a team run's `pstats.Stats` STATS.
 
-    Also 'step_ms' (`InProcessTeam.do_step` whole) and 'other_ms' (the step less its phases).
+    Also 'step_ms' (`InProcessTeam.do_step` whole), 'other_ms' (the step less its phases) and
+    'kernels_ms', the self time of the core's compiled kernels (`prvo_planner.bench
+    .compiled_kernel`), wherever the step calls them: the team's plan and a request's.
     """
     def cumulative(wanted):
         return sum(
@@ -264,6 +269,8 @@ def phase_times(stats, robot_steps):
     for key, wanted in PHASES:
         times[key] = cumulative(wanted) * per_step
     times['other_ms'] = times['step_ms'] - sum(times[key] for key, _ in PHASES)
+    times['kernels_ms'] = sum(value[2] for key, value in stats.stats.items()
+                              if compiled_kernel(key)) * per_step
     return {key: round(value, 3) for key, value in times.items()}
 
 
@@ -410,6 +417,7 @@ TEAM_COLUMNS = (('robots', 'robots'), ('radius_m', 'radius m'), ('setup_s', 'set
                 ('peak_rss_mib', 'peak RSS MiB'))
 PHASE_COLUMNS = (('robots', 'robots'), ('robot_steps', 'robot-steps'),
                  ('step_ms', 'step ms'), ('core_ms', 'core plan'),
+                 ('kernels_ms', 'compiled kernels (in plans)'),
                  ('requests_ms', 'plan requests'), ('completions_ms', 'completions'),
                  ('own_odometry_ms', 'own odometry'), ('neighbour_tracks_ms', 'neighbour tracks'),
                  ('messages_ms', 'messages'), ('world_ms', 'world'),
