@@ -18,6 +18,7 @@ from prvo_planner.core.certificate import (
     METHODS,
     SLACK,
     condition_bound,
+    condition_bound_until_short,
     horizon_certificate,
     receding_certificate,
     rvo_certificate,
@@ -464,11 +465,36 @@ def test_batches_give_each_entry_its_own_certificate():
     for index in range(len(cases)):
         single = rvo_certificate(means[index], covs[index], radii[index])
         assert single.probability.shape == ()
-        assert float(single.probability) == pytest.approx(batch.probability.ravel()[index],
-                                                          rel=0.0, abs=1e-12)
+        # Exactly: an entry's bound does not depend on the others in its batch, those with a
+        # cross-covariance left ('typical') and without ('isotropic') alike.
+        assert float(single.probability) == batch.probability.ravel()[index]
     # One covariance and one radius for many means broadcast.
     shared = rvo_certificate(means, covs[0], 0.7)
     assert shared.probability.shape == (len(cases),)
+
+
+@pytest.mark.parametrize('horizon', [2.5, None])
+def test_bounds_until_short_are_the_batch_bounds_up_to_the_first_short_entry(horizon):
+    # The oracle: one call over every entry, its first short entry found by hand.
+    cases = cases_of(97, KINDS, 8)
+    means, covs, radii = stacked(cases)
+    rng = np.random.default_rng(98)
+    gated = rng.random(len(cases)) < 0.7
+    full = condition_bound(means, covs, radii, np.ones(len(cases)), gated, horizon)
+    # Nothing short; short from the middle on (the first of two made short); every one short.
+    middle = len(cases) // 2
+    reachable = 0.5 * full
+    beyond = reachable.copy()
+    beyond[[middle, middle + 3]] = np.minimum(full[[middle, middle + 3]] + 0.01, 1.0)
+    for required, first_short in ((reachable, None), (beyond, middle),
+                                  (np.ones(len(cases)), 0)):
+        expected = condition_bound(means, covs, radii, required, gated, horizon)
+        short = np.flatnonzero(expected < required)
+        assert (short[0] if short.size else None) == first_short
+        bounds, done = condition_bound_until_short(means, covs, radii, required, gated, horizon)
+        assert done == (short[0] + 1 if short.size else len(cases))
+        assert np.array_equal(bounds[:done], expected[:done])
+        assert not bounds[done:].any()
 
 
 @pytest.mark.parametrize('horizon', [2.5, None])

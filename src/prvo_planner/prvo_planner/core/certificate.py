@@ -283,10 +283,8 @@ def condition_bound(mean, cov, radius, required, gated, horizon=None, wedges=DEF
     ``P(g >= 0)``; and where that too falls short and the horizon is finite, the larger with
     :func:`horizon_certificate`'s on the whole condition. Each is a lower bound on the
     condition's probability, so the largest is one. A later bound is computed only for the
-    entries the earlier ones leave short, and on exactly those (an entry's bound depends on the
-    batch it is computed in only by which events are tried, see
-    :func:`~prvo_planner.core.certificate_kernels.condition_bounds`, so the batches are the
-    ones the three functions would be called with).
+    entries the earlier ones leave short (each entry's bound is its own, whatever else is
+    bounded with it).
     The wedges and their masses depend on ``w`` alone: ``f`` and ``g`` share them, and the
     moments of both, Cantelli's floors, come from one compiled call.
 
@@ -313,14 +311,45 @@ def condition_bound(mean, cov, radius, required, gated, horizon=None, wedges=DEF
         The bound, in [0, 1], shape (N,).
 
     """
-    _check_wedges(wedges)
     from .certificate_kernels import condition_bounds
 
-    return condition_bounds(
-        np.ascontiguousarray(mean, dtype=np.float64), np.ascontiguousarray(cov, dtype=np.float64),
-        np.ascontiguousarray(radius, dtype=np.float64),
-        np.ascontiguousarray(required, dtype=np.float64), np.ascontiguousarray(gated, dtype=bool),
-        math.inf if horizon is None else float(horizon), wedges // 2, True)[0]
+    return condition_bounds(*_condition_arguments(mean, cov, radius, required, gated, horizon,
+                                                  wedges), True)[0]
+
+
+def condition_bound_until_short(mean, cov, radius, required, gated, horizon=None,
+                                wedges=DEFAULT_WEDGES):
+    """
+    :func:`condition_bound` of the entries in order, up to the first short of ``required``.
+
+    Whether a velocity is certified against every neighbour is settled by its first neighbour
+    short (``_anchored`` of the planner: its neighbours likeliest short first); an entry's bound
+    does not depend on the others bounded with it, so each computed is :func:`condition_bound`'s.
+    The arguments as :func:`condition_bound`'s.
+
+    Returns
+    -------
+    bounds : numpy.ndarray
+        The bound per entry, shape (N,): the first ``done`` computed, 0 after.
+    done : int
+        How many were bounded: N, or up to and with the first short one.
+
+    """
+    from .certificate_kernels import bounds_until_short
+
+    return bounds_until_short(*_condition_arguments(mean, cov, radius, required, gated, horizon,
+                                                    wedges))
+
+
+def _condition_arguments(mean, cov, radius, required, gated, horizon, wedges):
+    """Check WEDGES; return the compiled condition bound's arguments (contiguous, typed)."""
+    _check_wedges(wedges)
+    return (np.ascontiguousarray(mean, dtype=np.float64),
+            np.ascontiguousarray(cov, dtype=np.float64),
+            np.ascontiguousarray(radius, dtype=np.float64),
+            np.ascontiguousarray(required, dtype=np.float64),
+            np.ascontiguousarray(gated, dtype=bool),
+            math.inf if horizon is None else float(horizon), wedges // 2)
 
 
 def horizon_certificate(mean, cov, radius, horizon):

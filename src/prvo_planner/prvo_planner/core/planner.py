@@ -23,7 +23,12 @@ import math
 import numpy as np
 
 from .beliefs import AgentBelief, as_finite_array
-from .certificate import condition_bound, horizon_search_margin, search_margin
+from .certificate import (
+    condition_bound,
+    condition_bound_until_short,
+    horizon_search_margin,
+    search_margin,
+)
 from .choice import (
     CostTerms,
     cheapest_velocities,
@@ -624,8 +629,6 @@ class _Anchors:
     """
     A robot's anchors, the preferred velocity and the previous command within ``max_speed``.
 
-    The anchors' bounds are filled in when they are certified (:meth:`record`).
-
     Attributes
     ----------
     terms : CostTerms
@@ -636,8 +639,6 @@ class _Anchors:
         Their choice costs, (A,).
     achieved : numpy.ndarray
         The margins they meet per neighbour, (A, n).
-    bounds, certified : numpy.ndarray
-        Once certified, the bound per neighbour and whether it is a Gaussian one, (A, n).
 
     """
 
@@ -645,8 +646,6 @@ class _Anchors:
     velocities: np.ndarray
     costs: np.ndarray
     achieved: np.ndarray
-    bounds: np.ndarray
-    certified: np.ndarray
 
     def eligible(self, velocity, feasible):
         """Return the anchors cheaper than VELOCITY (all if not FEASIBLE), cheapest first."""
@@ -655,13 +654,9 @@ class _Anchors:
             indices = indices[self.costs < self.terms.costs(velocity)]
         return indices[np.argsort(self.costs[indices], kind='stable')]
 
-    def record(self, indices, bounds, certified):
-        """Keep the BOUNDS (k, n) and their kinds CERTIFIED of the anchors INDICES (k,)."""
-        self.bounds[indices], self.certified[indices] = bounds, certified
-
 
 def _anchors(search):
-    """Per robot its :class:`_Anchors`, none certified yet."""
+    """Per robot its :class:`_Anchors`."""
     anchors = []
     terms = search.terms
     for robot, plan in enumerate(search.plans):
@@ -684,43 +679,23 @@ def _anchors(search):
         else:
             costs = np.zeros(0)
         anchors.append(_Anchors(terms=own_terms, velocities=velocities, costs=costs,
-                                achieved=achieved, bounds=np.zeros(shape),
-                                certified=np.zeros(shape, dtype=bool)))
+                                achieved=achieved))
     return anchors
 
 
-def _certify(search, choice, required, robots, anchors=None):
-    """
-    CHOICE with the bounds of the ROBOTS marked certified (:func:`_certified_bounds`).
-
-    With ANCHORS (per robot its :class:`_Anchors`), the anchors :func:`_anchored` may take are
-    certified in the same call as the choice, and recorded: a choice that Cantelli's bound
-    certifies is final, and its anchors are those cheaper than it (all, if it has no feasible
-    velocity); a choice that needs a certificate may be searched again and cost more, and then
-    every anchor is certified, as a few more rows cost little beside the call.
-    """
+def _certify(search, choice, required, robots):
+    """CHOICE with the bounds of the ROBOTS marked certified (:func:`_certified_bounds`)."""
     count = len(search.plans)
     velocities, achieved = [None] * count, [None] * count
-    extra = [np.zeros(0, dtype=int)] * count
     for robot in np.flatnonzero(robots):
         velocities[robot] = choice.velocities[robot][None]
         achieved[robot] = choice.achieved[_pairs(search, robot)][None]
-        if anchors is not None:
-            own, pairs = anchors[robot], _pairs(search, robot)
-            extra[robot] = (np.arange(own.costs.size)
-                            if np.any(choice.bounds[pairs] < required[pairs])
-                            else own.eligible(choice.velocities[robot],
-                                              choice.candidates_feasible[robot]))
-            velocities[robot] = np.concatenate([velocities[robot], own.velocities[extra[robot]]])
-            achieved[robot] = np.concatenate([achieved[robot], own.achieved[extra[robot]]])
     results = _certified_bounds(search, velocities, achieved, required)
     bounds, certified = choice.bounds.copy(), choice.certified.copy()
     for robot in np.flatnonzero(robots):
         robot_bounds, robot_certified = results[robot]
         pairs = _pairs(search, robot)
         bounds[pairs], certified[pairs] = robot_bounds[0], robot_certified[0]
-        if anchors is not None:
-            anchors[robot].record(extra[robot], robot_bounds[1:], robot_certified[1:])
     return replace(choice, bounds=bounds, certified=certified)
 
 
@@ -737,7 +712,7 @@ def _certified_choice(search):
     The f and g conditions are searched with :func:`search_margin` of each neighbour's
     required probability, the horizon pair and the reach condition (where the gate counts, so
     that the horizon certificate applies) with :func:`horizon_search_margin`, and the choice
-    certified, with the anchors that may replace it (:func:`_anchored`).
+    certified; then the anchors that may replace it (:func:`_anchored`).
     A robot whose choice falls short for some neighbours searches again with Cantelli's margins
     on those neighbours' links; after a second shortfall, with Cantelli's margins everywhere.
     A robot without a feasible velocity keeps its fallback: larger margins accept no more.
@@ -754,9 +729,8 @@ def _certified_choice(search):
                              np.array([_search_margins(eta) for eta in etas]),
                              _joined([plan.layout.receding_enabled for plan in plans]),
                              1 + layout.has_receding, layout.has_horizon)
-    anchors = _anchors(search)
     choice = _certify(search, _choose(search, margins), required,
-                      np.ones(len(plans), dtype=bool), anchors)
+                      np.ones(len(plans), dtype=bool))
     retry = (choice.candidates_feasible > 0) & _any_per_robot(search, choice.bounds < required)
     if retry.any():
         short = (choice.bounds < required) & retry[pair_robot]
@@ -768,7 +742,7 @@ def _certified_choice(search):
         if retry.any():
             choice = _merged(choice, _certify(search, _choose(search, cantelli, retry),
                                               required, retry), retry, retry[pair_robot])
-    return _anchored(search, choice, required, anchors)
+    return _anchored(search, choice, required, _anchors(search))
 
 
 def _anchored(search, choice, required, anchors):
@@ -784,11 +758,11 @@ def _anchored(search, choice, required, anchors):
     cannot stand still: the velocities it may take lie outside a disc about half its current
     velocity (the reciprocal relative velocity ``2 v - v_i - v_j``), the cheapest of them lies
     opposite, and its commands flip sign every plan for any inertia below 1. An anchor is taken
-    only if certified for every neighbour (:func:`_certified_bounds`, Cantelli's bound the
-    floor) and cheaper than the search's choice (any certified anchor, if the search found
-    nothing). Robots with limits or static obstacles keep the search's choice: their anchors
-    are not checked against them. The anchors were certified with the first choice
-    (:func:`_certify`).
+    only if certified for every neighbour (:func:`_anchor_bounds`, Cantelli's bound the floor)
+    and cheaper than the search's choice (any certified anchor, if the search found nothing):
+    the cheapest such, tried cheapest first, each until a neighbour falls short. Robots with
+    limits or static obstacles keep the search's choice: their anchors are not checked against
+    them.
     """
     plans = search.plans
     velocities, candidates_feasible = choice.velocities.copy(), choice.candidates_feasible.copy()
@@ -800,14 +774,49 @@ def _anchored(search, choice, required, anchors):
             continue
         pairs = _pairs(search, robot)
         for index in own.eligible(velocities[robot], candidates_feasible[robot]):
-            if np.all(own.bounds[index] >= required[pairs]):
+            anchor_bounds = _anchor_bounds(search, robot, own.velocities[index],
+                                           own.achieved[index], required[pairs])
+            if anchor_bounds is not None:
                 velocities[robot] = own.velocities[index]
                 candidates_feasible[robot] = max(candidates_feasible[robot], 1)
-                achieved[pairs], bounds[pairs], certified[pairs] = (
-                    own.achieved[index], own.bounds[index], own.certified[index])
+                achieved[pairs] = own.achieved[index]
+                bounds[pairs], certified[pairs] = anchor_bounds
                 break
     return _Choice(velocities=velocities, candidates_feasible=candidates_feasible,
                    achieved=achieved, bounds=bounds, certified=certified)
+
+
+def _anchor_bounds(search, robot, velocity, achieved, required):
+    """
+    Return an anchor's bounds per neighbour and their kinds if certified against every one.
+
+    VELOCITY (2,) of ROBOT meets the margins ACHIEVED (n,) against its neighbours, which
+    REQUIRED (n,) each probability. The bounds are :func:`_certified_bounds`' (Cantelli's
+    floor, the certified bound where that falls short), but computed only until a neighbour
+    falls short, those likeliest short first (the lowest floors): an anchor short against one
+    neighbour is not taken, and a crowd's anchors mostly are not. Returns (bounds (n,),
+    certified (n,)), or None for an anchor that is not certified.
+    """
+    from .certificate_kernels import short_entries
+
+    plan = search.plans[robot]
+    encounter = plan.encounter
+    floors, short, *entries = short_entries(
+        encounter.origin, encounter.lead, plan.cov, plan.radius, velocity[None],
+        achieved[None], required, plan.layout.receding_enabled)
+    floors = floors[0]
+    certified = np.zeros(floors.shape, dtype=bool)
+    if short.size:
+        order = np.argsort(floors[short], kind='stable')
+        gaussian, done = condition_bound_until_short(
+            *(entry[order] for entry in entries),
+            plan.config.time_horizon if plan.layout.has_horizon else None)
+        if done < short.size or gaussian[done - 1] < required[short[order[done - 1]]]:
+            return None
+        short = short[order]
+        certified[short] = gaussian > floors[short]
+        floors[short] = np.maximum(gaussian, floors[short])
+    return floors, certified
 
 
 def _any_per_robot(search, flags):
