@@ -590,10 +590,10 @@ def _certified_bounds(search, velocities, achieved, required):
     (:func:`.certificate.condition_bound`: ``P(f >= 0)``, where that too falls short and the
     gate counts ``P(g >= 0)``, then with a finite horizon the whole condition): a neighbour
     Cantelli already certifies costs nothing (most of a crowd's are far). The larger of the two
-    bounds is kept; it is certified where it is the Gaussian one. A robot's velocities are
-    certified in one call, as a certificate's cost is mostly per call (the floors and the short
-    entries compiled: :func:`.certificate_kernels.short_entries`); the calls are per robot, so
-    that a robot's plan does not depend on its companions.
+    bounds is kept; it is certified where it is the Gaussian one. A robot's short entries are
+    certified in one call (the floors and the short entries compiled:
+    :func:`.certificate_kernels.short_entries`); each entry's bound is its own, so a robot's
+    plan does not depend on its companions.
 
     Returns
     -------
